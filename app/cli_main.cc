@@ -1,0 +1,92 @@
+// saker-cli: the headless client of the Saker engine. Everything the GUI can
+// do is reachable from here; this issue brings `probe` and `klv`.
+
+#include <CLI/CLI.hpp>
+#include <iostream>
+#include <string>
+
+#include "core/ingest/report.h"
+#include "core/ingest/video_scan.h"
+#include "core/util/check.h"
+
+namespace {
+
+constexpr const char* kVersion = SAKER_VERSION;
+
+// Exit codes, documented in --help.
+constexpr int kExitOk = 0;
+constexpr int kExitInputError = 1;  // the file could not be read as a video
+constexpr int kExitBug = 3;         // an internal check failed
+
+int RunScan(const std::string& file, bool json, bool dump_klv, double tolerance_s) {
+  saker::ingest::ScanOptions options;
+  options.alignment.async_tolerance_s = tolerance_s;
+  auto scan = saker::ingest::ScanVideo(file, options);
+  if (!scan.ok()) {
+    std::cerr << "saker-cli: " << scan.status().message() << "\n";
+    return kExitInputError;
+  }
+  if (dump_klv) {
+    if (json) {
+      std::cout << saker::ingest::KlvDumpToJson(*scan).dump(2) << "\n";
+    } else {
+      std::cout << saker::ingest::KlvDumpToText(*scan);
+    }
+  } else if (json) {
+    std::cout << saker::ingest::ProbeToJson(*scan).dump(2) << "\n";
+  } else {
+    std::cout << saker::ingest::ProbeToText(*scan);
+  }
+  return kExitOk;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{
+      "saker-cli: headless Saker, the analyst workstation for airborne video.\n"
+      "Reads MPEG-TS / MPG / MP4 video (H.264, H.265, MPEG-2) with STANAG 4609 KLV metadata\n"
+      "(MISB ST 0601 local set, MISB EG 0104 universal set).\n\n"
+      "Exit codes: 0 success, 1 the input could not be read (message on stderr),\n"
+      "2 bad command line, 3 internal error (please report it)."};
+  app.set_version_flag("--version", std::string("saker-cli ") + kVersion);
+  app.require_subcommand(1);
+
+  std::string file;
+  bool json = false;
+  double tolerance_s = 0.5;
+
+  auto* probe = app.add_subcommand(
+      "probe",
+      "Summarise a video: container, streams, resolution, fps, frame count, KLV streams with\n"
+      "packet counts and checksum failures, frames with corner metadata, UTC time span.");
+  probe->add_option("FILE", file, "Video file or stream URL")->required();
+  probe->add_flag("--json", json, "Print the summary as JSON");
+  probe->add_option("--async-tolerance", tolerance_s,
+                    "Seconds within which an asynchronous KLV packet is tied to a frame")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 60.0));
+
+  auto* klv = app.add_subcommand(
+      "klv",
+      "Dump every KLV packet: stream, time, the frames it is tied to, every decoded tag with\n"
+      "its raw bytes. Tags Saker does not interpret (nested sets such as security and VMTI)\n"
+      "are listed raw.");
+  klv->add_option("FILE", file, "Video file or stream URL")->required();
+  klv->add_flag("--json", json, "Print the packets as JSON");
+  klv->add_option("--async-tolerance", tolerance_s,
+                  "Seconds within which an asynchronous KLV packet is tied to a frame")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 60.0));
+
+  CLI11_PARSE(app, argc, argv);
+
+  try {
+    if (probe->parsed()) return RunScan(file, json, /*dump_klv=*/false, tolerance_s);
+    if (klv->parsed()) return RunScan(file, json, /*dump_klv=*/true, tolerance_s);
+  } catch (const saker::CheckError& e) {
+    std::cerr << "saker-cli: internal error, please report it: " << e.what() << "\n";
+    return kExitBug;
+  }
+  return kExitOk;
+}

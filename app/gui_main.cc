@@ -1,0 +1,26 @@
+// saker: the analyst workstation GUI. A thin main(): all behaviour lives in ui/.
+
+#include <QApplication>
+#include <QCommandLineParser>
+
+#include "ui/main_window.h"
+
+int main(int argc, char** argv) {
+  QApplication app(argc, argv);
+  QApplication::setApplicationName("Saker");
+  QApplication::setOrganizationName("Saker");
+  QApplication::setApplicationVersion(SAKER_VERSION);
+
+  QCommandLineParser parser;
+  parser.setApplicationDescription(
+      "Saker: analyst workstation for airborne video with STANAG 4609 metadata.");
+  parser.addHelpOption();
+  parser.addVersionOption();
+  parser.addPositionalArgument("video", "Video file to open (MPEG-TS, MPG, MP4).", "[video]");
+  parser.process(app);
+
+  saker::ui::MainWindow window;
+  window.show();
+  if (!parser.positionalArguments().isEmpty()) window.openVideo(parser.positionalArguments().front());
+  return app.exec();
+}

@@ -1,0 +1,196 @@
+#include "core/ingest/video_scan.h"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <sstream>
+
+namespace saker::ingest {
+
+Status ScanOptions::Validate() const {
+  SAKER_RETURN_IF_ERROR(reader.Validate());
+  return alignment.Validate();
+}
+
+const klv::FrameMetadata* VideoScan::MetadataOf(size_t frame) const {
+  if (frame >= frames.size()) return nullptr;
+  const auto& match = frames[frame].metadata;
+  if (!match.packet || *match.packet >= packets.size()) return nullptr;
+  const auto& metadata = packets[*match.packet].decoded.metadata;
+  return metadata ? &*metadata : nullptr;
+}
+
+int64_t VideoScan::FramesWithMetadata() const {
+  int64_t n = 0;
+  for (size_t i = 0; i < frames.size(); ++i) n += MetadataOf(i) != nullptr;
+  return n;
+}
+
+int64_t VideoScan::FramesWithCorners() const {
+  int64_t n = 0;
+  for (size_t i = 0; i < frames.size(); ++i) {
+    const auto* m = MetadataOf(i);
+    n += m != nullptr && m->HasCorners();
+  }
+  return n;
+}
+
+std::optional<uint64_t> VideoScan::FirstUtcMicros() const {
+  std::optional<uint64_t> first;
+  for (const auto& p : packets) {
+    if (p.decoded.metadata && p.decoded.metadata->unix_time_us) {
+      const uint64_t t = *p.decoded.metadata->unix_time_us;
+      if (!first || t < *first) first = t;
+    }
+  }
+  return first;
+}
+
+std::optional<uint64_t> VideoScan::LastUtcMicros() const {
+  std::optional<uint64_t> last;
+  for (const auto& p : packets) {
+    if (p.decoded.metadata && p.decoded.metadata->unix_time_us) {
+      const uint64_t t = *p.decoded.metadata->unix_time_us;
+      if (!last || t > *last) last = t;
+    }
+  }
+  return last;
+}
+
+namespace {
+
+// Warnings repeat per packet on bad streams; keep the list readable.
+constexpr size_t kMaxWarnings = 50;
+
+void AddWarning(VideoScan* scan, int64_t* suppressed, std::string text) {
+  if (scan->warnings.size() < kMaxWarnings) {
+    scan->warnings.push_back(std::move(text));
+  } else {
+    ++*suppressed;
+  }
+}
+
+void DecodeDataPacket(const video::DataPacket& data, KlvStreamSummary* summary, VideoScan* scan,
+                      int64_t* suppressed) {
+  ++summary->demuxed_packets;
+  const klv::KlvSplitResult split = klv::SplitKlvPackets(data.bytes);
+  if (!split.errors.empty()) {
+    summary->framing_errors += static_cast<int64_t>(split.errors.size());
+    std::ostringstream m;
+    m << "KLV stream " << data.stream_index << " at " << data.time_s
+      << " s: " << split.errors.front();
+    AddWarning(scan, suppressed, m.str());
+  }
+  for (const auto& packet : split.packets) {
+    MetadataPacket received;
+    received.stream_index = data.stream_index;
+    received.time_s = data.time_s;
+    received.decoded = klv::DecodePacket(packet);
+    ++summary->klv_packets;
+    const auto& decoded = received.decoded;
+    switch (decoded.kind) {
+      case klv::PacketKind::kSt0601: ++summary->st0601_packets; break;
+      case klv::PacketKind::kEg0104: ++summary->eg0104_packets; break;
+      default: ++summary->other_packets; break;
+    }
+    if (!decoded.status.ok()) {
+      ++summary->decode_errors;
+      std::ostringstream m;
+      m << "KLV stream " << data.stream_index << " at " << data.time_s
+        << " s: " << decoded.status.message();
+      AddWarning(scan, suppressed, m.str());
+    }
+    if (decoded.st0601 && !decoded.st0601->checksum_ok) ++summary->checksum_failures;
+    scan->packets.push_back(std::move(received));
+  }
+}
+
+}  // namespace
+
+StatusOr<VideoScan> ScanVideo(const std::string& path, const ScanOptions& options,
+                              JobContext* context, const FrameCallback& on_frame) {
+  SAKER_RETURN_IF_ERROR(options.Validate());
+  auto opened = video::VideoReader::Open(path, options.reader);
+  if (!opened.ok()) return opened.status();
+  video::VideoReader& reader = **opened;
+
+  VideoScan scan;
+  scan.info = reader.info();
+  std::map<int, KlvStreamSummary> summaries;
+  std::vector<StreamTiming> declared;
+  for (const auto& stream : scan.info.streams) {
+    if (stream.kind != video::StreamKind::kKlv) continue;
+    KlvStreamSummary s;
+    s.stream_index = stream.index;
+    s.pid = stream.pid;
+    summaries[stream.index] = s;
+    declared.push_back({stream.index, stream.klv_synchronous});
+  }
+
+  int64_t suppressed = 0;
+  const int64_t expected_frames = scan.info.declared_frame_count > 0
+                                      ? scan.info.declared_frame_count
+                                      : static_cast<int64_t>(scan.info.duration_s * scan.info.fps);
+  video::Frame frame;
+  std::vector<video::DataPacket> data;
+  for (;;) {
+    if (context != nullptr && context->IsCancelled()) {
+      return CancelledError("scan of " + path + " cancelled after " +
+                            std::to_string(scan.frames.size()) + " frames");
+    }
+    data.clear();
+    auto more = reader.ReadNext(&frame, &data);
+    if (!more.ok()) return more.status();
+    for (const auto& d : data) {
+      auto it = summaries.find(d.stream_index);
+      if (it == summaries.end()) continue;  // a data stream that is not KLV
+      DecodeDataPacket(d, &it->second, &scan, &suppressed);
+    }
+    if (!*more) break;
+    FrameRecord record;
+    record.index = frame.index;
+    record.time_s = frame.time_s;
+    record.key_frame = frame.key_frame;
+    scan.frames.push_back(record);
+    if (on_frame) on_frame(frame);
+    if (context != nullptr && expected_frames > 0 && scan.frames.size() % 32 == 0) {
+      context->ReportProgress("scan", std::min(1.0, static_cast<double>(scan.frames.size()) /
+                                                        static_cast<double>(expected_frames)));
+    }
+  }
+  scan.stats = reader.stats();
+
+  // Align frames with metadata now that every packet is known.
+  std::vector<double> frame_times;
+  frame_times.reserve(scan.frames.size());
+  for (const auto& f : scan.frames) frame_times.push_back(f.time_s);
+  std::vector<AlignablePacket> alignable;
+  alignable.reserve(scan.packets.size());
+  for (const auto& p : scan.packets) {
+    const auto& m = p.decoded.metadata;
+    alignable.push_back({p.stream_index, p.time_s, m && m->HasCorners(), m.has_value()});
+  }
+  const auto timing = ClassifyStreams(frame_times, alignable, declared, options.alignment);
+  for (const auto& t : timing) {
+    if (auto it = summaries.find(t.stream_index); it != summaries.end()) {
+      it->second.synchronous = t.synchronous;
+    }
+  }
+  const auto matches = AlignFrames(frame_times, alignable, timing, options.alignment);
+  for (size_t i = 0; i < matches.size(); ++i) scan.frames[i].metadata = matches[i];
+
+  for (auto& [index, summary] : summaries) scan.klv_streams.push_back(summary);
+  if (scan.stats.corrupt_packets > 0 || scan.stats.decode_errors > 0) {
+    std::ostringstream m;
+    m << path << ": skipped " << scan.stats.corrupt_packets << " corrupt packets and "
+      << scan.stats.decode_errors << " undecodable frames";
+    scan.warnings.insert(scan.warnings.begin(), m.str());
+  }
+  if (suppressed > 0) {
+    scan.warnings.push_back("... and " + std::to_string(suppressed) + " more warnings");
+  }
+  if (context != nullptr) context->ReportProgress("scan", 1.0);
+  return scan;
+}
+
+}  // namespace saker::ingest

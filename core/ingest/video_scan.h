@@ -1,0 +1,95 @@
+#pragma once
+
+// One pass over a video: every frame decoded in order, every KLV packet of
+// every data stream decoded as it is demuxed (no second read of the file),
+// and each frame tied to its metadata. This is what `saker-cli probe` and
+// `saker-cli klv` report, and what the processing pipeline builds on.
+
+#include <cstdint>
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/ingest/metadata_alignment.h"
+#include "core/klv/decode.h"
+#include "core/util/job_context.h"
+#include "core/util/status.h"
+#include "core/video/video_reader.h"
+
+namespace saker::ingest {
+
+struct ScanOptions {
+  // Decoding options; by default no pixel conversion is done, since a scan
+  // only needs timing. Set want_bgr / want_grey to receive images in
+  // `on_frame`.
+  video::ReaderOptions reader = [] {
+    video::ReaderOptions r;
+    r.want_bgr = false;
+    r.want_grey = false;
+    return r;
+  }();
+  AlignmentOptions alignment;  // how frames are tied to metadata
+
+  Status Validate() const;
+};
+
+// A KLV packet as received: which stream, when, and its decode.
+struct MetadataPacket {
+  int stream_index = -1;
+  double time_s = 0;  // NaN when the container gave no timestamp
+  klv::DecodedPacket decoded;
+};
+
+// What we know about one frame after the scan.
+struct FrameRecord {
+  video::FrameIndex index = 0;
+  double time_s = 0;
+  bool key_frame = false;
+  FrameMatch metadata;  // metadata.packet indexes VideoScan::packets
+};
+
+// Per-KLV-stream counts, for the probe summary.
+struct KlvStreamSummary {
+  int stream_index = -1;
+  int pid = -1;
+  bool synchronous = false;        // matched by timestamp (see metadata_alignment.h)
+  int64_t demuxed_packets = 0;     // container packets of this stream
+  int64_t klv_packets = 0;         // KLV packets found in them
+  int64_t st0601_packets = 0;
+  int64_t eg0104_packets = 0;
+  int64_t other_packets = 0;       // other or unknown universal keys (e.g. ST 0903 alone)
+  int64_t checksum_failures = 0;   // ST 0601 packets whose BCC-16 did not verify
+  int64_t decode_errors = 0;       // packets that could not be decoded at all
+  int64_t framing_errors = 0;      // bytes that were not valid KLV framing
+};
+
+struct VideoScan {
+  video::VideoInfo info;
+  std::vector<FrameRecord> frames;
+  std::vector<MetadataPacket> packets;  // in demux order
+  std::vector<KlvStreamSummary> klv_streams;
+  video::ReadStats stats;
+  std::vector<std::string> warnings;  // human-readable, each names the problem
+
+  // The metadata of frame `index`, or nullptr when it has none.
+  const klv::FrameMetadata* MetadataOf(size_t frame) const;
+  int64_t FramesWithMetadata() const;
+  int64_t FramesWithCorners() const;
+  // First and last metadata UTC time stamps, when any packet had one.
+  std::optional<uint64_t> FirstUtcMicros() const;
+  std::optional<uint64_t> LastUtcMicros() const;
+};
+
+// Called for every decoded frame during the scan (before alignment, which
+// needs the whole stream for asynchronous metadata).
+using FrameCallback = std::function<void(const video::Frame& frame)>;
+
+// Scans `path` once. Fails only when the file cannot be opened as a video;
+// corrupt packets and undecodable metadata are counted and listed in
+// warnings. Cancelling through `context` returns a Cancelled status.
+StatusOr<VideoScan> ScanVideo(const std::string& path, const ScanOptions& options,
+                              JobContext* context = nullptr,
+                              const FrameCallback& on_frame = nullptr);
+
+}  // namespace saker::ingest

@@ -1,0 +1,47 @@
+#include "tests/testing/test_data.h"
+
+#include <cstdlib>
+#include <fstream>
+#include <iterator>
+#include <random>
+
+namespace saker::testing {
+
+std::optional<std::filesystem::path> TestDataDir() {
+  namespace fs = std::filesystem;
+  if (const char* env = std::getenv("SAKER_TEST_DATA"); env != nullptr && *env != '\0') {
+    if (fs::is_directory(env)) return fs::path(env);
+    return std::nullopt;
+  }
+  const fs::path fallback = SAKER_DEFAULT_TEST_DATA_DIR;
+  if (fs::is_directory(fallback)) return fallback;
+  return std::nullopt;
+}
+
+std::optional<std::filesystem::path> FindTestData(const std::string& relative) {
+  auto dir = TestDataDir();
+  if (!dir) return std::nullopt;
+  auto path = *dir / relative;
+  if (!std::filesystem::is_regular_file(path)) return std::nullopt;
+  return path;
+}
+
+std::vector<unsigned char> ReadFileBytes(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  EXPECT_TRUE(in.good()) << "cannot read " << path;
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+std::filesystem::path MakeTempDir(const std::string& prefix) {
+  namespace fs = std::filesystem;
+  std::random_device rd;
+  for (int attempt = 0; attempt < 100; ++attempt) {
+    auto dir = fs::temp_directory_path() / (prefix + "-" + std::to_string(rd()));
+    std::error_code ec;
+    if (fs::create_directory(dir, ec)) return dir;
+  }
+  ADD_FAILURE() << "cannot create a temp directory for " << prefix;
+  return fs::temp_directory_path();
+}
+
+}  // namespace saker::testing
