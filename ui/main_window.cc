@@ -2,11 +2,13 @@
 
 #include <QApplication>
 #include <QCloseEvent>
+#include <QResizeEvent>
 #include <QDragEnterEvent>
 #include <QDropEvent>
 #include <QFileDialog>
 #include <QFileInfo>
 #include <QFontDatabase>
+#include <QIcon>
 #include <QImage>
 #include <QLabel>
 #include <QMenuBar>
@@ -26,6 +28,9 @@
 #include "core/ingest/video_scan.h"
 #include "core/util/job_context.h"
 
+// Resources compiled into a static library must be registered explicitly.
+static void InitSakerResources() { Q_INIT_RESOURCE(saker); }
+
 namespace saker::ui {
 
 namespace {
@@ -43,7 +48,9 @@ QImage ImageFromBgr(const cv::Mat& bgr) {
 }  // namespace
 
 MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
+  InitSakerResources();
   setWindowTitle(tr("Saker"));
+  setWindowIcon(QIcon(":/saker/icons/saker.svg"));
   setAcceptDrops(true);
   resize(1100, 650);
 
@@ -56,13 +63,14 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   summary_ = new QPlainTextEdit(this);
   summary_->setReadOnly(true);
   summary_->setFont(QFontDatabase::systemFont(QFontDatabase::FixedFont));
-  summary_->setLineWrapMode(QPlainTextEdit::NoWrap);
+  summary_->setLineWrapMode(QPlainTextEdit::WidgetWidth);
 
   auto* splitter = new QSplitter(this);
   splitter->addWidget(frame_view_);
   splitter->addWidget(summary_);
   splitter->setStretchFactor(0, 3);
   splitter->setStretchFactor(1, 2);
+  splitter->setSizes({640, 460});
   setCentralWidget(splitter);
 
   progress_ = new QProgressBar(this);
@@ -109,6 +117,7 @@ void MainWindow::openVideo(const QString& path) {
   setWindowTitle(tr("%1 — Saker").arg(QFileInfo(path).fileName()));
   statusBar()->showMessage(tr("Reading %1…").arg(path));
   summary_->clear();
+  first_frame_ = QImage();
   frame_view_->setPixmap({});
   frame_view_->setText(tr("Reading…"));
   progress_->setValue(0);
@@ -158,9 +167,9 @@ void MainWindow::openVideo(const QString& path) {
             return;
           }
           self->summary_->setPlainText(text);
+          self->first_frame_ = image;
           if (!image.isNull()) {
-            self->frame_view_->setPixmap(QPixmap::fromImage(image).scaled(
-                self->frame_view_->size(), Qt::KeepAspectRatio, Qt::SmoothTransformation));
+            self->showFirstFrame();
           } else {
             self->frame_view_->setText(tr("No frame could be decoded."));
           }
@@ -169,6 +178,18 @@ void MainWindow::openVideo(const QString& path) {
         },
         Qt::QueuedConnection);
   });
+}
+
+void MainWindow::showFirstFrame() {
+  if (first_frame_.isNull()) return;
+  frame_view_->setPixmap(QPixmap::fromImage(first_frame_)
+                             .scaled(frame_view_->size(), Qt::KeepAspectRatio,
+                                     Qt::SmoothTransformation));
+}
+
+void MainWindow::resizeEvent(QResizeEvent* event) {
+  QMainWindow::resizeEvent(event);
+  showFirstFrame();
 }
 
 QString MainWindow::summaryText() const { return summary_->toPlainText(); }

@@ -4,6 +4,7 @@
 // worker thread (the GUI never waits for it) and shows the first frame with
 // the probe summary: streams, KLV metadata, frames with image corners.
 
+#include <QImage>
 #include <QMainWindow>
 #include <QString>
 #include <memory>
@@ -41,6 +42,7 @@ class MainWindow : public QMainWindow {
   void dragEnterEvent(QDragEnterEvent* event) override;
   void dropEvent(QDropEvent* event) override;
   void closeEvent(QCloseEvent* event) override;
+  void resizeEvent(QResizeEvent* event) override;
 
  private:
   void createMenus();
@@ -48,11 +50,13 @@ class MainWindow : public QMainWindow {
   void cancelScan();
   void showAbout();
   void setBusy(bool busy);
+  void showFirstFrame();  // scaled to the view, kept in proportion
 
   QLabel* frame_view_ = nullptr;
   QPlainTextEdit* summary_ = nullptr;
   QProgressBar* progress_ = nullptr;
   QPushButton* cancel_button_ = nullptr;
+  QImage first_frame_;  // full resolution, rescaled on resize
   // The running scan's context; shared with the worker so cancel is safe
   // whichever side finishes first.
   std::shared_ptr<JobContext> job_;
