@@ -1,13 +1,15 @@
 // saker-cli: the headless client of the Saker engine. Everything the GUI can
 // do is reachable from here; this issue brings `probe` and `klv`.
 
-#include <CLI/CLI.hpp>
-#include <iostream>
-#include <string>
-
 #include "core/ingest/report.h"
 #include "core/ingest/video_scan.h"
 #include "core/util/check.h"
+#include "core/video/video_reader.h"
+
+#include <CLI/CLI.hpp>
+
+#include <iostream>
+#include <string>
 
 namespace {
 
@@ -54,6 +56,8 @@ int main(int argc, char** argv) {
 
   std::string file;
   bool json = false;
+  bool verbose = false;
+  app.add_flag("-v,--verbose", verbose, "Also show FFmpeg's own decoder warnings on stderr");
   double tolerance_s = 0.5;
 
   auto* probe = app.add_subcommand(
@@ -62,8 +66,9 @@ int main(int argc, char** argv) {
       "packet counts and checksum failures, frames with corner metadata, UTC time span.");
   probe->add_option("FILE", file, "Video file or stream URL")->required();
   probe->add_flag("--json", json, "Print the summary as JSON");
-  probe->add_option("--async-tolerance", tolerance_s,
-                    "Seconds within which an asynchronous KLV packet is tied to a frame")
+  probe
+      ->add_option("--async-tolerance", tolerance_s,
+                   "Seconds within which an asynchronous KLV packet is tied to a frame")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 60.0));
 
@@ -80,6 +85,7 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0.0, 60.0));
 
   CLI11_PARSE(app, argc, argv);
+  saker::video::SetFfmpegLogVerbose(verbose);
 
   try {
     if (probe->parsed()) return RunScan(file, json, /*dump_klv=*/false, tolerance_s);

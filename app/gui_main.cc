@@ -1,9 +1,10 @@
 // saker: the analyst workstation GUI. A thin main(): all behaviour lives in ui/.
 
+#include "core/video/video_reader.h"
+#include "ui/main_window.h"
+
 #include <QApplication>
 #include <QCommandLineParser>
-
-#include "ui/main_window.h"
 
 int main(int argc, char** argv) {
   QApplication app(argc, argv);
@@ -19,8 +20,11 @@ int main(int argc, char** argv) {
   parser.addPositionalArgument("video", "Video file to open (MPEG-TS, MPG, MP4).", "[video]");
   parser.process(app);
 
+  // Damage is reported in the window; FFmpeg's own stderr chatter is noise here.
+  saker::video::SetFfmpegLogVerbose(false);
   saker::ui::MainWindow window;
   window.show();
-  if (!parser.positionalArguments().isEmpty()) window.openVideo(parser.positionalArguments().front());
+  if (!parser.positionalArguments().isEmpty())
+    window.openVideo(parser.positionalArguments().front());
   return app.exec();
 }

@@ -1,8 +1,13 @@
 #include "ui/main_window.h"
 
+#include "core/ingest/report.h"
+#include "core/ingest/video_scan.h"
+#include "core/util/job_context.h"
+
+#include <opencv2/imgproc.hpp>
+
 #include <QApplication>
 #include <QCloseEvent>
-#include <QResizeEvent>
 #include <QDragEnterEvent>
 #include <QDropEvent>
 #include <QFileDialog>
@@ -19,14 +24,10 @@
 #include <QPointer>
 #include <QProgressBar>
 #include <QPushButton>
+#include <QResizeEvent>
 #include <QSplitter>
 #include <QStatusBar>
 #include <QThreadPool>
-#include <opencv2/imgproc.hpp>
-
-#include "core/ingest/report.h"
-#include "core/ingest/video_scan.h"
-#include "core/util/job_context.h"
 
 // Resources compiled into a static library must be registered explicitly.
 static void InitSakerResources() { Q_INIT_RESOURCE(saker); }
@@ -182,9 +183,9 @@ void MainWindow::openVideo(const QString& path) {
 
 void MainWindow::showFirstFrame() {
   if (first_frame_.isNull()) return;
-  frame_view_->setPixmap(QPixmap::fromImage(first_frame_)
-                             .scaled(frame_view_->size(), Qt::KeepAspectRatio,
-                                     Qt::SmoothTransformation));
+  frame_view_->setPixmap(
+      QPixmap::fromImage(first_frame_)
+          .scaled(frame_view_->size(), Qt::KeepAspectRatio, Qt::SmoothTransformation));
 }
 
 void MainWindow::resizeEvent(QResizeEvent* event) {

@@ -1,6 +1,7 @@
 #include "core/geo/local_tangent_plane.h"
 
 #include <GeographicLib/LocalCartesian.hpp>
+
 #include <cmath>
 #include <sstream>
 

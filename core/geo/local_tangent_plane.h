@@ -5,11 +5,12 @@
 // A thin wrapper over GeographicLib::LocalCartesian; no geodesy is written
 // here by hand.
 
+#include "core/util/status.h"
+
 #include <Eigen/Core>
+
 #include <array>
 #include <memory>
-
-#include "core/util/status.h"
 
 namespace saker::geo {
 

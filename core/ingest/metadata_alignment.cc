@@ -23,9 +23,12 @@ Status AlignmentOptions::Validate() const {
 
 const char* MatchKindName(MatchKind kind) {
   switch (kind) {
-    case MatchKind::kNone: return "none";
-    case MatchKind::kSynchronous: return "synchronous";
-    case MatchKind::kNearest: return "nearest";
+    case MatchKind::kNone:
+      return "none";
+    case MatchKind::kSynchronous:
+      return "synchronous";
+    case MatchKind::kNearest:
+      return "nearest";
   }
   return "unknown";
 }
@@ -123,9 +126,8 @@ std::vector<FrameMatch> AlignFrames(const std::vector<double>& frame_times,
       }
       if (candidate == nullptr || candidate_distance > tolerance) continue;
       const bool corners = packets[candidate->packet].has_corners;
-      const bool better =
-          best.kind == MatchKind::kNone || (corners && !best_corners) ||
-          (corners == best_corners && candidate_distance < std::abs(best.offset_s));
+      const bool better = best.kind == MatchKind::kNone || (corners && !best_corners) ||
+                          (corners == best_corners && candidate_distance < std::abs(best.offset_s));
       if (better) {
         best.kind = sync ? MatchKind::kSynchronous : MatchKind::kNearest;
         best.packet = candidate->packet;

@@ -9,11 +9,11 @@
 // within a tolerance. A frame with no packet in range has no metadata and
 // says so; it is not an error.
 
+#include "core/util/status.h"
+
 #include <optional>
 #include <string>
 #include <vector>
-
-#include "core/util/status.h"
 
 namespace saker::ingest {
 
@@ -41,9 +41,9 @@ const char* MatchKindName(MatchKind kind);
 // One timestamped metadata packet as the aligner sees it.
 struct AlignablePacket {
   int stream_index = -1;
-  double time_s = 0;           // NaN when the packet had no timestamp (never matched)
-  bool has_corners = false;    // preferred when several streams offer a packet
-  bool usable = true;          // false for packets that failed to decode
+  double time_s = 0;         // NaN when the packet had no timestamp (never matched)
+  bool has_corners = false;  // preferred when several streams offer a packet
+  bool usable = true;        // false for packets that failed to decode
 };
 
 struct FrameMatch {

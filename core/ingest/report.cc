@@ -12,21 +12,30 @@ namespace {
 
 const char* StreamKindName(video::StreamKind kind) {
   switch (kind) {
-    case video::StreamKind::kVideo: return "video";
-    case video::StreamKind::kAudio: return "audio";
-    case video::StreamKind::kKlv: return "klv";
-    case video::StreamKind::kOtherData: return "data";
-    case video::StreamKind::kOther: return "other";
+    case video::StreamKind::kVideo:
+      return "video";
+    case video::StreamKind::kAudio:
+      return "audio";
+    case video::StreamKind::kKlv:
+      return "klv";
+    case video::StreamKind::kOtherData:
+      return "data";
+    case video::StreamKind::kOther:
+      return "other";
   }
   return "other";
 }
 
 const char* PacketKindName(klv::PacketKind kind) {
   switch (kind) {
-    case klv::PacketKind::kSt0601: return "ST 0601";
-    case klv::PacketKind::kEg0104: return "EG 0104";
-    case klv::PacketKind::kSt0903: return "ST 0903";
-    case klv::PacketKind::kUnknown: return "unknown";
+    case klv::PacketKind::kSt0601:
+      return "ST 0601";
+    case klv::PacketKind::kEg0104:
+      return "EG 0104";
+    case klv::PacketKind::kSt0903:
+      return "ST 0903";
+    case klv::PacketKind::kUnknown:
+      return "unknown";
   }
   return "unknown";
 }
@@ -76,10 +85,10 @@ nlohmann::json ProbeToJson(const VideoScan& scan) {
     streams.push_back(js);
   }
   j["streams"] = streams;
-  j["video"] = {{"stream", info.video_stream},   {"codec", info.video_codec},
-                {"width", info.width},           {"height", info.height},
-                {"fps", info.fps},               {"frames", scan.frames.size()},
-                {"duration_s", info.duration_s}};
+  j["video"] = {
+      {"stream", info.video_stream},  {"codec", info.video_codec}, {"width", info.width},
+      {"height", info.height},        {"fps", info.fps},           {"frames", scan.frames.size()},
+      {"duration_s", info.duration_s}};
   if (!scan.frames.empty()) {
     j["video"]["first_frame_s"] = scan.frames.front().time_s;
     j["video"]["last_frame_s"] = scan.frames.back().time_s;
@@ -177,6 +186,7 @@ nlohmann::json KlvDumpToJson(const VideoScan& scan) {
     json j = klv::ToJson(p.decoded);
     j["stream"] = p.stream_index;
     j["time_s"] = OptionalTime(p.time_s);
+    j["time_inferred"] = p.time_inferred;
     auto it = frames_by_packet.find(i);
     j["frames"] = it == frames_by_packet.end() ? json::array() : json(it->second);
     packets.push_back(std::move(j));
@@ -189,7 +199,8 @@ std::string KlvDumpToText(const VideoScan& scan) {
   std::ostringstream s;
   for (size_t i = 0; i < scan.packets.size(); ++i) {
     const auto& p = scan.packets[i];
-    s << "packet " << i << ": stream " << p.stream_index << ", t = " << p.time_s << " s, "
+    s << "packet " << i << ": stream " << p.stream_index << ", t = " << p.time_s << " s"
+      << (p.time_inferred ? " (from its place in the stream)" : "") << ", "
       << PacketKindName(p.decoded.kind);
     if (auto it = frames_by_packet.find(i); it != frames_by_packet.end()) {
       s << ", frames " << it->second.front();

@@ -3,10 +3,11 @@
 // Human-readable and JSON summaries of a VideoScan, shared by
 // `saker-cli probe`, `saker-cli klv` and (later) the GUI's file info panel.
 
-#include <nlohmann/json.hpp>
-#include <string>
-
 #include "core/ingest/video_scan.h"
+
+#include <nlohmann/json.hpp>
+
+#include <string>
 
 namespace saker::ingest {
 

@@ -85,13 +85,20 @@ void DecodeDataPacket(const video::DataPacket& data, KlvStreamSummary* summary, 
     MetadataPacket received;
     received.stream_index = data.stream_index;
     received.time_s = data.time_s;
+    received.byte_pos = data.byte_pos;
     received.decoded = klv::DecodePacket(packet);
     ++summary->klv_packets;
     const auto& decoded = received.decoded;
     switch (decoded.kind) {
-      case klv::PacketKind::kSt0601: ++summary->st0601_packets; break;
-      case klv::PacketKind::kEg0104: ++summary->eg0104_packets; break;
-      default: ++summary->other_packets; break;
+      case klv::PacketKind::kSt0601:
+        ++summary->st0601_packets;
+        break;
+      case klv::PacketKind::kEg0104:
+        ++summary->eg0104_packets;
+        break;
+      default:
+        ++summary->other_packets;
+        break;
     }
     if (!decoded.status.ok()) {
       ++summary->decode_errors;
@@ -102,6 +109,25 @@ void DecodeDataPacket(const video::DataPacket& data, KlvStreamSummary* summary, 
     }
     if (decoded.st0601 && !decoded.st0601->checksum_ok) ++summary->checksum_failures;
     scan->packets.push_back(std::move(received));
+  }
+}
+
+// Gives each packet without a timestamp the time of the first frame carried
+// after it in the file, or of the last frame when none follows.
+void InferMissingTimes(VideoScan* scan) {
+  std::vector<std::pair<int64_t, double>> frame_positions;  // (byte_pos, time_s)
+  for (const auto& f : scan->frames) {
+    if (f.byte_pos >= 0) frame_positions.emplace_back(f.byte_pos, f.time_s);
+  }
+  if (frame_positions.empty()) return;
+  std::sort(frame_positions.begin(), frame_positions.end());
+  for (auto& p : scan->packets) {
+    if (std::isfinite(p.time_s) || p.byte_pos < 0) continue;
+    auto next = std::upper_bound(
+        frame_positions.begin(), frame_positions.end(), p.byte_pos,
+        [](int64_t pos, const std::pair<int64_t, double>& frame) { return pos < frame.first; });
+    p.time_s = next != frame_positions.end() ? next->second : frame_positions.back().second;
+    p.time_inferred = true;
   }
 }
 
@@ -151,6 +177,7 @@ StatusOr<VideoScan> ScanVideo(const std::string& path, const ScanOptions& option
     record.index = frame.index;
     record.time_s = frame.time_s;
     record.key_frame = frame.key_frame;
+    record.byte_pos = frame.byte_pos;
     scan.frames.push_back(record);
     if (on_frame) on_frame(frame);
     if (context != nullptr && expected_frames > 0 && scan.frames.size() % 32 == 0) {
@@ -161,6 +188,7 @@ StatusOr<VideoScan> ScanVideo(const std::string& path, const ScanOptions& option
   scan.stats = reader.stats();
 
   // Align frames with metadata now that every packet is known.
+  InferMissingTimes(&scan);
   std::vector<double> frame_times;
   frame_times.reserve(scan.frames.size());
   for (const auto& f : scan.frames) frame_times.push_back(f.time_s);

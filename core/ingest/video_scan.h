@@ -5,17 +5,17 @@
 // and each frame tied to its metadata. This is what `saker-cli probe` and
 // `saker-cli klv` report, and what the processing pipeline builds on.
 
-#include <cstdint>
-#include <functional>
-#include <optional>
-#include <string>
-#include <vector>
-
 #include "core/ingest/metadata_alignment.h"
 #include "core/klv/decode.h"
 #include "core/util/job_context.h"
 #include "core/util/status.h"
 #include "core/video/video_reader.h"
+
+#include <cstdint>
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
 
 namespace saker::ingest {
 
@@ -37,7 +37,13 @@ struct ScanOptions {
 // A KLV packet as received: which stream, when, and its decode.
 struct MetadataPacket {
   int stream_index = -1;
-  double time_s = 0;  // NaN when the container gave no timestamp
+  // Seconds on the frames' clock. Asynchronous KLV often has no timestamp;
+  // such a packet takes the time of the next video frame in the multiplex
+  // (encoders send metadata just before the frame it describes), and
+  // time_inferred says so. NaN when even that is unknown.
+  double time_s = 0;
+  bool time_inferred = false;
+  int64_t byte_pos = -1;  // offset in the file, -1 when unknown
   klv::DecodedPacket decoded;
 };
 
@@ -46,22 +52,23 @@ struct FrameRecord {
   video::FrameIndex index = 0;
   double time_s = 0;
   bool key_frame = false;
-  FrameMatch metadata;  // metadata.packet indexes VideoScan::packets
+  int64_t byte_pos = -1;  // offset in the file of the packet that carried the frame
+  FrameMatch metadata;    // metadata.packet indexes VideoScan::packets
 };
 
 // Per-KLV-stream counts, for the probe summary.
 struct KlvStreamSummary {
   int stream_index = -1;
   int pid = -1;
-  bool synchronous = false;        // matched by timestamp (see metadata_alignment.h)
-  int64_t demuxed_packets = 0;     // container packets of this stream
-  int64_t klv_packets = 0;         // KLV packets found in them
+  bool synchronous = false;     // matched by timestamp (see metadata_alignment.h)
+  int64_t demuxed_packets = 0;  // container packets of this stream
+  int64_t klv_packets = 0;      // KLV packets found in them
   int64_t st0601_packets = 0;
   int64_t eg0104_packets = 0;
-  int64_t other_packets = 0;       // other or unknown universal keys (e.g. ST 0903 alone)
-  int64_t checksum_failures = 0;   // ST 0601 packets whose BCC-16 did not verify
-  int64_t decode_errors = 0;       // packets that could not be decoded at all
-  int64_t framing_errors = 0;      // bytes that were not valid KLV framing
+  int64_t other_packets = 0;      // other or unknown universal keys (e.g. ST 0903 alone)
+  int64_t checksum_failures = 0;  // ST 0601 packets whose BCC-16 did not verify
+  int64_t decode_errors = 0;      // packets that could not be decoded at all
+  int64_t framing_errors = 0;     // bytes that were not valid KLV framing
 };
 
 struct VideoScan {

@@ -49,7 +49,7 @@ struct Voidify {
 }  // namespace internal
 }  // namespace saker
 
-#define SAKER_CHECK(condition)                   \
-  (condition) ? (void)0                          \
-              : ::saker::internal::Voidify() &   \
+#define SAKER_CHECK(condition)                 \
+  (condition) ? (void)0                        \
+              : ::saker::internal::Voidify() & \
                     ::saker::internal::CheckFailure(__FILE__, __LINE__, #condition)

@@ -4,25 +4,25 @@
 // returned as values, never thrown: the caller decides whether to go on.
 // Broken invariants (bugs) use SAKER_CHECK from core/util/check.h instead.
 
+#include "core/util/check.h"
+
 #include <optional>
 #include <string>
 #include <utility>
 #include <variant>
-
-#include "core/util/check.h"
 
 namespace saker {
 
 // Broad class of an expected failure, so callers can react without parsing text.
 enum class StatusCode {
   kOk = 0,
-  kInvalidArgument,   // The caller passed something unusable (bad option, bad index).
-  kNotFound,          // A file, stream or item does not exist.
-  kInvalidData,       // Input exists but is malformed (corrupt packet, not a video).
-  kUnsupported,       // Valid input that this build cannot handle.
-  kIoError,           // The operating system or a library failed to read or write.
-  kCancelled,         // The job was cancelled by the user.
-  kOutOfRange,        // Seek or lookup past the end.
+  kInvalidArgument,  // The caller passed something unusable (bad option, bad index).
+  kNotFound,         // A file, stream or item does not exist.
+  kInvalidData,      // Input exists but is malformed (corrupt packet, not a video).
+  kUnsupported,      // Valid input that this build cannot handle.
+  kIoError,          // The operating system or a library failed to read or write.
+  kCancelled,        // The job was cancelled by the user.
+  kOutOfRange,       // Seek or lookup past the end.
 };
 
 const char* StatusCodeName(StatusCode code);
@@ -61,7 +61,7 @@ inline Status OutOfRangeError(std::string m) { return {StatusCode::kOutOfRange, 
 template <typename T>
 class [[nodiscard]] StatusOr {
  public:
-  StatusOr(T value) : data_(std::move(value)) {}  // NOLINT: implicit by design.
+  StatusOr(T value) : data_(std::move(value)) {}        // NOLINT: implicit by design.
   StatusOr(Status status) : data_(std::move(status)) {  // NOLINT: implicit by design.
     SAKER_CHECK(!std::get<Status>(data_).ok()) << "StatusOr built from an OK status";
   }
@@ -95,8 +95,8 @@ class [[nodiscard]] StatusOr {
 }  // namespace saker
 
 // Returns early from the enclosing function when `expr` (a Status) is not OK.
-#define SAKER_RETURN_IF_ERROR(expr)           \
-  do {                                        \
-    ::saker::Status saker_status_ = (expr);   \
+#define SAKER_RETURN_IF_ERROR(expr)                \
+  do {                                             \
+    ::saker::Status saker_status_ = (expr);        \
     if (!saker_status_.ok()) return saker_status_; \
   } while (false)

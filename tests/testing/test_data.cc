@@ -32,13 +32,40 @@ std::vector<unsigned char> ReadFileBytes(const std::filesystem::path& path) {
   return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
 }
 
+namespace {
+
+// Directories made by MakeTempDir, removed when the test process exits.
+class TempDirRegistry {
+ public:
+  ~TempDirRegistry() {
+    for (const auto& dir : dirs_) {
+      std::error_code ignored;
+      std::filesystem::remove_all(dir, ignored);
+    }
+  }
+  void Add(const std::filesystem::path& dir) { dirs_.push_back(dir); }
+
+ private:
+  std::vector<std::filesystem::path> dirs_;
+};
+
+TempDirRegistry& Registry() {
+  static TempDirRegistry registry;
+  return registry;
+}
+
+}  // namespace
+
 std::filesystem::path MakeTempDir(const std::string& prefix) {
   namespace fs = std::filesystem;
   std::random_device rd;
   for (int attempt = 0; attempt < 100; ++attempt) {
     auto dir = fs::temp_directory_path() / (prefix + "-" + std::to_string(rd()));
     std::error_code ec;
-    if (fs::create_directory(dir, ec)) return dir;
+    if (fs::create_directory(dir, ec)) {
+      Registry().Add(dir);
+      return dir;
+    }
   }
   ADD_FAILURE() << "cannot create a temp directory for " << prefix;
   return fs::temp_directory_path();

@@ -25,21 +25,22 @@ std::optional<std::filesystem::path> FindTestData(const std::string& relative);
 // Whole file as bytes; fails the test (not skip) when the file is unreadable.
 std::vector<unsigned char> ReadFileBytes(const std::filesystem::path& path);
 
-// A fresh empty directory under the system temp dir, removed at process exit.
+// A fresh empty directory under the system temp dir, removed (with its
+// contents) when the test process exits normally.
 std::filesystem::path MakeTempDir(const std::string& prefix);
 
 }  // namespace saker::testing
 
 // Declares `var` as the std::filesystem::path of a data file, or skips the
 // current test with a message naming the file and the variable to set.
-#define SAKER_REQUIRE_TEST_DATA(var, relative)                                              \
-  std::filesystem::path var;                                                                \
-  do {                                                                                      \
-    auto saker_found_ = ::saker::testing::FindTestData(relative);                           \
-    if (!saker_found_) {                                                                    \
-      GTEST_SKIP() << "test data file '" << (relative)                                      \
-                   << "' not found; set SAKER_TEST_DATA to the shared data folder (see "    \
-                      "README.md, 'Test data')";                                            \
-    }                                                                                       \
-    var = *saker_found_;                                                                    \
+#define SAKER_REQUIRE_TEST_DATA(var, relative)                                           \
+  std::filesystem::path var;                                                             \
+  do {                                                                                   \
+    auto saker_found_ = ::saker::testing::FindTestData(relative);                        \
+    if (!saker_found_) {                                                                 \
+      GTEST_SKIP() << "test data file '" << (relative)                                   \
+                   << "' not found; set SAKER_TEST_DATA to the shared data folder (see " \
+                      "README.md, 'Test data')";                                         \
+    }                                                                                    \
+    var = *saker_found_;                                                                 \
   } while (false)

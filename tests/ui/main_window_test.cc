@@ -3,14 +3,15 @@
 
 #include "ui/main_window.h"
 
+#include "tests/testing/test_data.h"
+
+#include <gtest/gtest.h>
+
 #include <QApplication>
 #include <QLabel>
 #include <QProgressBar>
 #include <QSignalSpy>
 #include <QTest>
-#include <gtest/gtest.h>
-
-#include "tests/testing/test_data.h"
 
 namespace saker::ui {
 namespace {

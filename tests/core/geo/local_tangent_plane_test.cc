@@ -49,8 +49,8 @@ TEST(LocalTangentPlaneTest, RoundTripsWithinMillimetres) {
       EXPECT_NEAR(back.latitude_deg, point.latitude_deg, 1e-8);
       EXPECT_NEAR(back.longitude_deg, point.longitude_deg, 1e-8);
       EXPECT_NEAR(back.height_m, point.height_m, 1e-3);
-      const Wgs84 full = plane->Wgs84FromEnu(plane->EnuFromWgs84({point.latitude_deg,
-                                                                    point.longitude_deg, 500.0}));
+      const Wgs84 full = plane->Wgs84FromEnu(
+          plane->EnuFromWgs84({point.latitude_deg, point.longitude_deg, 500.0}));
       EXPECT_NEAR(full.height_m, 500.0, 1e-6);
     }
   }

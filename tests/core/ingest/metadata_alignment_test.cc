@@ -35,8 +35,8 @@ TEST(MetadataAlignmentTest, SynchronousPacketsMatchTheirOwnFrame) {
 TEST(MetadataAlignmentTest, AsynchronousPacketsMatchNearestWithinTolerance) {
   const auto frames = FrameTimes(60, 30.0);  // 0 .. 1.967 s
   // 2 Hz metadata, offset from the frame clock, stopping at 1.0 s.
-  std::vector<AlignablePacket> packets = {{1, 0.013, true, true}, {1, 0.513, true, true},
-                                          {1, 1.013, true, true}};
+  std::vector<AlignablePacket> packets = {
+      {1, 0.013, true, true}, {1, 0.513, true, true}, {1, 1.013, true, true}};
   AlignmentOptions options;
   options.async_tolerance_s = 0.3;
   const auto timing = ClassifyStreams(frames, packets, {}, options);
@@ -44,9 +44,9 @@ TEST(MetadataAlignmentTest, AsynchronousPacketsMatchNearestWithinTolerance) {
   const auto matches = AlignFrames(frames, packets, timing, options);
   EXPECT_EQ(*matches[0].packet, 0u);
   EXPECT_NEAR(matches[0].offset_s, 0.013, 1e-12);
-  EXPECT_EQ(*matches[15].packet, 1u);  // 0.5 s
-  EXPECT_EQ(*matches[7].packet, 0u);   // 0.233 s: closer to 0.013 than to 0.513
-  EXPECT_EQ(*matches[8].packet, 1u);   // 0.267 s: closer to 0.513
+  EXPECT_EQ(*matches[15].packet, 1u);                // 0.5 s
+  EXPECT_EQ(*matches[7].packet, 0u);                 // 0.233 s: closer to 0.013 than to 0.513
+  EXPECT_EQ(*matches[8].packet, 1u);                 // 0.267 s: closer to 0.513
   EXPECT_EQ(matches[39].kind, MatchKind::kNearest);  // 1.3 s, 0.287 from the last packet
   EXPECT_EQ(matches[40].kind, MatchKind::kNone);     // 1.333 s: metadata stopped mid-flight
   EXPECT_FALSE(matches[59].packet.has_value());
@@ -77,9 +77,10 @@ TEST(MetadataAlignmentTest, PrefersCornersThenNearestAcrossStreams) {
 TEST(MetadataAlignmentTest, IgnoresUnusableUntimedAndHandlesDisorder) {
   const auto frames = FrameTimes(5, 10.0);
   std::vector<AlignablePacket> packets = {
-      {1, 0.3, true, true}, {1, 0.1, true, true}, {1, 0.1, true, true},  // out of order, duplicated
-      {1, NAN, true, true},                                               // no timestamp
-      {1, 0.2, true, false},                                              // failed to decode
+      {1, 0.3, true, true},  {1, 0.1, true, true},
+      {1, 0.1, true, true},   // out of order, duplicated
+      {1, NAN, true, true},   // no timestamp
+      {1, 0.2, true, false},  // failed to decode
   };
   const auto matches = AlignFrames(frames, packets, {}, {});
   EXPECT_EQ(*matches[1].packet, 1u);  // first of the duplicated pair

@@ -2,19 +2,24 @@
 
 #include "core/ingest/video_scan.h"
 
+#include "core/ingest/report.h"
+#include "tests/testing/test_data.h"
+
 #include <gtest/gtest.h>
 
 #include <filesystem>
 #include <fstream>
 
-#include "core/ingest/report.h"
-#include "tests/testing/test_data.h"
-
 namespace saker::ingest {
 namespace {
 
-TEST(VideoScanTest, H264KlvEveryFrameHasCornerMetadata) {
-  SAKER_REQUIRE_TEST_DATA(path, "kwiver/h264_klv.ts");
+// The same KLV bytes muxed with three codecs. The packets carry no
+// timestamp: each is placed by the next video frame in the multiplex, which
+// reproduces KWIVER's gold frame numbers (packet k belongs to frame k).
+class VideoScanCodecTest : public ::testing::TestWithParam<const char*> {};
+
+TEST_P(VideoScanCodecTest, EveryFrameHasItsOwnCornerMetadata) {
+  SAKER_REQUIRE_TEST_DATA(path, GetParam());
   auto scan = ScanVideo(path.string(), {});
   ASSERT_TRUE(scan.ok()) << scan.status().ToString();
   ASSERT_EQ(scan->frames.size(), 30u);
@@ -36,7 +41,12 @@ TEST(VideoScanTest, H264KlvEveryFrameHasCornerMetadata) {
   EXPECT_NEAR((*first->corners)[0].longitude_deg, 29.1615504, 1e-6);
   ASSERT_TRUE(first->unix_time_us.has_value());
   EXPECT_EQ(FormatUtcMicros(*first->unix_time_us), "2008-10-24T00:13:29.913000Z");
+  for (const auto& p : scan->packets) EXPECT_TRUE(p.time_inferred);
 }
+
+INSTANTIATE_TEST_SUITE_P(SampleClips, VideoScanCodecTest,
+                         ::testing::Values("kwiver/h264_klv.ts", "kwiver/mpeg2_klv.ts",
+                                           "kwiver/h265_klv.ts"));
 
 TEST(VideoScanTest, TrickyFileHasThreeKlvStreamsOneEmpty) {
   SAKER_REQUIRE_TEST_DATA(path, "kwiver/h265_tricky_klv.ts");
@@ -67,11 +77,18 @@ TEST(VideoScanTest, Eg0104RealClipHasCornersOnEveryFrame) {
   ASSERT_EQ(scan->klv_streams.size(), 1u);
   EXPECT_EQ(scan->klv_streams[0].eg0104_packets, 48);
   EXPECT_EQ(scan->FramesWithCorners(), 48);
-  const klv::FrameMetadata* first = scan->MetadataOf(0);
-  ASSERT_NE(first, nullptr);
-  EXPECT_EQ(first->standard, klv::MetadataStandard::kEg0104);
-  EXPECT_NEAR((*first->corners)[0].latitude_deg, 38.2456129, 1e-6);
-  EXPECT_NEAR((*first->corners)[0].longitude_deg, -77.3535250, 1e-6);
+  // The clip's first KLV packet (pts 1.400 s) comes one frame before the
+  // first picture (pts 1.433 s); frame 0 takes the packet with its own time.
+  const auto& first_packet = scan->packets.front().decoded.metadata;
+  ASSERT_TRUE(first_packet.has_value());
+  EXPECT_EQ(first_packet->standard, klv::MetadataStandard::kEg0104);
+  EXPECT_NEAR((*first_packet->corners)[0].latitude_deg, 38.2456129, 1e-6);
+  EXPECT_NEAR((*first_packet->corners)[0].longitude_deg, -77.3535250, 1e-6);
+  EXPECT_NEAR(scan->packets.front().time_s, -1.001 / 30.0, 1e-4);
+  const FrameMatch& frame0 = scan->frames[0].metadata;
+  EXPECT_EQ(frame0.kind, MatchKind::kNearest);
+  EXPECT_EQ(*frame0.packet, 1u);
+  EXPECT_NEAR(frame0.offset_s, 0.0, 1e-6);
 }
 
 TEST(VideoScanTest, VideoWithoutKlvReportsNoMetadataNotAnError) {

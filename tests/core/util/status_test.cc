@@ -1,5 +1,6 @@
-#include "core/util/job_context.h"
 #include "core/util/status.h"
+
+#include "core/util/job_context.h"
 
 #include <gtest/gtest.h>
 
@@ -7,7 +8,8 @@ namespace saker {
 namespace {
 
 StatusOr<int> ParsePositive(int value) {
-  if (value <= 0) return InvalidArgumentError("value must be positive, got " + std::to_string(value));
+  if (value <= 0)
+    return InvalidArgumentError("value must be positive, got " + std::to_string(value));
   return value;
 }
 
@@ -41,7 +43,8 @@ TEST(StatusTest, ReturnIfErrorPropagates) {
 
 TEST(CheckTest, FailedCheckThrowsWithFileLineAndMessage) {
   try {
-    SAKER_CHECK(1 + 1 == 3) << "arithmetic is " << "broken";
+    SAKER_CHECK(1 + 1 == 3) << "arithmetic is "
+                            << "broken";
     FAIL() << "SAKER_CHECK did not throw";
   } catch (const CheckError& e) {
     const std::string what = e.what();
