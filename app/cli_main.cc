@@ -18,6 +18,7 @@ constexpr const char* kVersion = SAKER_VERSION;
 // Exit codes, documented in --help.
 constexpr int kExitOk = 0;
 constexpr int kExitInputError = 1;  // the file could not be read as a video
+constexpr int kExitUsage = 2;       // bad command line
 constexpr int kExitBug = 3;         // an internal check failed
 
 int RunScan(const std::string& file, bool json, bool dump_klv, double tolerance_s) {
@@ -84,7 +85,13 @@ int main(int argc, char** argv) {
       ->capture_default_str()
       ->check(CLI::Range(0.0, 60.0));
 
-  CLI11_PARSE(app, argc, argv);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    // Prints help, the version, or the parse error; --help and --version are
+    // successes, anything else is a bad command line.
+    return app.exit(e) == 0 ? kExitOk : kExitUsage;
+  }
   saker::video::SetFfmpegLogVerbose(verbose);
 
   try {
