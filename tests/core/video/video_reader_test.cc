@@ -4,6 +4,7 @@
 
 #include "core/video/video_reader.h"
 
+#include "tests/core/video/read_all.h"
 #include "tests/core/video/synthetic_ts.h"
 #include "tests/testing/test_data.h"
 
@@ -28,22 +29,6 @@ using saker::testing::SyntheticSquare;
 using saker::testing::SyntheticTsOptions;
 
 constexpr double kTimeTolerance = 1e-9;
-
-// Everything one sequential pass gives.
-struct Pass {
-  std::vector<Frame> frames;
-  std::vector<DataPacket> data;
-};
-
-Status ReadAll(VideoReader* reader, Pass* pass) {
-  while (true) {
-    Frame frame;
-    auto more = reader->ReadNext(&frame, &pass->data);
-    if (!more.ok()) return more.status();
-    if (!*more) return Status::Ok();
-    pass->frames.push_back(std::move(frame));
-  }
-}
 
 // Writes a synthetic file once per test into a fresh temp dir.
 fs::path WriteSynthetic(const SyntheticTsOptions& options, const std::string& name) {

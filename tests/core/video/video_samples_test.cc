@@ -3,6 +3,7 @@
 // the tests were written; ffprobe is never run at test time.
 
 #include "core/video/video_reader.h"
+#include "tests/core/video/read_all.h"
 #include "tests/testing/test_data.h"
 
 #include <gtest/gtest.h>
@@ -110,21 +111,6 @@ const std::vector<Sample>& Samples() {
        {{0x101, false}}},
   };
   return samples;
-}
-
-struct Pass {
-  std::vector<Frame> frames;
-  std::vector<DataPacket> data;
-};
-
-Status ReadAll(VideoReader* reader, Pass* pass) {
-  while (true) {
-    Frame frame;
-    auto more = reader->ReadNext(&frame, &pass->data);
-    if (!more.ok()) return more.status();
-    if (!*more) return Status::Ok();
-    pass->frames.push_back(std::move(frame));
-  }
 }
 
 class SampleTest : public ::testing::TestWithParam<Sample> {};
