@@ -65,7 +65,7 @@ std::vector<StreamTiming> ClassifyStreams(const std::vector<double>& frame_times
   std::map<int, Tally> tally;
   for (const auto& p : packets) {
     auto& t = tally[p.stream_index];
-    if (!std::isfinite(p.time_s)) continue;
+    if (!std::isfinite(p.time_s) || p.time_inferred) continue;
     ++t.timed;
     if (DistanceToNearest(sorted_frames, p.time_s) <= options.sync_tolerance_s) ++t.on_frame;
   }

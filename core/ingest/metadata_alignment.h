@@ -41,9 +41,11 @@ const char* MatchKindName(MatchKind kind);
 // One timestamped metadata packet as the aligner sees it.
 struct AlignablePacket {
   int stream_index = -1;
-  double time_s = 0;         // NaN when the packet had no timestamp (never matched)
-  bool has_corners = false;  // preferred when several streams offer a packet
-  bool usable = true;        // false for packets that failed to decode
+  double time_s = 0;           // NaN when the packet had no timestamp (never matched)
+  bool has_corners = false;    // preferred when several streams offer a packet
+  bool usable = true;          // false for packets that failed to decode
+  bool time_inferred = false;  // time from the packet's place in the file, not a timestamp:
+                               // no evidence of synchronous timing
 };
 
 struct FrameMatch {
@@ -59,7 +61,8 @@ struct StreamTiming {
 };
 
 // Decides, per KLV stream, whether it is synchronous: declared so by the
-// container, or every timestamped packet lies on a frame time.
+// container, or it has timestamped packets and every one lies on a frame time
+// (inferred times are not evidence).
 std::vector<StreamTiming> ClassifyStreams(const std::vector<double>& frame_times,
                                           const std::vector<AlignablePacket>& packets,
                                           const std::vector<StreamTiming>& declared,

@@ -196,7 +196,8 @@ StatusOr<VideoScan> ScanVideo(const std::string& path, const ScanOptions& option
   alignable.reserve(scan.packets.size());
   for (const auto& p : scan.packets) {
     const auto& m = p.decoded.metadata;
-    alignable.push_back({p.stream_index, p.time_s, m && m->HasCorners(), m.has_value()});
+    alignable.push_back(
+        {p.stream_index, p.time_s, m && m->HasCorners(), m.has_value(), p.time_inferred});
   }
   const auto timing = ClassifyStreams(frame_times, alignable, declared, options.alignment);
   for (const auto& t : timing) {

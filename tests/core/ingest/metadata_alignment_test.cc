@@ -62,6 +62,19 @@ TEST(MetadataAlignmentTest, DeclaredSynchronousWinsOverTiming) {
   for (const auto& m : matches) EXPECT_EQ(m.kind, MatchKind::kNone);
 }
 
+TEST(MetadataAlignmentTest, InferredTimesAreNoEvidenceOfSynchronousTiming) {
+  const auto frames = FrameTimes(3, 30.0);
+  // Placed on frame times by their position in the file, not by timestamp.
+  std::vector<AlignablePacket> packets = {{1, frames[0], true, true, true},
+                                          {1, frames[1], true, true, true}};
+  const auto timing = ClassifyStreams(frames, packets, {}, {});
+  ASSERT_EQ(timing.size(), 1u);
+  EXPECT_FALSE(timing[0].synchronous);
+  const auto matches = AlignFrames(frames, packets, timing, {});
+  EXPECT_EQ(matches[1].kind, MatchKind::kNearest);
+  EXPECT_EQ(*matches[1].packet, 1u);
+}
+
 TEST(MetadataAlignmentTest, PrefersCornersThenNearestAcrossStreams) {
   const auto frames = FrameTimes(3, 10.0);
   std::vector<AlignablePacket> packets = {
