@@ -220,6 +220,7 @@ struct VideoReader::Impl {
     frame.pts = entry.pts;
     frame.time_s = entry.time_s;
     frame.key_frame = entry.key_frame;
+    frame.byte_pos = random->frame().pkt_pos;
     SAKER_RETURN_IF_ERROR(Convert(&random_converter, *random, &frame));
     return frame;
   }

@@ -235,6 +235,7 @@ TEST(SyntheticVideoTest, RandomAccessIsBitIdenticalToTheSequentialPass) {
     EXPECT_EQ(frame->pts, expected.pts);
     EXPECT_EQ(frame->time_s, expected.time_s);
     EXPECT_EQ(frame->key_frame, expected.key_frame);
+    EXPECT_EQ(frame->byte_pos, expected.byte_pos);
     EXPECT_EQ(cv::norm(frame->bgr, expected.bgr, cv::NORM_INF), 0) << "frame " << n;
     EXPECT_EQ(cv::norm(frame->grey, expected.grey, cv::NORM_INF), 0) << "frame " << n;
   }

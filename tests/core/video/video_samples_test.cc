@@ -184,6 +184,7 @@ TEST_P(SampleTest, EveryFrameByRandomAccessEqualsTheSequentialFrame) {
     auto frame = (*reader)->ReadFrame(n);
     ASSERT_TRUE(frame.ok()) << "frame " << n << ": " << frame.status().ToString();
     EXPECT_EQ(frame->pts, pass.frames[n].pts) << "frame " << n;
+    EXPECT_EQ(frame->byte_pos, pass.frames[n].byte_pos) << "frame " << n;
     EXPECT_EQ(cv::norm(frame->bgr, pass.frames[n].bgr, cv::NORM_INF), 0) << "frame " << n;
   }
 }
