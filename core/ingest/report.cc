@@ -10,36 +10,6 @@ namespace saker::ingest {
 
 namespace {
 
-const char* StreamKindName(video::StreamKind kind) {
-  switch (kind) {
-    case video::StreamKind::kVideo:
-      return "video";
-    case video::StreamKind::kAudio:
-      return "audio";
-    case video::StreamKind::kKlv:
-      return "klv";
-    case video::StreamKind::kOtherData:
-      return "data";
-    case video::StreamKind::kOther:
-      return "other";
-  }
-  return "other";
-}
-
-const char* PacketKindName(klv::PacketKind kind) {
-  switch (kind) {
-    case klv::PacketKind::kSt0601:
-      return "ST 0601";
-    case klv::PacketKind::kEg0104:
-      return "EG 0104";
-    case klv::PacketKind::kSt0903:
-      return "ST 0903";
-    case klv::PacketKind::kUnknown:
-      return "unknown";
-  }
-  return "unknown";
-}
-
 nlohmann::json OptionalTime(double t) {
   return std::isfinite(t) ? nlohmann::json(t) : nlohmann::json(nullptr);
 }
@@ -80,7 +50,7 @@ nlohmann::json ProbeToJson(const VideoScan& scan) {
   j["container_long_name"] = info.container_long;
   json streams = json::array();
   for (const auto& s : info.streams) {
-    json js{{"index", s.index}, {"kind", StreamKindName(s.kind)}, {"codec", s.codec_name}};
+    json js{{"index", s.index}, {"kind", video::StreamKindName(s.kind)}, {"codec", s.codec_name}};
     js["pid"] = s.pid >= 0 ? json(s.pid) : json(nullptr);
     streams.push_back(js);
   }
@@ -143,7 +113,7 @@ std::string ProbeToText(const VideoScan& scan) {
   }
   s << "Streams:   ";
   for (const auto& st : info.streams) {
-    s << " #" << st.index << " " << StreamKindName(st.kind) << " " << st.codec_name;
+    s << " #" << st.index << " " << video::StreamKindName(st.kind) << " " << st.codec_name;
     if (st.pid >= 0) s << " (PID " << Hex(st.pid) << ")";
     s << ";";
   }
@@ -201,7 +171,7 @@ std::string KlvDumpToText(const VideoScan& scan) {
     const auto& p = scan.packets[i];
     s << "packet " << i << ": stream " << p.stream_index << ", t = " << p.time_s << " s"
       << (p.time_inferred ? " (from its place in the stream)" : "") << ", "
-      << PacketKindName(p.decoded.kind);
+      << klv::PacketKindName(p.decoded.kind);
     if (auto it = frames_by_packet.find(i); it != frames_by_packet.end()) {
       s << ", frames " << it->second.front();
       if (it->second.size() > 1) s << "-" << it->second.back();

@@ -23,6 +23,20 @@ const char* PacketKindId(PacketKind kind) {
   return "unknown";
 }
 
+const char* PacketKindName(PacketKind kind) {
+  switch (kind) {
+    case PacketKind::kSt0601:
+      return "ST 0601";
+    case PacketKind::kEg0104:
+      return "EG 0104";
+    case PacketKind::kSt0903:
+      return "ST 0903";
+    case PacketKind::kUnknown:
+      return "unknown";
+  }
+  return "unknown";
+}
+
 DecodedPacket DecodePacket(const KlvPacket& packet) {
   DecodedPacket decoded;
   decoded.kind = PacketKindOf(packet.key);

@@ -37,6 +37,8 @@ PacketKind PacketKindOf(const UniversalKey& key);
 
 // Short name of a kind: "st0601", "eg0104", "st0903", "unknown".
 const char* PacketKindId(PacketKind kind);
+// Name for people: "ST 0601", "EG 0104", "ST 0903", "unknown".
+const char* PacketKindName(PacketKind kind);
 
 DecodedPacket DecodePacket(const KlvPacket& packet);
 

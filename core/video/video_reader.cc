@@ -10,6 +10,22 @@
 #include <utility>
 
 namespace saker::video {
+
+const char* StreamKindName(StreamKind kind) {
+  switch (kind) {
+    case StreamKind::kVideo:
+      return "video";
+    case StreamKind::kAudio:
+      return "audio";
+    case StreamKind::kKlv:
+      return "klv";
+    case StreamKind::kOtherData:
+      return "data";
+    case StreamKind::kOther:
+      return "other";
+  }
+  return "other";
+}
 namespace {
 
 using internal::DecodeSession;

@@ -22,6 +22,8 @@ namespace saker::video {
 using FrameIndex = int64_t;  // 0-based, in presentation order
 
 enum class StreamKind { kVideo, kAudio, kKlv, kOtherData, kOther };
+// "video", "audio", "klv", "data", "other".
+const char* StreamKindName(StreamKind kind);
 
 // One elementary stream of the container, as FFmpeg sees it.
 struct StreamInfo {

@@ -111,6 +111,8 @@ TEST(DecodePacketTest, KindNames) {
   EXPECT_STREQ(PacketKindId(PacketKind::kEg0104), "eg0104");
   EXPECT_STREQ(PacketKindId(PacketKind::kSt0903), "st0903");
   EXPECT_STREQ(PacketKindId(PacketKind::kUnknown), "unknown");
+  EXPECT_STREQ(PacketKindName(PacketKind::kSt0601), "ST 0601");
+  EXPECT_STREQ(PacketKindName(PacketKind::kEg0104), "EG 0104");
 }
 
 }  // namespace
