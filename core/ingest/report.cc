@@ -86,10 +86,10 @@ nlohmann::json ProbeToJson(const VideoScan& scan) {
                    {"checksum_failures", checksum_failures},
                    {"frames_with_metadata", scan.FramesWithMetadata()},
                    {"frames_with_corners", scan.FramesWithCorners()}};
-  if (auto first = scan.FirstUtcMicros()) {
-    j["metadata"]["first_utc"] = FormatUtcMicros(*first);
-    j["metadata"]["last_utc"] = FormatUtcMicros(*scan.LastUtcMicros());
-    j["metadata"]["span_s"] = static_cast<double>(*scan.LastUtcMicros() - *first) * 1e-6;
+  if (const auto span = scan.UtcSpan()) {
+    j["metadata"]["first_utc"] = FormatUtcMicros(span->first_us);
+    j["metadata"]["last_utc"] = FormatUtcMicros(span->last_us);
+    j["metadata"]["span_s"] = span->SpanSeconds();
   }
   j["warnings"] = scan.warnings;
   return j;
@@ -138,10 +138,10 @@ std::string ProbeToText(const VideoScan& scan) {
     s << "Frames:     " << scan.FramesWithMetadata() << " of " << scan.frames.size()
       << " with metadata, " << scan.FramesWithCorners() << " with image corners\n";
   }
-  if (auto first = scan.FirstUtcMicros()) {
-    s << "UTC span:   " << FormatUtcMicros(*first) << " to "
-      << FormatUtcMicros(*scan.LastUtcMicros()) << " (" << std::setprecision(3)
-      << static_cast<double>(*scan.LastUtcMicros() - *first) * 1e-6 << " s)\n";
+  if (const auto span = scan.UtcSpan()) {
+    s << "UTC span:   " << FormatUtcMicros(span->first_us) << " to "
+      << FormatUtcMicros(span->last_us) << " (" << std::setprecision(3) << span->SpanSeconds()
+      << " s)\n";
   }
   for (const auto& w : scan.warnings) s << "Warning:    " << w << "\n";
   return s.str();

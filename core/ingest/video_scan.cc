@@ -35,26 +35,19 @@ int64_t VideoScan::FramesWithCorners() const {
   return n;
 }
 
-std::optional<uint64_t> VideoScan::FirstUtcMicros() const {
-  std::optional<uint64_t> first;
+std::optional<VideoScan::UtcRange> VideoScan::UtcSpan() const {
+  std::optional<UtcRange> range;
   for (const auto& p : packets) {
-    if (p.decoded.metadata && p.decoded.metadata->unix_time_us) {
-      const uint64_t t = *p.decoded.metadata->unix_time_us;
-      if (!first || t < *first) first = t;
+    if (!p.decoded.metadata || !p.decoded.metadata->unix_time_us) continue;
+    const uint64_t t = *p.decoded.metadata->unix_time_us;
+    if (!range) {
+      range = UtcRange{t, t};
+    } else {
+      range->first_us = std::min(range->first_us, t);
+      range->last_us = std::max(range->last_us, t);
     }
   }
-  return first;
-}
-
-std::optional<uint64_t> VideoScan::LastUtcMicros() const {
-  std::optional<uint64_t> last;
-  for (const auto& p : packets) {
-    if (p.decoded.metadata && p.decoded.metadata->unix_time_us) {
-      const uint64_t t = *p.decoded.metadata->unix_time_us;
-      if (!last || t > *last) last = t;
-    }
-  }
-  return last;
+  return range;
 }
 
 namespace {

@@ -83,9 +83,14 @@ struct VideoScan {
   const klv::FrameMetadata* MetadataOf(size_t frame) const;
   int64_t FramesWithMetadata() const;
   int64_t FramesWithCorners() const;
-  // First and last metadata UTC time stamps, when any packet had one.
-  std::optional<uint64_t> FirstUtcMicros() const;
-  std::optional<uint64_t> LastUtcMicros() const;
+  // Earliest and latest metadata UTC time stamps (microseconds), when any
+  // packet had one.
+  struct UtcRange {
+    uint64_t first_us = 0;
+    uint64_t last_us = 0;
+    double SpanSeconds() const { return static_cast<double>(last_us - first_us) * 1e-6; }
+  };
+  std::optional<UtcRange> UtcSpan() const;
 };
 
 // Called for every decoded frame during the scan (before alignment, which

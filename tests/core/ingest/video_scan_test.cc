@@ -115,6 +115,9 @@ TEST(VideoScanTest, ProbeJsonHasTheSummaryFields) {
   EXPECT_EQ(j["klv_streams"][0]["klv_packets"], 30);
   EXPECT_EQ(j["metadata"]["checksum_failures"], 0);
   EXPECT_EQ(j["metadata"]["frames_with_corners"], 30);
+  EXPECT_EQ(j["metadata"]["first_utc"], "2008-10-24T00:13:29.913000Z");
+  EXPECT_EQ(j["metadata"]["last_utc"], "2008-10-24T00:13:30.879666Z");
+  EXPECT_NEAR(j["metadata"]["span_s"].get<double>(), 0.966666, 1e-6);
   const auto dump = KlvDumpToJson(*scan);
   ASSERT_EQ(dump["packets"].size(), 30u);
   EXPECT_EQ(dump["packets"][0]["frames"][0], 0);
