@@ -41,7 +41,7 @@ DecodedPacket DecodePacket(const KlvPacket& packet) {
   DecodedPacket decoded;
   decoded.kind = PacketKindOf(packet.key);
   decoded.key = packet.key;
-  decoded.raw = packet.value;
+  decoded.length = packet.value.size();
   switch (decoded.kind) {
     case PacketKind::kSt0601: {
       auto set = DecodeSt0601(packet);
@@ -67,6 +67,7 @@ DecodedPacket DecodePacket(const KlvPacket& packet) {
     case PacketKind::kUnknown:
       break;
   }
+  if (!decoded.st0601 && !decoded.eg0104) decoded.raw = packet.value;
   return decoded;
 }
 
@@ -76,7 +77,7 @@ nlohmann::json ToJson(const DecodedPacket& packet) {
   j["kind"] = PacketKindId(packet.kind);
   j["key"] = packet.key.ToHex();
   j["status"] = packet.status.ok() ? std::string("ok") : ToValidUtf8(packet.status.ToString());
-  j["length"] = packet.raw.size();
+  j["length"] = packet.length;
   if (packet.st0601) j.update(St0601ToJson(*packet.st0601));
   if (packet.eg0104) j.update(Eg0104ToJson(*packet.eg0104));
   if (packet.metadata) j["metadata"] = FrameMetadataToJson(*packet.metadata);

@@ -29,7 +29,11 @@ struct DecodedPacket {
   std::optional<FrameMetadata> metadata;  // when kind is 0601 or 0104 and it decoded
   Status status;                          // decode error (packet still listed); OK for
                                           // ST 0903 and unknown keys, which are not decoded
-  std::vector<uint8_t> raw;               // the packet value bytes, for dumping unknown/nested sets
+  size_t length = 0;                      // bytes in the packet value
+  // The value bytes, kept only when no set was decoded (unknown keys, ST 0903,
+  // decode errors): a decoded set already holds every item's raw bytes, and a
+  // long flight would otherwise keep each packet twice.
+  std::vector<uint8_t> raw;
 };
 
 // The kind of packet `key` introduces.

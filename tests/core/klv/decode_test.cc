@@ -23,7 +23,8 @@ TEST(DecodePacketTest, St0601) {
   ASSERT_TRUE(decoded.metadata.has_value());
   EXPECT_EQ(*decoded.metadata->ls_version, 17u);
   EXPECT_EQ(decoded.key, kSt0601Key);
-  EXPECT_EQ(decoded.raw.size(), 11u);
+  EXPECT_EQ(decoded.length, 11u);
+  EXPECT_TRUE(decoded.raw.empty());  // the decoded items hold the bytes
 
   const auto json = ToJson(decoded);
   EXPECT_EQ(json.at("kind"), "st0601");
