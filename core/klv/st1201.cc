@@ -1,7 +1,9 @@
 #include "core/klv/st1201.h"
 
+#include <charconv>
 #include <cmath>
 #include <limits>
+#include <string>
 
 namespace saker::klv {
 
@@ -26,6 +28,13 @@ ImapbParams Params(double min, double max, size_t length) {
   p.reverse = std::ldexp(1.0, b_pow - d_pow);
   if (min < 0 && max > 0) p.z_offset = p.forward * min - std::floor(p.forward * min);
   return p;
+}
+
+// Shortest text that reads back as `v`, for error messages.
+std::string NumberText(double v) {
+  char buffer[32];
+  const auto result = std::to_chars(buffer, buffer + sizeof(buffer), v);
+  return std::string(buffer, result.ptr);
 }
 
 }  // namespace
@@ -55,6 +64,44 @@ StatusOr<double> DecodeImapb(double min, double max, ByteSpan bytes) {
   }
   const ImapbParams p = Params(min, max, bytes.size());
   return p.reverse * (static_cast<double>(code) - p.z_offset) + min;
+}
+
+StatusOr<std::vector<uint8_t>> EncodeImapb(double min, double max, size_t length, double value) {
+  if (!ValidRange(min, max, length)) {
+    return InvalidArgumentError("IMAPB: cannot encode in " + std::to_string(length) +
+                                " bytes onto [" + NumberText(min) + ", " + NumberText(max) +
+                                "] (1 to 8 bytes and min < max needed)");
+  }
+  if (!std::isfinite(value)) {
+    return InvalidArgumentError("IMAPB: value " + NumberText(value) + " is not a finite number");
+  }
+  if (value < min || value > max) {
+    return InvalidArgumentError("IMAPB: value " + NumberText(value) + " is outside [" +
+                                NumberText(min) + ", " + NumberText(max) + "]");
+  }
+  const ImapbParams p = Params(min, max, length);
+  const int bits = static_cast<int>(8 * length);
+  const uint64_t msb = uint64_t{1} << (bits - 1);
+  // sF * (max - min) <= 2^(8 * length - 1), so every value in range maps to
+  // at most the MSB-alone code, the largest normal one. Only the zero offset
+  // can lift the rounded code past it, and then the floor (ST 1201's own
+  // rule), which is the MSB-alone code, is the nearest valid one. Codes with
+  // the MSB and any other bit set are special values and never written.
+  const double scaled = p.forward * (value - min) + p.z_offset;
+  uint64_t code = static_cast<uint64_t>(std::floor(scaled + 0.5));
+  if (code > msb) code = static_cast<uint64_t>(std::floor(scaled));
+  if (code > msb) {
+    // Only reachable when rounding in log2 misjudges a range a hair wider
+    // than a power of two; refuse rather than write a special value.
+    return InvalidArgumentError("IMAPB: value " + NumberText(value) + " does not fit in " +
+                                std::to_string(length) + " bytes onto [" + NumberText(min) + ", " +
+                                NumberText(max) + "]");
+  }
+  std::vector<uint8_t> bytes(length);
+  for (size_t i = 0; i < length; ++i) {
+    bytes[length - 1 - i] = static_cast<uint8_t>(code >> (8 * i));
+  }
+  return bytes;
 }
 
 }  // namespace saker::klv
