@@ -1,6 +1,6 @@
 #pragma once
 
-// A synthetic MPEG transport stream with ground truth, written with libavformat, so the video
+// A synthetic MPEG transport stream with ground truth, written with video::TsWriter, so the video
 // tests mean something without the shared data folder: MPEG-2 video of flat frames with a
 // moving bright square, plus one KLV data stream carrying a known ST 0601 packet per frame.
 // No GoogleTest here: the benchmark uses it too.
