@@ -1,6 +1,8 @@
 // saker-cli: the headless client of the Saker engine. Everything the GUI can
-// do is reachable from here; this issue brings `probe` and `klv`.
+// do is reachable from here; `probe`, `klv`, `simulate`
+// and `demo` so far.
 
+#include "app/cli_simulate.h"
 #include "core/ingest/report.h"
 #include "core/ingest/video_scan.h"
 #include "core/util/check.h"
@@ -85,6 +87,9 @@ int main(int argc, char** argv) {
       ->capture_default_str()
       ->check(CLI::Range(0.0, 60.0));
 
+  saker::app::SimulateCommand simulate(app);
+  saker::app::DemoCommand demo(app);
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -97,6 +102,12 @@ int main(int argc, char** argv) {
   try {
     if (probe->parsed()) return RunScan(file, json, /*dump_klv=*/false, tolerance_s);
     if (klv->parsed()) return RunScan(file, json, /*dump_klv=*/true, tolerance_s);
+    if (simulate.parsed()) return simulate.Run();
+    if (demo.parsed()) {
+      return demo.Run([&](const std::string& video) {
+        return RunScan(video, json, /*dump_klv=*/false, tolerance_s);
+      });
+    }
   } catch (const saker::CheckError& e) {
     std::cerr << "saker-cli: internal error, please report it: " << e.what() << "\n";
     return kExitBug;

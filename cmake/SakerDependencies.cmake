@@ -2,6 +2,7 @@
 find_package(PkgConfig REQUIRED)
 find_package(OpenCV 4 REQUIRED COMPONENTS core imgproc imgcodecs features2d calib3d video)
 find_package(Eigen3 3.3 REQUIRED NO_MODULE)
+find_package(GDAL REQUIRED)
 find_package(nlohmann_json 3 REQUIRED)
 find_package(CLI11 REQUIRED)
 pkg_check_modules(LIBAV REQUIRED IMPORTED_TARGET libavformat libavcodec libswscale libavutil)

@@ -1,0 +1,332 @@
+#include "app/cli_simulate.h"
+
+#include "core/sim/simulator.h"
+#include "core/util/job_context.h"
+
+#include <unistd.h>
+
+#include <chrono>
+#include <csignal>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <sstream>
+
+namespace saker::app {
+namespace {
+
+constexpr int kExitOk = 0;
+constexpr int kExitFailed = 1;
+constexpr int kExitUsage = 2;
+
+// Ctrl-C cancels the running job cleanly (its partial files are removed) instead of killing it.
+JobContext* g_running_job = nullptr;
+extern "C" void OnInterrupt(int) {
+  if (g_running_job != nullptr) g_running_job->RequestCancel();
+}
+
+// A one-line progress bar on stderr when it is a terminal; silent otherwise.
+class ProgressBar {
+ public:
+  ProgressBar() : enabled_(isatty(STDERR_FILENO) != 0) {}
+  void Update(double fraction) {
+    if (!enabled_) return;
+    const auto now = std::chrono::steady_clock::now();
+    if (fraction < 1.0 && now - last_ < std::chrono::milliseconds(200)) return;
+    last_ = now;
+    const double elapsed = std::chrono::duration<double>(now - start_).count();
+    const int width = 30;
+    const int filled = int(fraction * width);
+    std::fprintf(stderr, "\rsimulate [%s%s] %3d%%  %.0f s  ",
+                 std::string(size_t(filled), '#').c_str(),
+                 std::string(size_t(width - filled), ' ').c_str(), int(fraction * 100), elapsed);
+    if (fraction > 0 && fraction < 1)
+      std::fprintf(stderr, "eta %.0f s ", elapsed * (1 - fraction) / fraction);
+    if (fraction >= 1.0) std::fprintf(stderr, "\n");
+    std::fflush(stderr);
+  }
+
+ private:
+  bool enabled_;
+  std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
+  std::chrono::steady_clock::time_point last_{};
+};
+
+int RunSimulation(const sim::SimulationOptions& options, bool quiet) {
+  ProgressBar bar;
+  JobContext job([&](const std::string&, double fraction) {
+    if (!quiet) bar.Update(fraction);
+  });
+  g_running_job = &job;
+  auto previous = std::signal(SIGINT, OnInterrupt);
+  StatusOr<sim::SimulationSummary> summary = sim::Simulate(options, &job);
+  std::signal(SIGINT, previous);
+  g_running_job = nullptr;
+  if (!summary.ok()) {
+    std::cerr << "\nsaker-cli: " << summary.status().message() << "\n";
+    return kExitFailed;
+  }
+  if (!quiet) {
+    std::cout << "wrote " << summary->video.string() << ": " << summary->frames << " frames ("
+              << summary->duration_s << " s), " << summary->klv_packets << " KLV packets, "
+              << summary->targets << " moving targets, track " << int(summary->track_length_m)
+              << " m, " << summary->nominal_gsd_m << " m/pixel at nadir\n"
+              << "wrote " << summary->truth.string() << "\n";
+  }
+  return kExitOk;
+}
+
+std::string ScenarioList() {
+  std::ostringstream out;
+  for (sim::Scenario s : sim::AllScenarios()) {
+    out << "  " << sim::ScenarioName(s) << ": " << sim::ScenarioDescription(s) << "\n";
+  }
+  return out.str();
+}
+
+}  // namespace
+
+struct SimulateCommand::State {
+  CLI::App* command = nullptr;
+  sim::SimulationOptions options;
+  std::string scenario = "roundabout-loop";
+  std::vector<double> bias;
+  std::string nodata = "none";
+  bool force = false;
+  bool quiet = false;
+};
+
+SimulateCommand::SimulateCommand(CLI::App& app) : state_(std::make_unique<State>()) {
+  State& s = *state_;
+  sim::SimulationOptions& o = s.options;
+  CLI::App* c = app.add_subcommand(
+      "simulate",
+      "Fly a simulated camera over a procedural town (or your orthophoto) and write an MPEG-TS\n"
+      "with H.264 video and MISB ST 0601 KLV, plus a truth file (docs/simulator.md).\n"
+      "Scenarios:\n" +
+          ScenarioList());
+  s.command = c;
+  c->add_option("--scenario", s.scenario,
+                "Flight path: roundabout-loop, figure-eight, raster, straight")
+      ->capture_default_str();
+  c->add_option("-o,--output", o.output, "Output MPEG-TS file")->required();
+  c->add_option("--truth", o.truth, "Truth file (default: OUTPUT with .truth.json)");
+  c->add_option("--seed", o.seed, "Seed of the world, targets, jitter and noise")
+      ->capture_default_str();
+  c->add_flag("--force", s.force, "Overwrite existing output files");
+  c->add_flag("-q,--quiet", s.quiet, "No progress bar and no summary");
+
+  auto* video = "Video";
+  c->add_option("--fps", o.fps, "Frame rate (25, 30, 29.97...)")
+      ->capture_default_str()
+      ->group(video);
+  c->add_option("--duration", o.duration_s, "Seconds of video; 0 = the whole flight path")
+      ->capture_default_str()
+      ->group(video);
+  c->add_option("--width", o.camera.width, "Frame width, pixels (even)")
+      ->capture_default_str()
+      ->group(video);
+  c->add_option("--height", o.camera.height, "Frame height, pixels (even)")
+      ->capture_default_str()
+      ->group(video);
+  c->add_option("--hfov", o.camera.hfov_deg, "Horizontal field of view, degrees")
+      ->capture_default_str()
+      ->group(video);
+  c->add_option("--crf", o.crf, "H.264 quality, 0 (lossless) .. 51")
+      ->capture_default_str()
+      ->group(video);
+  c->add_option("--preset", o.x264_preset, "x264 speed preset (ultrafast .. veryslow)")
+      ->capture_default_str()
+      ->group(video);
+
+  auto* flight = "Flight";
+  c->add_option("--altitude", o.flight.altitude_m, "Height above ground, metres")
+      ->capture_default_str()
+      ->group(flight);
+  c->add_option("--speed", o.flight.speed_mps, "Ground speed, m/s")
+      ->capture_default_str()
+      ->group(flight);
+  c->add_option("--jitter", o.flight.attitude_jitter_deg, "Attitude wander, degrees (1 sigma)")
+      ->capture_default_str()
+      ->group(flight);
+  c->add_option("--altitude-jitter", o.flight.altitude_jitter_m, "Height wander, metres (1 sigma)")
+      ->capture_default_str()
+      ->group(flight);
+  c->add_option("--key-frames", o.flight.figure_eight_key_frames,
+                "figure-eight: size the path for about this many key frames")
+      ->capture_default_str()
+      ->group(flight);
+  c->add_option("--overlap", o.flight.key_frame_overlap, "figure-eight: key frame overlap (0..1)")
+      ->capture_default_str()
+      ->group(flight);
+  c->add_option("--rows", o.flight.raster_rows, "raster: number of rows")
+      ->capture_default_str()
+      ->group(flight);
+  c->add_option("--row-length", o.flight.raster_row_length_m, "raster: row length, metres")
+      ->capture_default_str()
+      ->group(flight);
+  c->add_option("--sidelap", o.flight.raster_sidelap, "raster: sideways overlap of rows (0..1)")
+      ->capture_default_str()
+      ->group(flight);
+  c->add_option("--length", o.flight.straight_length_m, "straight: length, metres")
+      ->capture_default_str()
+      ->group(flight);
+  c->add_option("--heading", o.flight.straight_heading_deg, "straight: heading, degrees from north")
+      ->capture_default_str()
+      ->group(flight);
+
+  auto* world = "World";
+  c->add_option("--loop-length", o.world.loop_length_m, "Length of the town's road loop, metres")
+      ->capture_default_str()
+      ->group(world);
+  c->add_option("--cars", o.targets.cars, "Moving cars")->capture_default_str()->group(world);
+  c->add_option("--vans", o.targets.vans, "Moving vans")->capture_default_str()->group(world);
+  c->add_option("--people", o.targets.people, "Walking people")
+      ->capture_default_str()
+      ->group(world);
+  c->add_option("--ground", o.ground_image,
+                "Orthophoto (PNG, JPEG, GeoTIFF) to fly over instead of the town; transparent\n"
+                "pixels are no data. No moving targets are simulated on it.")
+      ->check(CLI::ExistingFile)
+      ->group(world);
+  c->add_option("--gsd", o.ground_gsd_m, "Metres per pixel of --ground (read from a GeoTIFF if 0)")
+      ->group(world);
+  c->add_option("--ground-nodata", s.nodata,
+                "Padding colour of --ground that means no data where it touches the image edge:\n"
+                "none, white or black (transparent pixels are always no data)")
+      ->check(CLI::IsMember({"none", "white", "black"}))
+      ->capture_default_str()
+      ->group(world);
+  c->add_option("--lat", o.origin.latitude_deg, "Latitude of the ground origin, degrees")
+      ->capture_default_str()
+      ->group(world);
+  c->add_option("--lon", o.origin.longitude_deg, "Longitude of the ground origin, degrees")
+      ->capture_default_str()
+      ->group(world);
+  c->add_option("--ground-height", o.origin.height_m,
+                "Ground height above the WGS84 ellipsoid, metres")
+      ->capture_default_str()
+      ->group(world);
+
+  auto* imaging = "Imaging";
+  c->add_option("--noise", o.imaging.noise_sigma, "Sensor noise, grey levels (1 sigma)")
+      ->capture_default_str()
+      ->group(imaging);
+  c->add_option("--blur", o.imaging.blur_sigma_px, "Extra blur, pixels (Gaussian sigma)")
+      ->capture_default_str()
+      ->group(imaging);
+  c->add_option("--gain-drift", o.imaging.gain_drift, "Slow brightness drift, relative amplitude")
+      ->capture_default_str()
+      ->group(imaging);
+  c->add_option("--blank-start", o.imaging.blank_start_s,
+                "Start of a blank interval (cloud), seconds")
+      ->group(imaging);
+  c->add_option("--blank-duration", o.imaging.blank_duration_s,
+                "Length of the blank interval, seconds")
+      ->group(imaging);
+
+  auto* metadata = "Metadata (KLV)";
+  c->add_option("--klv-every", o.metadata.every_n_frames, "A KLV packet every N frames; 0 = no KLV")
+      ->capture_default_str()
+      ->group(metadata);
+  c->add_option("--klv-frames", o.metadata.only_frames,
+                "KLV only on these frames (comma-separated)")
+      ->delimiter(',')
+      ->group(metadata);
+  c->add_option("--klv-noise", o.metadata.position_noise_m, "Position noise, metres (1 sigma)")
+      ->capture_default_str()
+      ->group(metadata);
+  c->add_option("--klv-bias", s.bias, "Constant position error EAST,NORTH, metres")
+      ->delimiter(',')
+      ->expected(2)
+      ->group(metadata);
+  c->add_option("--klv-dropout", o.metadata.dropout_probability, "Chance that a due packet is lost")
+      ->capture_default_str()
+      ->group(metadata);
+}
+
+SimulateCommand::~SimulateCommand() = default;
+bool SimulateCommand::parsed() const { return state_->command->parsed(); }
+
+int SimulateCommand::Run() const {
+  sim::SimulationOptions options = state_->options;
+  const auto scenario = sim::ParseScenario(state_->scenario);
+  if (!scenario) {
+    std::cerr << "saker-cli: unknown scenario '" << state_->scenario << "'; choose one of:\n"
+              << ScenarioList();
+    return kExitUsage;
+  }
+  options.scenario = *scenario;
+  if (state_->nodata != "none") {
+    const uint8_t v = state_->nodata == "white" ? 255 : 0;
+    options.ground_nodata_bgr = cv::Vec3b(v, v, v);
+  }
+  if (state_->bias.size() == 2) {
+    options.metadata.bias_east_m = state_->bias[0];
+    options.metadata.bias_north_m = state_->bias[1];
+  }
+  if (const Status status = options.Validate(); !status.ok()) {
+    std::cerr << "saker-cli: " << status.message() << "\n";
+    return kExitUsage;
+  }
+  if (!state_->force) {
+    for (const auto& path : {options.output, options.TruthPath()}) {
+      if (std::filesystem::exists(path)) {
+        std::cerr << "saker-cli: " << path.string() << " exists; use --force to overwrite it\n";
+        return kExitFailed;
+      }
+    }
+  }
+  return RunSimulation(options, state_->quiet);
+}
+
+struct DemoCommand::State {
+  CLI::App* command = nullptr;
+  std::filesystem::path directory = "demo";
+};
+
+DemoCommand::DemoCommand(CLI::App& app) : state_(std::make_unique<State>()) {
+  state_->command = app.add_subcommand(
+      "demo",
+      "The built-in demo mission: generates DIR/demo.ts (the roundabout-loop scenario, 70 s of\n"
+      "1280x720 video at 25 fps with KLV, and its truth) unless it is already there, then runs\n"
+      "the main job on it (for now: probe).");
+  state_->command->add_option("--dir", state_->directory, "Where the demo mission lives")
+      ->capture_default_str();
+}
+
+DemoCommand::~DemoCommand() = default;
+bool DemoCommand::parsed() const { return state_->command->parsed(); }
+std::string DemoCommand::VideoPath() const { return (state_->directory / "demo.ts").string(); }
+
+int DemoCommand::Prepare() const {
+  sim::SimulationOptions options;
+  options.scenario = sim::Scenario::kRoundaboutLoop;
+  options.output = VideoPath();
+  // A stamp records the options the demo was made with, so a newer Saker remakes it.
+  const std::filesystem::path stamp = state_->directory / "demo.options.json";
+  const std::string wanted = options.ToJson().dump();
+  std::string existing;
+  if (std::ifstream in(stamp); in) std::getline(in, existing);
+  if (existing == wanted && std::filesystem::exists(options.output) &&
+      std::filesystem::exists(options.TruthPath())) {
+    std::cerr << "demo: using " << options.output.string() << " (delete "
+              << state_->directory.string() << " to make it again)\n";
+    return kExitOk;
+  }
+  std::error_code error;
+  std::filesystem::create_directories(state_->directory, error);
+  if (error) {
+    std::cerr << "saker-cli: cannot create " << state_->directory.string() << ": "
+              << error.message() << "\n";
+    return kExitFailed;
+  }
+  std::cerr << "demo: generating " << options.output.string() << "\n";
+  if (const int code = RunSimulation(options, false); code != kExitOk) return code;
+  std::ofstream out(stamp, std::ios::trunc);
+  out << wanted << "\n";
+  return out ? kExitOk : kExitFailed;
+}
+
+}  // namespace saker::app

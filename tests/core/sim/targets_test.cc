@@ -1,0 +1,100 @@
+#include "core/sim/targets.h"
+
+#include <gtest/gtest.h>
+
+#include <map>
+
+namespace saker::sim {
+namespace {
+
+std::shared_ptr<const World> TestWorld() {
+  static const std::shared_ptr<const World> world = [] {
+    StatusOr<World> w = GenerateWorld({}, cv::Rect2d(-1500, -1000, 3000, 2000));
+    return std::make_shared<const World>(std::move(w).value());
+  }();
+  return world;
+}
+
+// Distance from a point to the nearest carriageway edge (negative inside a road or roundabout).
+double OffRoad(const World& world, const Eigen::Vector2d& p) {
+  double best = 1e9;
+  for (const Road& road : world.roads)
+    best = std::min(best, DistanceToPolyline(p, road.centreline) - road.width_m / 2);
+  const RoadNode& r = world.nodes[world.roundabout_node];
+  best = std::min(best, (p - r.position).norm() - r.roundabout_radius_m);
+  return best;
+}
+
+TEST(TargetsTest, VehiclesStayOnRoadsAtRealisticSpeedsAndStopAndStart) {
+  const auto world = TestWorld();
+  TargetSimulation sim(world, {}, 5);
+  std::map<int, int> stopped_steps, moving_steps;
+  double max_vehicle_speed = 0, max_person_speed = 0;
+  for (int step = 0; step < 25 * 90; ++step) {
+    sim.Step(0.04);
+    for (const Target& t : sim.targets()) {
+      const double speed = t.velocity.norm();
+      if (t.target_class == TargetClass::kPerson) {
+        max_person_speed = std::max(max_person_speed, speed);
+        continue;
+      }
+      max_vehicle_speed = std::max(max_vehicle_speed, speed);
+      ASSERT_LT(OffRoad(*world, t.position), 0.5)
+          << "vehicle " << int(t.id) << " left the road at " << t.position.transpose();
+      (speed < 0.05 ? stopped_steps : moving_steps)[int(t.id)]++;
+    }
+  }
+  EXPECT_LT(max_vehicle_speed, 14.5);
+  EXPECT_GT(max_vehicle_speed, 8.0);
+  EXPECT_LT(max_person_speed, 1.8);
+  int stop_and_go = 0;
+  for (const auto& [id, n] : stopped_steps) stop_and_go += n > 25 && moving_steps[id] > 25;
+  EXPECT_GE(stop_and_go, 5) << "vehicles should stop for a while and drive on";
+}
+
+TEST(TargetsTest, TrafficGoesClockwiseRoundTheRoundabout) {
+  const auto world = TestWorld();
+  TargetSimulation sim(world, {}, 2);
+  const Eigen::Vector2d centre = world->nodes[world->roundabout_node].position;
+  int on_ring = 0, clockwise = 0;
+  for (int step = 0; step < 25 * 120; ++step) {
+    sim.Step(0.04);
+    for (const Target& t : sim.targets()) {
+      const Eigen::Vector2d r = t.position - centre;
+      if (t.target_class == TargetClass::kPerson || r.norm() > 15 || t.velocity.norm() < 1)
+        continue;
+      ++on_ring;
+      clockwise += r.x() * t.velocity.y() - r.y() * t.velocity.x() < 0;
+    }
+  }
+  EXPECT_GT(on_ring, 50);
+  EXPECT_GT(clockwise, 0.95 * on_ring);
+}
+
+TEST(TargetsTest, Deterministic) {
+  TargetSimulation a(TestWorld(), {}, 9), b(TestWorld(), {}, 9), c(TestWorld(), {}, 10);
+  for (int step = 0; step < 500; ++step) a.Step(0.04), b.Step(0.04), c.Step(0.04);
+  ASSERT_EQ(a.targets().size(), b.targets().size());
+  bool any_different = false;
+  for (size_t k = 0; k < a.targets().size(); ++k) {
+    EXPECT_EQ(a.targets()[k].position, b.targets()[k].position);
+    any_different |= a.targets()[k].position != c.targets()[k].position;
+  }
+  EXPECT_TRUE(any_different);
+}
+
+TEST(TargetsTest, CountsAndClasses) {
+  TargetOptions options;
+  options.cars = 3, options.vans = 2, options.people = 4;
+  TargetSimulation sim(TestWorld(), options, 1);
+  std::map<TargetClass, int> count;
+  for (const Target& t : sim.targets()) count[t.target_class]++;
+  EXPECT_EQ(count[TargetClass::kCar], 3);
+  EXPECT_EQ(count[TargetClass::kVan], 2);
+  EXPECT_EQ(count[TargetClass::kPerson], 4);
+  options.cars = -1;
+  EXPECT_FALSE(options.Validate().ok());
+}
+
+}  // namespace
+}  // namespace saker::sim
