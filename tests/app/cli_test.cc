@@ -9,6 +9,7 @@
 
 #include <array>
 #include <cstdio>
+#include <filesystem>
 #include <string>
 
 namespace {
@@ -89,6 +90,58 @@ TEST(CliTest, JsonOutputsParse) {
     break;
   }
   EXPECT_TRUE(found_security);
+}
+
+}  // namespace
+
+namespace {
+
+const char* kSmallSimulation =
+    "--width 320 --height 180 --altitude 100 --fps 10 --duration 2 --quiet";
+
+TEST(CliSimulateTest, HelpListsScenariosAndOptions) {
+  const CliRun run = RunCli("simulate --help");
+  EXPECT_EQ(run.exit_code, 0);
+  for (const char* word : {"roundabout-loop", "figure-eight", "raster", "straight", "--klv-noise",
+                           "--klv-every", "--klv-dropout", "--ground", "--gsd", "--blank-start",
+                           "--seed", "--truth", "--cars", "--altitude"}) {
+    EXPECT_NE(run.out.find(word), std::string::npos) << word;
+  }
+}
+
+TEST(CliSimulateTest, OutputProbesWithVideoAndKlv) {
+  const std::filesystem::path dir = saker::testing::MakeTempDir("saker-cli-sim");
+  const std::string video = (dir / "small.ts").string();
+  const CliRun sim = RunCli("simulate --scenario straight -o '" + video + "' " + kSmallSimulation);
+  ASSERT_EQ(sim.exit_code, 0) << sim.out;
+  EXPECT_TRUE(std::filesystem::exists(dir / "small.truth.json"));
+  const CliRun probe = RunCli("probe --json '" + video + "'");
+  ASSERT_EQ(probe.exit_code, 0) << probe.out;
+  const nlohmann::json summary = nlohmann::json::parse(probe.out);
+  ASSERT_EQ(summary["klv_streams"].size(), 1u);
+  EXPECT_EQ(summary["klv_streams"][0]["st0601_packets"], 20);
+  EXPECT_EQ(summary["klv_streams"][0]["checksum_failures"], 0);
+  EXPECT_EQ(summary["metadata"]["frames_with_corners"], 20);
+  bool h264 = false;
+  for (const auto& stream : summary["streams"]) h264 |= stream["codec"] == "h264";
+  EXPECT_TRUE(h264) << probe.out;
+
+  // An existing output is never overwritten without --force.
+  const CliRun again =
+      RunCli("simulate --scenario straight -o '" + video + "' " + kSmallSimulation);
+  EXPECT_EQ(again.exit_code, 1);
+  EXPECT_NE(again.out.find("--force"), std::string::npos) << again.out;
+  EXPECT_EQ(RunCli("simulate --scenario straight --force -o '" + video + "' " + kSmallSimulation)
+                .exit_code,
+            0);
+}
+
+TEST(CliSimulateTest, BadArgumentsAreUsageErrors) {
+  const CliRun run = RunCli("simulate --scenario loop-the-loop -o /tmp/x.ts");
+  EXPECT_EQ(run.exit_code, 2);
+  EXPECT_NE(run.out.find("roundabout-loop"), std::string::npos) << run.out;
+  EXPECT_EQ(RunCli("simulate -o /tmp/x.ts --width 321").exit_code, 2);
+  EXPECT_EQ(RunCli("simulate --scenario straight").exit_code, 2);  // no -o
 }
 
 }  // namespace
