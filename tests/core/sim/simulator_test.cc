@@ -256,7 +256,10 @@ TEST_F(SimulatorTest, MetadataRateOnlyFramesAndNone) {
   const auto packets_on = [&](SimulationOptions options) {
     EXPECT_TRUE(Simulate(options).ok());
     std::vector<int64_t> frames;
-    for (const FrameTruth& f : ReadTruth(options.TruthPath())->frames) {
+    const StatusOr<Truth> truth = ReadTruth(options.TruthPath());
+    EXPECT_TRUE(truth.ok());
+    if (!truth.ok()) return frames;
+    for (const FrameTruth& f : truth->frames) {
       if (f.klv) frames.push_back(f.index);
     }
     return frames;
