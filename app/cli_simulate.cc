@@ -289,7 +289,7 @@ struct DemoCommand::State {
 DemoCommand::DemoCommand(CLI::App& app) : state_(std::make_unique<State>()) {
   state_->command = app.add_subcommand(
       "demo",
-      "The built-in demo mission: generates DIR/demo.ts (the roundabout-loop scenario, 70 s of\n"
+      "The built-in demo mission: generates DIR/demo.ts (the roundabout-loop scenario, 71 s of\n"
       "1280x720 video at 25 fps with KLV, and its truth) unless it is already there, then runs\n"
       "the main job on it (for now: probe).");
   state_->command->add_option("--dir", state_->directory, "Where the demo mission lives")
