@@ -1,0 +1,147 @@
+#include "core/track/motion_segmentation.h"
+
+#include <Eigen/Geometry>
+
+#include <algorithm>
+#include <cmath>
+
+namespace saker::track {
+
+Status SegmentationOptions::Validate() const {
+  if (!(residual_threshold_px > 0)) {
+    return InvalidArgumentError("segmentation: the residual threshold must be positive");
+  }
+  if (window_frames < 2 || window_frames > 250) {
+    return InvalidArgumentError("segmentation: the window must be 2..250 frames");
+  }
+  if (short_frames < 1 || short_frames > window_frames) {
+    return InvalidArgumentError("segmentation: the short window must be 1..window frames");
+  }
+  if (!(min_significant_fraction > 0 && min_significant_fraction <= 1) ||
+      !(release_fraction >= 0 && release_fraction < min_significant_fraction)) {
+    return InvalidArgumentError(
+        "segmentation: need 0 <= release fraction < significant fraction <= 1");
+  }
+  if (!(min_window_displacement_px >= 0)) {
+    return InvalidArgumentError("segmentation: the window displacement must be >= 0");
+  }
+  if (!(max_parallax_fraction >= 0 && max_parallax_fraction < 1)) {
+    return InvalidArgumentError("segmentation: the parallax fraction must be in [0, 1)");
+  }
+  if (!(epipolar_angle_deg >= 0 && epipolar_angle_deg <= 90)) {
+    return InvalidArgumentError("segmentation: the epipolar angle must be in [0, 90] degrees");
+  }
+  return Status::Ok();
+}
+
+const char* MotionLabelName(MotionLabel label) {
+  switch (label) {
+    case MotionLabel::kUnknown:
+      return "unknown";
+    case MotionLabel::kStationary:
+      return "stationary";
+    case MotionLabel::kMoving:
+      return "moving";
+  }
+  return "unknown";
+}
+
+MotionSegmenter::MotionSegmenter(const SegmentationOptions& options) : options_(options) {}
+
+void MotionSegmenter::Reset() {
+  tracks_.clear();
+  moving_.clear();
+  not_moving_.clear();
+}
+
+void MotionSegmenter::AddFrame(const std::vector<Correspondence>& matches,
+                               const Eigen::Matrix3d& current_from_previous,
+                               const std::optional<Eigen::Vector3d>& epipole) {
+  std::unordered_map<int64_t, TrackState> next;
+  next.reserve(matches.size());
+  moving_.clear();
+  not_moving_.clear();
+  const double cos_limit = std::cos(options_.epipolar_angle_deg * M_PI / 180.0);
+  const size_t window = size_t(options_.window_frames);
+  for (const Correspondence& m : matches) {
+    const int64_t key = static_cast<int64_t>(m.id);
+    TrackState state;
+    if (auto it = tracks_.find(key); it != tracks_.end()) state = std::move(it->second);
+
+    const Eigen::Vector2d predicted =
+        (current_from_previous * m.source.homogeneous()).hnormalized();
+    state.residuals.push_back(m.target - predicted);
+    state.flows.push_back(predicted - m.source);
+    while (state.residuals.size() > window) {
+      state.residuals.pop_front();
+      state.flows.pop_front();
+    }
+    while (state.significant.size() >= window) state.significant.pop_front();
+
+    // Stage 1: motion relative to the ground over the last short_frames frames.
+    Eigen::Vector2d motion(0, 0), flow(0, 0);
+    double largest_step = 0;
+    const size_t n = std::min(state.residuals.size(), size_t(options_.short_frames));
+    for (size_t k = state.residuals.size() - n; k < state.residuals.size(); ++k) {
+      motion += state.residuals[k];
+      flow += state.flows[k];
+      largest_step = std::max(largest_step, state.residuals[k].norm());
+    }
+    // Real motion is spread over the frames; a single jump (the tracker slipping onto another
+    // corner) is not motion, however large.
+    bool significant =
+        motion.norm() > options_.residual_threshold_px && largest_step <= 0.5 * motion.norm() + 0.5;
+    if (significant && epipole.has_value()) {
+      // Parallax of a point above the ground: along the line from the epipole, and small next to
+      // the ground's own flow at that point.
+      const Eigen::Vector3d& e = *epipole;
+      const Eigen::Vector2d radial = std::abs(e.z()) > 1e-12
+                                         ? Eigen::Vector2d(m.target - e.hnormalized())
+                                         : Eigen::Vector2d(e.x(), e.y());
+      if (radial.norm() > 1e-9 && flow.norm() > 1e-9) {
+        const double alignment = std::abs(radial.normalized().dot(motion.normalized()));
+        significant = !(alignment >= cos_limit &&
+                        motion.norm() <= options_.max_parallax_fraction * flow.norm());
+      }
+    }
+    state.significant.push_back(significant);
+
+    // Stage 2: consistency over the window.
+    int count = 0;
+    Eigen::Vector2d sum(0, 0);
+    for (size_t k = 0; k < state.residuals.size(); ++k) sum += state.residuals[k];
+    for (bool b : state.significant) count += b;
+    const double fraction = double(count) / double(window);
+    if (state.label == MotionLabel::kMoving) {
+      // Released when it has mostly stopped over the window, or at once when the last few
+      // verdicts all say still (corners left behind on the road by a passing car).
+      const size_t recent = std::min<size_t>(4, state.significant.size());
+      bool recently_still = recent == 4;
+      for (size_t k = state.significant.size() - recent; k < state.significant.size(); ++k) {
+        recently_still &= !state.significant[k];
+      }
+      if (fraction <= options_.release_fraction || recently_still)
+        state.label = MotionLabel::kStationary;
+    } else if (fraction >= options_.min_significant_fraction &&
+               sum.norm() >= options_.min_window_displacement_px) {
+      state.label = MotionLabel::kMoving;
+    } else if (state.residuals.size() >= window / 2) {
+      state.label = MotionLabel::kStationary;
+    }
+
+    if (state.label == MotionLabel::kMoving) {
+      moving_.push_back({m.id, m.target, sum / double(state.residuals.size())});
+    } else {
+      not_moving_.push_back(m.id);
+    }
+    next.emplace(key, std::move(state));
+  }
+  tracks_ = std::move(next);
+}
+
+MotionLabel MotionSegmenter::LabelOf(FeatureTrackId id) const {
+  const auto it = tracks_.find(static_cast<int64_t>(id));
+  return it == tracks_.end() ? MotionLabel::kUnknown : it->second.label;
+}
+
+}  // namespace saker::track

@@ -1,0 +1,100 @@
+#pragma once
+
+// Moving / stationary separation: the paper's Visual MTI.
+//
+// The camera's own motion makes everything move in the image; the ground moves by one homography
+// from frame to frame (flat ground), so a feature that does not follow it is on a moving object,
+// on a tall structure (parallax), or is a tracking error. Two stages separate them:
+//
+//  1. Per frame, each feature's residual r = x_now - H x_before against the dominant ground motion
+//     H. Its motion over the last `short_frames` frames is the sum of those residuals (to first
+//     order the feature's displacement relative to the ground; tracking noise telescopes rather
+//     than adds up), spread over those frames (a single jump is a tracking slip, not motion),
+//     which is significant above a threshold set by the feature noise, unless it is
+//     explainable as parallax: a point above the ground plane is displaced along the epipolar line
+//     (towards or away from the epipole, the image of the camera's translation), and by at most a
+//     fraction of the ground's own image motion there (height / altitude). Summing over a few
+//     frames lets a walker (a quarter of a pixel per frame) be seen as well as a car.
+//  2. Over a longer window, a track is moving only when its motion was significant in most of
+//     the window AND its ground-relative displacement over the window is large: one noisy
+//     frame, or jitter back and forth, never makes a target. A moving track returns to stationary
+//     when it stays still for most of a window (a car stopping at a junction).
+
+// Stationary tracks are what the homographies are estimated from; moving ones are grouped into
+// targets (target_tracks.h).
+
+#include "core/track/types.h"
+#include "core/util/status.h"
+
+#include <Eigen/Core>
+
+#include <cstdint>
+#include <deque>
+#include <optional>
+#include <unordered_map>
+#include <vector>
+
+namespace saker::track {
+
+struct SegmentationOptions {
+  int short_frames = 8;  // stage 1: frames the motion is summed over
+  double residual_threshold_px =
+      1.5;                 // stage 1: motion over short_frames above this is significant
+  int window_frames = 12;  // stage 2: frames looked back on (>= short_frames)
+  double min_significant_fraction = 0.6;    // of the window, to become moving
+  double min_window_displacement_px = 2.5;  // ground-relative motion summed over the window
+  double release_fraction = 0.25;           // a moving track with fewer significant frames stops
+  double max_parallax_fraction = 0.15;  // residuals along the epipolar line up to this fraction of
+                                        // the ground flow are parallax (structures up to ~13 % of
+                                        // the flying height)
+  double epipolar_angle_deg = 12;       // "along the epipolar line" tolerance
+  Status Validate() const;
+};
+
+enum class MotionLabel {
+  kUnknown,     // too young to say
+  kStationary,  // follows the ground
+  kMoving,      // consistently off the ground motion
+};
+const char* MotionLabelName(MotionLabel label);
+
+struct MovingPoint {
+  FeatureTrackId id{};
+  Eigen::Vector2d position{0, 0};           // in the latest frame
+  Eigen::Vector2d residual_velocity{0, 0};  // ground-relative image velocity, pixels per frame
+};
+
+class MotionSegmenter {
+ public:
+  explicit MotionSegmenter(const SegmentationOptions& options);
+
+  // One frame: `matches` previous -> current for the tracks alive in both, `current_from_previous`
+  // the ground motion, and the epipole in the current frame (homogeneous; nullopt when unknown,
+  // which disables the parallax test). Tracks not in `matches` are forgotten.
+  void AddFrame(const std::vector<Correspondence>& matches,
+                const Eigen::Matrix3d& current_from_previous,
+                const std::optional<Eigen::Vector3d>& epipole);
+
+  MotionLabel LabelOf(FeatureTrackId id) const;
+  // The tracks labelled moving after the latest frame.
+  const std::vector<MovingPoint>& moving() const { return moving_; }
+  // Ids of tracks that are not moving (stationary or still unknown) in the latest frame.
+  const std::vector<FeatureTrackId>& not_moving() const { return not_moving_; }
+
+  void Reset();
+
+ private:
+  struct TrackState {
+    std::deque<Eigen::Vector2d> residuals;  // last window_frames per-frame residuals
+    std::deque<Eigen::Vector2d> flows;      // the ground's image motion at the feature, per frame
+    std::deque<bool> significant;           // stage 1 verdicts
+    MotionLabel label = MotionLabel::kUnknown;
+  };
+
+  SegmentationOptions options_;
+  std::unordered_map<int64_t, TrackState> tracks_;
+  std::vector<MovingPoint> moving_;
+  std::vector<FeatureTrackId> not_moving_;
+};
+
+}  // namespace saker::track

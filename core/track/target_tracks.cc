@@ -1,0 +1,234 @@
+#include "core/track/target_tracks.h"
+
+#include <algorithm>
+#include <limits>
+#include <map>
+#include <numeric>
+#include <tuple>
+#include <unordered_map>
+
+namespace saker::track {
+namespace {
+
+// Union-find over the moving points of one frame.
+class Groups {
+ public:
+  explicit Groups(size_t n) : parent_(n) { std::iota(parent_.begin(), parent_.end(), 0); }
+  size_t Find(size_t i) {
+    while (parent_[i] != i) i = parent_[i] = parent_[parent_[i]];
+    return i;
+  }
+  void Join(size_t a, size_t b) { parent_[Find(a)] = Find(b); }
+
+ private:
+  std::vector<size_t> parent_;
+};
+
+// Whether two moving things (features or targets) belong to one object: close together, and
+// moving alike. Both limits scale with speed: a car is long and its corners far apart, a walker
+// is a few pixels and walkers passing each other must stay apart; velocity noise is relative.
+bool Alike(const Eigen::Vector2d& pa, const Eigen::Vector2d& va, const Eigen::Vector2d& pb,
+           const Eigen::Vector2d& vb, const TargetTrackOptions& options) {
+  const double speed = std::max(va.norm(), vb.norm());
+  const double distance = options.group_distance_px * std::clamp(speed / 1.5, 0.35, 1.0);
+  const double velocity = std::max(options.group_velocity_px, 0.6 * speed);
+  return (pa - pb).squaredNorm() <= distance * distance &&
+         (va - vb).squaredNorm() <= velocity * velocity;
+}
+
+}  // namespace
+
+Status TargetTrackOptions::Validate() const {
+  if (!(group_distance_px > 0 && group_velocity_px > 0 && association_gate_px > 0)) {
+    return InvalidArgumentError("targets: grouping distances and the gate must be positive");
+  }
+  if (max_gap_frames < 0 || min_frames < 1) {
+    return InvalidArgumentError("targets: need max gap >= 0 and min frames >= 1");
+  }
+  if (!(box_margin_px >= 0)) return InvalidArgumentError("targets: box margin must be >= 0");
+  return Status::Ok();
+}
+
+TargetTracker::TargetTracker(const TargetTrackOptions& options) : options_(options) {}
+
+void TargetTracker::AddFrame(int64_t frame, const std::vector<MovingPoint>& moving) {
+  // 1. Group the moving features of this frame.
+  const size_t n = moving.size();
+  Groups groups(n);
+  for (size_t i = 0; i < n; ++i) {
+    for (size_t j = i + 1; j < n; ++j) {
+      if (Alike(moving[i].position, moving[i].residual_velocity, moving[j].position,
+                moving[j].residual_velocity, options_)) {
+        groups.Join(i, j);
+      }
+    }
+  }
+  std::unordered_map<size_t, std::vector<size_t>> members;
+  for (size_t i = 0; i < n; ++i) members[groups.Find(i)].push_back(i);
+  std::vector<TargetObservation> observations;
+  for (auto& [root, indices] : members) {
+    TargetObservation o;
+    o.frame = frame;
+    o.box_min = o.box_max = moving[indices[0]].position;
+    for (size_t i : indices) {
+      o.position += moving[i].position;
+      o.velocity += moving[i].residual_velocity;
+      o.box_min = o.box_min.cwiseMin(moving[i].position);
+      o.box_max = o.box_max.cwiseMax(moving[i].position);
+      o.features.push_back(moving[i].id);
+    }
+    o.position /= double(indices.size());
+    o.velocity /= double(indices.size());
+    o.box_min -= Eigen::Vector2d::Constant(options_.box_margin_px);
+    o.box_max += Eigen::Vector2d::Constant(options_.box_margin_px);
+    std::sort(o.features.begin(), o.features.end());
+    observations.push_back(std::move(o));
+  }
+  // Deterministic order whatever the hash map did.
+  std::sort(observations.begin(), observations.end(),
+            [](const TargetObservation& a, const TargetObservation& b) {
+              return a.features[0] < b.features[0];
+            });
+
+  // 2. Tie each group to a target: most shared features first, then the nearest prediction.
+  std::unordered_map<int64_t, size_t> owner;  // feature id -> active target index
+  for (size_t t = 0; t < active_.size(); ++t) {
+    for (FeatureTrackId f : active_[t].observations.back().features) owner[int64_t(f)] = t;
+  }
+  std::vector<int> assigned(observations.size(), -1);
+  std::vector<bool> target_taken(active_.size(), false);
+  // Most shared features first, over all groups: when an object's corners split into two groups
+  // (some left behind on the road), the larger share keeps the target.
+  struct Vote {
+    int count;
+    size_t group, target;
+  };
+  std::vector<Vote> votes;
+  for (size_t g = 0; g < observations.size(); ++g) {
+    std::map<size_t, int> counts;
+    for (FeatureTrackId f : observations[g].features) {
+      if (auto it = owner.find(int64_t(f)); it != owner.end()) ++counts[it->second];
+    }
+    for (const auto& [t, c] : counts) votes.push_back({c, g, t});
+  }
+  std::sort(votes.begin(), votes.end(), [](const Vote& a, const Vote& b) {
+    return a.count != b.count ? a.count > b.count
+                              : std::tie(a.group, a.target) < std::tie(b.group, b.target);
+  });
+  for (const Vote& v : votes) {
+    if (assigned[v.group] >= 0 || target_taken[v.target]) continue;
+    assigned[v.group] = int(v.target);
+    target_taken[v.target] = true;
+  }
+  for (size_t g = 0; g < observations.size(); ++g) {
+    if (assigned[g] >= 0) continue;
+    double best = std::numeric_limits<double>::infinity();
+    for (size_t t = 0; t < active_.size(); ++t) {
+      if (target_taken[t]) continue;
+      const TargetObservation& last = active_[t].observations.back();
+      const double gate = options_.association_gate_px + double(frame - last.frame - 1);
+      const Eigen::Vector2d predicted =
+          last.position + active_[t].image_velocity * double(frame - last.frame);
+      const double distance = (observations[g].position - predicted).norm();
+      if (distance <= gate && distance < best) best = distance, assigned[g] = int(t);
+    }
+    if (assigned[g] >= 0) target_taken[size_t(assigned[g])] = true;
+  }
+  for (size_t g = 0; g < observations.size(); ++g) {
+    if (assigned[g] >= 0) {
+      TargetTrack& target = active_[size_t(assigned[g])];
+      const TargetObservation& last = target.observations.back();
+      const Eigen::Vector2d velocity =
+          (observations[g].position - last.position) / double(frame - last.frame);
+      // Smoothed: feature sets change from frame to frame and move the mean a little.
+      target.image_velocity =
+          target.observations.size() == 1 ? velocity : 0.5 * (target.image_velocity + velocity);
+      target.max_features = std::max(target.max_features, observations[g].features.size());
+      target.observations.push_back(std::move(observations[g]));
+    } else {
+      TargetTrack target;
+      target.id = TargetTrackId{next_id_++};
+      target.max_features = observations[g].features.size();
+      target.observations.push_back(std::move(observations[g]));
+      active_.push_back(std::move(target));
+    }
+  }
+  MergeAlike(frame);
+  for (TargetTrack& target : active_) {
+    const int needed = target.max_features >= 2 ? options_.min_frames : options_.min_frames_single;
+    double travel = 0;
+    for (const TargetObservation& o : target.observations) travel += o.velocity.norm();
+    target.confirmed |=
+        int(target.observations.size()) >= needed && travel >= options_.min_travel_px;
+  }
+
+  // 3. End targets unseen for too long.
+  std::vector<TargetTrack> still;
+  for (TargetTrack& target : active_) {
+    if (frame - target.last_frame() > options_.max_gap_frames) {
+      if (target.confirmed) finished_.push_back(std::move(target));
+    } else {
+      still.push_back(std::move(target));
+    }
+  }
+  active_ = std::move(still);
+}
+
+void TargetTracker::MergeAlike(int64_t frame) {
+  for (size_t a = 0; a < active_.size(); ++a) {
+    for (size_t b = a + 1; b < active_.size(); ++b) {
+      const TargetObservation& oa = active_[a].observations.back();
+      const TargetObservation& ob = active_[b].observations.back();
+      if (oa.frame != frame || ob.frame != frame) continue;
+      // Touching boxes, moving alike: the corners of one object found in two places.
+      const Eigen::Vector2d gap =
+          (oa.box_min - ob.box_max).cwiseMax(ob.box_min - oa.box_max).cwiseMax(0.0);
+      const double speed = std::max(oa.velocity.norm(), ob.velocity.norm());
+      const double velocity = std::max(options_.group_velocity_px, 0.6 * speed);
+      const bool touching = gap.norm() <= options_.box_margin_px;
+      if (!touching || (oa.velocity - ob.velocity).norm() > velocity) continue;
+      // Keep the older target (smaller id); fold the other's observations into it by frame.
+      size_t keep = active_[a].id < active_[b].id ? a : b, drop = keep == a ? b : a;
+      std::map<int64_t, TargetObservation> by_frame;
+      for (TargetObservation& o : active_[keep].observations)
+        by_frame.emplace(o.frame, std::move(o));
+      for (TargetObservation& o : active_[drop].observations) {
+        auto [it, inserted] = by_frame.emplace(o.frame, o);
+        if (!inserted) {
+          TargetObservation& m = it->second;
+          const double na = double(m.features.size()), nb = double(o.features.size());
+          m.position = (m.position * na + o.position * nb) / (na + nb);
+          m.velocity = (m.velocity * na + o.velocity * nb) / (na + nb);
+          m.box_min = m.box_min.cwiseMin(o.box_min);
+          m.box_max = m.box_max.cwiseMax(o.box_max);
+          m.features.insert(m.features.end(), o.features.begin(), o.features.end());
+          std::sort(m.features.begin(), m.features.end());
+        }
+      }
+      TargetTrack& kept = active_[keep];
+      kept.observations.clear();
+      for (auto& [f, o] : by_frame) kept.observations.push_back(std::move(o));
+      kept.max_features = std::max({kept.max_features, active_[drop].max_features,
+                                    kept.observations.back().features.size()});
+      kept.confirmed = kept.confirmed || active_[drop].confirmed;
+      active_.erase(active_.begin() + long(drop));
+      --b;  // the next candidate moved into slot b
+      if (drop < a) --a;
+    }
+  }
+}
+
+std::vector<TargetTrack> TargetTracker::TakeFinished() {
+  std::vector<TargetTrack> out = std::move(finished_);
+  finished_.clear();
+  return out;
+}
+
+void TargetTracker::FinishAll() {
+  for (TargetTrack& target : active_) {
+    if (target.confirmed) finished_.push_back(std::move(target));
+  }
+  active_.clear();
+}
+
+}  // namespace saker::track

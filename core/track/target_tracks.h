@@ -1,0 +1,82 @@
+#pragma once
+
+// Target tracks: moving features grouped into objects and linked over time.
+//
+// A car carries several corners. In each frame the moving features are grouped when they are
+// close together and move alike (ground-relative velocity); each group is then tied to the target
+// that already owns most of its features, else to the target whose predicted position (constant
+// velocity) is nearest within a gate, else it starts a new target. A target survives gaps of a
+// few frames (a car losing its corners under a tree shadow). Two targets seen side by side and
+// moving alike are one object whose corners were first found apart: they are merged. A target
+// becomes confirmed once seen for enough frames (longer when it never had more than one
+// feature), which suppresses short-lived false alarms.
+
+#include "core/track/motion_segmentation.h"
+#include "core/track/types.h"
+#include "core/util/status.h"
+
+#include <Eigen/Core>
+
+#include <cstdint>
+#include <vector>
+
+namespace saker::track {
+
+struct TargetTrackOptions {
+  // Features closer than this and moving alike are one object. The distance applies from 1.5 px
+  // per frame of ground-relative speed (a car) and shrinks to 35 % of it for slow things (a
+  // walker); the velocity difference allowed is this or 30 % of the speed, whichever is larger.
+  double group_distance_px = 22;
+  double group_velocity_px = 0.5;
+  double association_gate_px = 18;  // predicted-position gate for linking a group to a target,
+                                    // growing by 1 px per frame unseen
+  int max_gap_frames = 25;          // frames a target may go unseen before it ends
+  int min_frames = 6;               // frames seen before a target with 2+ features is confirmed
+  int min_frames_single = 20;       // ... and one only ever seen as a single feature
+  double min_travel_px = 8;         // ground-relative distance travelled before confirmation
+  double box_margin_px = 4;         // added around the features for the target's box
+  Status Validate() const;
+};
+
+struct TargetObservation {
+  int64_t frame = 0;
+  Eigen::Vector2d position{0, 0};  // mean of the supporting features, pixels
+  Eigen::Vector2d box_min{0, 0};   // box around the supporting features (with margin)
+  Eigen::Vector2d box_max{0, 0};
+  Eigen::Vector2d velocity{0, 0};  // ground-relative, pixels per frame
+  std::vector<FeatureTrackId> features;
+};
+
+struct TargetTrack {
+  TargetTrackId id{};
+  std::vector<TargetObservation> observations;  // frames where it was seen, increasing
+  bool confirmed = false;
+  size_t max_features = 0;
+  Eigen::Vector2d image_velocity{0, 0};  // pixels per frame in the image (camera + own motion)
+  int64_t last_frame() const { return observations.empty() ? -1 : observations.back().frame; }
+};
+
+class TargetTracker {
+ public:
+  explicit TargetTracker(const TargetTrackOptions& options);
+
+  // The moving features of frame `frame` (frames increase).
+  void AddFrame(int64_t frame, const std::vector<MovingPoint>& moving);
+
+  // Targets still being followed.
+  const std::vector<TargetTrack>& active() const { return active_; }
+  // Confirmed targets that ended since the last call (unconfirmed ones are dropped).
+  std::vector<TargetTrack> TakeFinished();
+  // Ends every active target (at the end of the video or at a chain break).
+  void FinishAll();
+
+ private:
+  void MergeAlike(int64_t frame);
+
+  TargetTrackOptions options_;
+  std::vector<TargetTrack> active_;
+  std::vector<TargetTrack> finished_;
+  int64_t next_id_ = 1;
+};
+
+}  // namespace saker::track

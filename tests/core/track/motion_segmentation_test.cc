@@ -1,0 +1,166 @@
+#include "core/track/motion_segmentation.h"
+
+#include "core/track/target_tracks.h"
+
+#include <gtest/gtest.h>
+
+#include <random>
+
+namespace saker::track {
+namespace {
+
+// A synthetic scene: ground points translating by `flow` per frame (the camera flying), with
+// per-frame noise, and objects that add their own motion.
+struct Scene {
+  std::mt19937 rng{7};
+  std::normal_distribution<double> noise{0.0, 0.15};
+  Eigen::Vector2d flow{0, 3};  // camera moving "up": ground moves down the image by 3 px/frame
+  std::vector<Correspondence> Step(const std::vector<std::pair<int64_t, Eigen::Vector2d>>& points,
+                                   const std::vector<Eigen::Vector2d>& own_motion,
+                                   std::vector<Eigen::Vector2d>* now) {
+    std::vector<Correspondence> matches;
+    now->clear();
+    for (size_t i = 0; i < points.size(); ++i) {
+      const Eigen::Vector2d next =
+          points[i].second + flow + own_motion[i] + Eigen::Vector2d(noise(rng), noise(rng));
+      matches.push_back({FeatureTrackId{points[i].first}, points[i].second, next});
+      now->push_back(next);
+    }
+    return matches;
+  }
+  Eigen::Matrix3d Homography() const {
+    Eigen::Matrix3d h = Eigen::Matrix3d::Identity();
+    h(0, 2) = flow.x(), h(1, 2) = flow.y();
+    return h;
+  }
+};
+
+TEST(MotionSegmenterTest, MovingObjectsSeparateFromGroundAndNoise) {
+  Scene scene;
+  MotionSegmenter segmenter({});
+  std::vector<std::pair<int64_t, Eigen::Vector2d>> points;
+  std::vector<Eigen::Vector2d> own;
+  for (int i = 0; i < 40; ++i)
+    points.push_back({i, Eigen::Vector2d(20.0 * i, 100)}), own.push_back({0, 0});
+  for (int i = 40; i < 44; ++i)
+    points.push_back({i, Eigen::Vector2d(300 + i, 300)}), own.push_back({2, 0});  // a car
+  points.push_back({99, Eigen::Vector2d(500, 500)});
+  own.push_back({0, 0});  // a track that jumps once (a tracking error)
+  std::vector<Eigen::Vector2d> now;
+  for (int frame = 0; frame < 20; ++frame) {
+    std::vector<Eigen::Vector2d> motion = own;
+    if (frame == 10) motion.back() = Eigen::Vector2d(6, 0);
+    const auto matches = scene.Step(points, motion, &now);
+    segmenter.AddFrame(matches, scene.Homography(), std::nullopt);
+    for (size_t i = 0; i < points.size(); ++i) points[i].second = now[i];
+    if (frame >= 8) {
+      for (int i = 40; i < 44; ++i)
+        EXPECT_EQ(segmenter.LabelOf(FeatureTrackId{i}), MotionLabel::kMoving) << frame;
+      for (int i = 0; i < 40; ++i)
+        EXPECT_EQ(segmenter.LabelOf(FeatureTrackId{i}), MotionLabel::kStationary) << frame;
+      EXPECT_NE(segmenter.LabelOf(FeatureTrackId{99}), MotionLabel::kMoving) << frame;
+    }
+  }
+  EXPECT_EQ(segmenter.moving().size(), 4u);
+  EXPECT_NEAR(segmenter.moving()[0].residual_velocity.x(), 2.0, 0.2);
+}
+
+TEST(MotionSegmenterTest, ParallaxAlongTheEpipolarLineIsNotMotion) {
+  Scene scene;
+  scene.flow = {0, 8};  // fast ground flow: a roof 12 % of the height up drifts 1 px per frame
+  MotionSegmenter with_epipole({}), without({});
+  // The camera translates forward (up the image): the epipole is far up, at infinity along y.
+  const Eigen::Vector3d epipole(0, 1, 0);
+  std::vector<std::pair<int64_t, Eigen::Vector2d>> points{{1, {200, 200}}, {2, {400, 200}}};
+  std::vector<Eigen::Vector2d> own{{0, 1.0}, {1.2, 0}};  // 1: a roof (parallax), 2: a slow walker
+  std::vector<Eigen::Vector2d> now;
+  for (int frame = 0; frame < 20; ++frame) {
+    const auto matches = scene.Step(points, own, &now);
+    with_epipole.AddFrame(matches, scene.Homography(), epipole);
+    without.AddFrame(matches, scene.Homography(), std::nullopt);
+    for (size_t i = 0; i < points.size(); ++i) points[i].second = now[i];
+  }
+  EXPECT_EQ(with_epipole.LabelOf(FeatureTrackId{1}), MotionLabel::kStationary);
+  EXPECT_EQ(with_epipole.LabelOf(FeatureTrackId{2}), MotionLabel::kMoving);
+  // Without the epipolar test the roof's drift would be taken for motion.
+  EXPECT_EQ(without.LabelOf(FeatureTrackId{1}), MotionLabel::kMoving);
+  EXPECT_EQ(without.LabelOf(FeatureTrackId{2}), MotionLabel::kMoving);
+}
+
+TEST(MotionSegmenterTest, AStoppingCarBecomesStationaryAgain) {
+  Scene scene;
+  MotionSegmenter segmenter({});
+  std::vector<std::pair<int64_t, Eigen::Vector2d>> points{{5, {100, 100}}};
+  std::vector<Eigen::Vector2d> now;
+  for (int frame = 0; frame < 40; ++frame) {
+    const std::vector<Eigen::Vector2d> own{frame < 15 ? Eigen::Vector2d(2, 0)
+                                                      : Eigen::Vector2d(0, 0)};
+    segmenter.AddFrame(scene.Step(points, own, &now), scene.Homography(), std::nullopt);
+    points[0].second = now[0];
+    if (frame == 12) {
+      EXPECT_EQ(segmenter.LabelOf(FeatureTrackId{5}), MotionLabel::kMoving);
+    }
+  }
+  EXPECT_EQ(segmenter.LabelOf(FeatureTrackId{5}), MotionLabel::kStationary);
+}
+
+TEST(MotionSegmenterTest, ValidatesOptions) {
+  SegmentationOptions options;
+  EXPECT_TRUE(options.Validate().ok());
+  options.window_frames = 1;
+  EXPECT_FALSE(options.Validate().ok());
+  options = {};
+  options.release_fraction = 0.9;
+  EXPECT_FALSE(options.Validate().ok());
+}
+
+MovingPoint Point(int64_t id, double x, double y, double vx = 2, double vy = 0) {
+  return {FeatureTrackId{id}, {x, y}, {vx, vy}};
+}
+
+TEST(TargetTrackerTest, GroupsFeaturesIntoObjectsAndFollowsThem) {
+  TargetTracker tracker({});
+  for (int frame = 0; frame < 30; ++frame) {
+    const double x = 100 + 5 * frame;  // image motion: camera + own
+    std::vector<MovingPoint> moving{Point(1, x, 50), Point(2, x + 6, 52), Point(3, x + 3, 47),
+                                    Point(10, 400, 300 + 4.0 * frame, 0, 2),
+                                    Point(11, 405, 304 + 4.0 * frame, 0, 2)};
+    tracker.AddFrame(frame, moving);
+  }
+  ASSERT_EQ(tracker.active().size(), 2u);
+  for (const TargetTrack& t : tracker.active()) {
+    EXPECT_TRUE(t.confirmed);
+    EXPECT_EQ(t.observations.size(), 30u);
+  }
+  tracker.FinishAll();
+  EXPECT_EQ(tracker.TakeFinished().size(), 2u);
+}
+
+TEST(TargetTrackerTest, SurvivesFeatureTurnoverAndShortGaps) {
+  TargetTracker tracker({});
+  int64_t next_feature = 100;
+  for (int frame = 0; frame < 40; ++frame) {
+    if (frame >= 20 && frame < 25) {
+      tracker.AddFrame(frame, {});  // lost for five frames
+      continue;
+    }
+    // Every 4 frames the car's corners are new features (old ones lost, new ones detected).
+    if (frame % 4 == 0) next_feature += 3;
+    const double x = 100 + 4 * frame;
+    tracker.AddFrame(frame, {Point(next_feature, x, 80), Point(next_feature + 1, x + 5, 82),
+                             Point(next_feature + 2, x + 2, 78)});
+  }
+  ASSERT_EQ(tracker.active().size(), 1u);
+  EXPECT_EQ(tracker.active()[0].observations.size(), 35u);
+}
+
+TEST(TargetTrackerTest, ShortBlipsAreNeverConfirmed) {
+  TargetTracker tracker({});
+  for (int frame = 0; frame < 3; ++frame) tracker.AddFrame(frame, {Point(1, 100, 100)});
+  for (int frame = 3; frame < 30; ++frame) tracker.AddFrame(frame, {});
+  EXPECT_TRUE(tracker.active().empty());
+  EXPECT_TRUE(tracker.TakeFinished().empty());
+}
+
+}  // namespace
+}  // namespace saker::track
