@@ -2,6 +2,7 @@
 // do is reachable from here; `probe`, `klv`, `simulate`
 // and `demo` so far.
 
+#include "app/cli_evaluate.h"
 #include "app/cli_simulate.h"
 #include "core/ingest/report.h"
 #include "core/ingest/video_scan.h"
@@ -89,6 +90,7 @@ int main(int argc, char** argv) {
 
   saker::app::SimulateCommand simulate(app);
   saker::app::DemoCommand demo(app);
+  saker::app::EvaluateCommand evaluate(app);
 
   try {
     app.parse(argc, argv);
@@ -103,6 +105,7 @@ int main(int argc, char** argv) {
     if (probe->parsed()) return RunScan(file, json, /*dump_klv=*/false, tolerance_s);
     if (klv->parsed()) return RunScan(file, json, /*dump_klv=*/true, tolerance_s);
     if (simulate.parsed()) return simulate.Run();
+    if (evaluate.parsed()) return evaluate.Run();
     if (demo.parsed()) {
       return demo.Run([&](const std::string& video) {
         return RunScan(video, json, /*dump_klv=*/false, tolerance_s);

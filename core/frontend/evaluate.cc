@@ -1,0 +1,251 @@
+#include "core/frontend/evaluate.h"
+
+#include <Eigen/Geometry>
+#include <Eigen/LU>
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <sstream>
+
+namespace saker::frontend {
+namespace {
+
+double Percentile(std::vector<double> values, double p) {
+  if (values.empty()) return 0;
+  std::sort(values.begin(), values.end());
+  const size_t rank = size_t(std::ceil(p / 100.0 * double(values.size())));
+  return values[std::clamp<size_t>(rank, 1, values.size()) - 1];
+}
+
+// The pairing distance for a target in a frame: the option, or half the target's length in the
+// image plus a margin when that is larger (features on a car's bumper are a detection of the car).
+double Gate(const sim::TargetTruth& target, const sim::FrameTruth& frame,
+            const EvaluationOptions& options) {
+  const Eigen::Matrix3d& h = frame.frame_from_ground;
+  // Pixels per ground metre, from the homography's local scale (near nadir it barely varies).
+  const double scale =
+      std::sqrt(std::abs(h.topLeftCorner<2, 2>().determinant())) / std::abs(h(2, 2));
+  return std::max(options.gate_px, 0.5 * target.length_m * scale + 4.0);
+}
+
+HomographyAccuracy EvaluateHomographies(const FrontEndResult& result, const sim::Truth& truth) {
+  HomographyAccuracy accuracy;
+  std::vector<double> errors;
+  const double w = truth.width, h = truth.height;
+  const Eigen::Vector2d corners[4] = {
+      {-0.5, -0.5}, {w - 0.5, -0.5}, {w - 0.5, h - 0.5}, {-0.5, h - 0.5}};
+  for (size_t i = 1; i < result.frames.size() && i < truth.frames.size(); ++i) {
+    const FrameResult& frame = result.frames[i];
+    if (truth.frames[i].blank || truth.frames[i - 1].blank) continue;
+    if (!frame.homography_ok) {
+      ++accuracy.failed;
+      continue;
+    }
+    const Eigen::Matrix3d truth_map =
+        truth.frames[i].frame_from_ground * truth.frames[i - 1].frame_from_ground.inverse();
+    double error = 0;
+    for (const Eigen::Vector2d& c : corners) {
+      error += ((frame.current_from_previous * c.homogeneous()).hnormalized() -
+                (truth_map * c.homogeneous()).hnormalized())
+                   .norm() /
+               4.0;
+    }
+    errors.push_back(error);
+  }
+  accuracy.frames = int64_t(errors.size());
+  if (!errors.empty()) {
+    double sum = 0;
+    for (double e : errors) sum += e;
+    accuracy.mean_px = sum / double(errors.size());
+    accuracy.median_px = Percentile(errors, 50);
+    accuracy.p95_px = Percentile(errors, 95);
+    accuracy.max_px = *std::max_element(errors.begin(), errors.end());
+  }
+  return accuracy;
+}
+
+enum class Classes { kAll, kVehicles, kPeople };
+
+DetectionAccuracy EvaluateTargets(const FrontEndResult& result, const sim::Truth& truth,
+                                  const EvaluationOptions& options, Classes classes) {
+  DetectionAccuracy a;
+  const size_t frames = truth.frames.size();
+  std::vector<const sim::TargetTruth*> considered;
+  for (const sim::TargetTruth& t : truth.targets) {
+    const bool person = t.target_class == "person";
+    if (classes == Classes::kAll || (classes == Classes::kPeople) == person)
+      considered.push_back(&t);
+  }
+  const auto is_mover = [&](const sim::TargetTruth& t, size_t frame) {
+    const sim::TargetSampleTruth& s = t.samples[frame];
+    return s.visible && s.velocity_mps.norm() >= options.min_speed_mps;
+  };
+  // Detections per frame: (track index, observation index).
+  std::vector<std::vector<std::pair<size_t, size_t>>> detections(frames);
+  for (size_t k = 0; k < result.targets.size(); ++k) {
+    for (size_t o = 0; o < result.targets[k].observations.size(); ++o) {
+      const int64_t f = result.targets[k].observations[o].frame;
+      if (f >= 0 && size_t(f) < frames) detections[size_t(f)].emplace_back(k, o);
+    }
+  }
+  // Greedy pairing per frame, nearest first, against every considered truth target in view; a
+  // pair with a non-mover still makes a detection correct (a car that has just stopped).
+  std::map<std::pair<size_t, size_t>, int> track_truth_pairs;  // (track, truth) -> frames
+  std::vector<int> track_paired_frames(result.targets.size(), 0);
+  std::vector<int64_t> first_paired(considered.size() * result.targets.size(), -1);
+  for (size_t f = 0; f < frames; ++f) {
+    struct Candidate {
+      double distance;
+      size_t detection, truth;
+    };
+    std::vector<Candidate> candidates;
+    for (size_t d = 0; d < detections[f].size(); ++d) {
+      const auto [k, o] = detections[f][d];
+      const Eigen::Vector2d& p = result.targets[k].observations[o].position;
+      for (size_t t = 0; t < considered.size(); ++t) {
+        const sim::TargetSampleTruth& s = considered[t]->samples[f];
+        if (!s.visible) continue;
+        const double distance = (p - s.image_px).norm();
+        if (distance <= Gate(*considered[t], truth.frames[f], options))
+          candidates.push_back({distance, d, t});
+      }
+    }
+    std::sort(candidates.begin(), candidates.end(),
+              [](const Candidate& x, const Candidate& y) { return x.distance < y.distance; });
+    std::vector<bool> detection_used(detections[f].size(), false),
+        truth_used(considered.size(), false);
+    for (const Candidate& c : candidates) {
+      if (detection_used[c.detection] || truth_used[c.truth]) continue;
+      detection_used[c.detection] = truth_used[c.truth] = true;
+      const size_t k = detections[f][c.detection].first;
+      ++track_paired_frames[k];
+      ++track_truth_pairs[{k, c.truth}];
+      int64_t& first = first_paired[c.truth * result.targets.size() + k];
+      if (first < 0) first = int64_t(f);
+      if (is_mover(*considered[c.truth], f)) ++a.paired;
+    }
+    a.detections += int64_t(detections[f].size());
+    for (size_t t = 0; t < considered.size(); ++t)
+      a.truth_mover_frames += is_mover(*considered[t], f);
+  }
+  // Track-level figures.
+  std::vector<double> latencies;
+  const double fps = truth.fps > 0 ? truth.fps : 25;
+  for (size_t t = 0; t < considered.size(); ++t) {
+    int mover_frames = 0;
+    int64_t first_mover = -1;
+    for (size_t f = 0; f < frames; ++f) {
+      if (is_mover(*considered[t], f)) {
+        ++mover_frames;
+        if (first_mover < 0) first_mover = int64_t(f);
+      }
+    }
+    if (mover_frames < options.min_mover_frames) continue;
+    ++a.truth_targets;
+    for (size_t k = 0; k < result.targets.size(); ++k) {
+      const auto it = track_truth_pairs.find({k, t});
+      if (it != track_truth_pairs.end() && 2 * it->second >= mover_frames) {
+        ++a.found_targets;
+        latencies.push_back(double(std::max<int64_t>(
+                                0, first_paired[t * result.targets.size() + k] - first_mover)) /
+                            fps);
+        break;
+      }
+    }
+  }
+  for (size_t k = 0; k < result.targets.size(); ++k) {
+    ++a.detected_tracks;
+    if (2 * track_paired_frames[k] >= int(result.targets[k].observations.size()))
+      ++a.correct_tracks;
+  }
+  a.track_recall = a.truth_targets > 0 ? double(a.found_targets) / double(a.truth_targets) : 1.0;
+  a.track_precision =
+      a.detected_tracks > 0 ? double(a.correct_tracks) / double(a.detected_tracks) : 1.0;
+  a.frame_recall = a.truth_mover_frames > 0 ? double(a.paired) / double(a.truth_mover_frames) : 1.0;
+  int64_t paired_any = 0;
+  for (int n : track_paired_frames) paired_any += n;
+  a.frame_precision = a.detections > 0 ? double(paired_any) / double(a.detections) : 1.0;
+  a.median_latency_s = Percentile(latencies, 50);
+  return a;
+}
+
+nlohmann::json DetectionToJson(const DetectionAccuracy& a) {
+  return {{"truth_targets", a.truth_targets},
+          {"found_targets", a.found_targets},
+          {"detected_tracks", a.detected_tracks},
+          {"correct_tracks", a.correct_tracks},
+          {"track_recall", a.track_recall},
+          {"track_precision", a.track_precision},
+          {"truth_mover_frames", a.truth_mover_frames},
+          {"detections", a.detections},
+          {"frame_recall", a.frame_recall},
+          {"frame_precision", a.frame_precision},
+          {"median_latency_s", a.median_latency_s}};
+}
+
+}  // namespace
+
+StatusOr<Evaluation> Evaluate(const FrontEndResult& result, const sim::Truth& truth,
+                              const EvaluationOptions& options) {
+  if (result.frames.size() != truth.frames.size()) {
+    return InvalidArgumentError("evaluate: the video has " + std::to_string(result.frames.size()) +
+                                " frames but the truth describes " +
+                                std::to_string(truth.frames.size()));
+  }
+  if (result.video.width != truth.width || result.video.height != truth.height) {
+    return InvalidArgumentError("evaluate: the video is " + std::to_string(result.video.width) +
+                                "x" + std::to_string(result.video.height) + " but the truth is " +
+                                std::to_string(truth.width) + "x" + std::to_string(truth.height));
+  }
+  Evaluation e;
+  e.homography = EvaluateHomographies(result, truth);
+  e.targets = EvaluateTargets(result, truth, options, Classes::kAll);
+  e.vehicles = EvaluateTargets(result, truth, options, Classes::kVehicles);
+  e.people = EvaluateTargets(result, truth, options, Classes::kPeople);
+  e.key_frames = int64_t(result.key_frames.size());
+  e.chain_breaks = int64_t(result.breaks.size());
+  return e;
+}
+
+nlohmann::json EvaluationToJson(const Evaluation& e) {
+  return {{"homography",
+           {{"frames", e.homography.frames},
+            {"failed", e.homography.failed},
+            {"median_px", e.homography.median_px},
+            {"mean_px", e.homography.mean_px},
+            {"p95_px", e.homography.p95_px},
+            {"max_px", e.homography.max_px}}},
+          {"targets", DetectionToJson(e.targets)},
+          {"vehicles", DetectionToJson(e.vehicles)},
+          {"people", DetectionToJson(e.people)},
+          {"key_frames", e.key_frames},
+          {"chain_breaks", e.chain_breaks}};
+}
+
+std::string EvaluationToText(const Evaluation& e) {
+  std::ostringstream out;
+  out.setf(std::ios::fixed);
+  out.precision(3);
+  out << "Homographies: " << e.homography.frames << " frames, corner error median "
+      << e.homography.median_px << " px, mean " << e.homography.mean_px << ", 95% "
+      << e.homography.p95_px << ", max " << e.homography.max_px << "; " << e.homography.failed
+      << " frames without an estimate\n";
+  const auto line = [&](const char* name, const DetectionAccuracy& a) {
+    out << name << ": " << a.found_targets << " of " << a.truth_targets << " found (recall "
+        << a.track_recall << "), " << a.correct_tracks << " of " << a.detected_tracks
+        << " tracks correct (precision " << a.track_precision << "); per frame recall "
+        << a.frame_recall << ", precision " << a.frame_precision << "; median latency "
+        << a.median_latency_s << " s\n";
+  };
+  line("Targets", e.targets);
+  out << "  vehicles: " << e.vehicles.found_targets << " of " << e.vehicles.truth_targets
+      << " found (recall " << e.vehicles.track_recall << "), per frame recall "
+      << e.vehicles.frame_recall << "\n  people:   " << e.people.found_targets << " of "
+      << e.people.truth_targets << " found (recall " << e.people.track_recall
+      << "), per frame recall " << e.people.frame_recall << "\n";
+  out << "Key frames: " << e.key_frames << ", chain breaks: " << e.chain_breaks << "\n";
+  return out.str();
+}
+
+}  // namespace saker::frontend

@@ -1,0 +1,71 @@
+#pragma once
+
+// Accuracy of the front end against the simulator's truth (saker-cli evaluate).
+//
+// Homographies: for each frame with an estimate, the truth map from the previous frame is
+// T = F_now * F_before^-1 (F = the truth frame_from_ground); the error is the distance between
+// where the estimate and the truth send the four image corners, in pixels.
+//
+// Targets: a truth target is a *mover* in a frame when it is visible and its ground speed is at
+// least `min_speed_mps`; targets that are movers for at least `min_mover_frames` frames are the
+// ones to find. In each frame, detections (target-track observations) and truth movers are paired
+// greedily by image distance within a gate: `gate_px`, or half the target's length in the image
+// plus 4 px when larger (corners on a car's bumper are a detection of the car). A truth target is
+// found when one detected track is paired with it in at least half of its mover frames ("follows it
+// for most of its visible life"); a detected track is correct when it is paired with some truth
+// target (mover or not) in at least half of its frames. Recall and precision of tracks follow, and
+// per-frame ones from the pairs. Latency: from a found target's first mover frame to the first
+// frame its track is paired.
+
+#include "core/frontend/front_end.h"
+#include "core/sim/truth.h"
+
+#include <nlohmann/json.hpp>
+
+#include <string>
+
+namespace saker::frontend {
+
+struct EvaluationOptions {
+  double min_speed_mps = 1.0;
+  int min_mover_frames = 25;
+  double gate_px = 12;
+};
+
+struct HomographyAccuracy {
+  int64_t frames = 0;  // frames with both an estimate and truth
+  int64_t failed = 0;  // frames (after a segment's first) without an estimate
+  double median_px = 0, mean_px = 0, p95_px = 0, max_px = 0;  // corner transfer error
+};
+
+struct DetectionAccuracy {
+  int64_t truth_targets = 0;  // movers long enough to count
+  int64_t found_targets = 0;
+  int64_t detected_tracks = 0;  // confirmed target tracks
+  int64_t correct_tracks = 0;
+  double track_recall = 0, track_precision = 0;
+  int64_t truth_mover_frames = 0;  // (target, frame) pairs
+  int64_t detections = 0;          // (track, frame) observations
+  int64_t paired = 0;
+  double frame_recall = 0, frame_precision = 0;
+  double median_latency_s = 0;
+};
+
+struct Evaluation {
+  HomographyAccuracy homography;
+  DetectionAccuracy targets;  // every class
+  // Recall by class (precision needs every class: a correct track on a person is not a false
+  // alarm of the vehicle detector).
+  DetectionAccuracy vehicles;  // cars and vans only; precision not meaningful
+  DetectionAccuracy people;    // people only; precision not meaningful
+  int64_t key_frames = 0, chain_breaks = 0;
+};
+
+// Fails when the truth does not describe the video (frame count or size differ).
+StatusOr<Evaluation> Evaluate(const FrontEndResult& result, const sim::Truth& truth,
+                              const EvaluationOptions& options = {});
+
+nlohmann::json EvaluationToJson(const Evaluation& evaluation);
+std::string EvaluationToText(const Evaluation& evaluation);
+
+}  // namespace saker::frontend

@@ -1,0 +1,89 @@
+#pragma once
+
+// The streaming Visual MTI front end: video in; per frame the ground motion from the previous
+// frame with its covariance; moving-target tracks; key frames and the sequential links between
+// them. decode -> track -> segment -> homography -> key frames / targets.
+//
+// Decoding runs on its own thread and feeds a bounded queue; everything else runs on the calling
+// thread. Frames are not kept: memory holds the live feature tracks, the key frames (their
+// stationary points and a downscaled grey image for later matching), the per-frame homographies
+// and the target tracks.
+
+#include "core/track/feature_tracker.h"
+#include "core/track/homography.h"
+#include "core/track/key_frames.h"
+#include "core/track/motion_segmentation.h"
+#include "core/track/target_tracks.h"
+#include "core/util/job_context.h"
+#include "core/util/status.h"
+#include "core/video/video_reader.h"
+
+#include <Eigen/Core>
+#include <opencv2/core/mat.hpp>
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace saker::frontend {
+
+struct FrontEndOptions {
+  track::TrackerOptions tracker;
+  track::SegmentationOptions segmentation;
+  track::TargetTrackOptions targets;
+  track::HomographyOptions frame_homography;  // frame to frame, from stationary tracks
+  track::KeyFrameOptions key_frames;
+  bool parallax_check = true;       // estimate the epipole (fundamental matrix) for the MTI test
+  int queue_frames = 6;             // decoded frames waiting for the tracker, at most
+  int key_frame_image_width = 640;  // width of the grey copy kept per key frame (0: none)
+  int decoder_threads = 0;          // 0 = automatic
+  Status Validate() const;
+};
+
+// What the front end found about one frame.
+struct FrameResult {
+  int64_t index = 0;
+  double time_s = 0;
+  bool homography_ok = false;  // current_from_previous is valid (never for a segment's first frame)
+  Eigen::Matrix3d current_from_previous = Eigen::Matrix3d::Identity();
+  track::HomographyCovariance covariance = track::HomographyCovariance::Zero();
+  int tracked = 0;  // live feature tracks
+  int inliers = 0;  // stationary correspondences supporting the homography
+  int moving = 0;   // features labelled moving
+};
+
+struct KeyFrameImage {
+  track::KeyFrameId id{};
+  int64_t frame_index = 0;
+  cv::Mat grey;      // downscaled copy
+  double scale = 1;  // full-resolution pixels per pixel of `grey`
+};
+
+// Time spent per frame in each stage (milliseconds, averaged), and the whole run.
+struct FrontEndTiming {
+  double decode_ms = 0;  // on the decode thread (overlaps the rest)
+  double track_ms = 0;
+  double homography_ms = 0;  // frame to frame + fundamental
+  double segment_ms = 0;     // motion segmentation and target tracks
+  double key_frames_ms = 0;
+  double wall_s = 0;
+  int64_t frames = 0;
+};
+
+struct FrontEndResult {
+  video::VideoInfo video;
+  std::vector<FrameResult> frames;
+  std::vector<track::KeyFrame> key_frames;
+  std::vector<KeyFrameImage> key_frame_images;
+  std::vector<track::SequentialLink> links;
+  std::vector<track::ChainBreak> breaks;
+  std::vector<track::TargetTrack> targets;  // confirmed target tracks, by id
+  FrontEndTiming timing;
+};
+
+// Runs the front end over a whole video. Fails when the video cannot be opened or decoded;
+// frames without a usable homography are chain breaks, not errors. `job` may cancel.
+StatusOr<FrontEndResult> RunFrontEnd(const std::string& path, const FrontEndOptions& options,
+                                     JobContext* job = nullptr);
+
+}  // namespace saker::frontend

@@ -1,0 +1,140 @@
+// The front end end to end on simulated video, measured against the simulator's truth, and on the
+// real EO clip.
+
+#include "core/frontend/front_end.h"
+
+#include "core/frontend/evaluate.h"
+#include "core/sim/simulator.h"
+#include "core/sim/truth.h"
+#include "tests/testing/test_data.h"
+
+#include <gtest/gtest.h>
+
+namespace saker::frontend {
+namespace {
+
+// 640x360 at 200 m (0.2 m per pixel, like the demo), 25 fps, over the town's streets.
+sim::SimulationOptions SmallOptions(const std::filesystem::path& output, double seconds) {
+  sim::SimulationOptions options;
+  options.output = output;
+  options.camera.width = 640;
+  options.camera.height = 360;
+  options.flight.altitude_m = 200;
+  options.duration_s = seconds;
+  options.targets.cars = 60;  // a short clip over a small footprint still sees traffic
+  return options;
+}
+
+class FrontEndTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = new std::filesystem::path(saker::testing::MakeTempDir("saker-frontend"));
+    const sim::SimulationOptions options = SmallOptions(*dir_ / "town.ts", 12);
+    StatusOr<sim::SimulationSummary> summary = sim::Simulate(options);
+    ASSERT_TRUE(summary.ok()) << summary.status().ToString();
+    StatusOr<FrontEndResult> result = RunFrontEnd(options.output.string(), {});
+    ASSERT_TRUE(result.ok()) << result.status().ToString();
+    result_ = new FrontEndResult(std::move(result).value());
+    StatusOr<sim::Truth> truth = sim::ReadTruth(options.TruthPath());
+    ASSERT_TRUE(truth.ok());
+    StatusOr<Evaluation> evaluation = Evaluate(*result_, *truth);
+    ASSERT_TRUE(evaluation.ok()) << evaluation.status().ToString();
+    evaluation_ = new Evaluation(*evaluation);
+    std::cout << EvaluationToText(*evaluation_);
+  }
+  static void TearDownTestSuite() {
+    delete result_;
+    delete evaluation_;
+    delete dir_;
+  }
+  static std::filesystem::path* dir_;
+  static FrontEndResult* result_;
+  static Evaluation* evaluation_;
+};
+std::filesystem::path* FrontEndTest::dir_ = nullptr;
+FrontEndResult* FrontEndTest::result_ = nullptr;
+Evaluation* FrontEndTest::evaluation_ = nullptr;
+
+TEST_F(FrontEndTest, FrameToFrameHomographiesMatchTheTruth) {
+  ASSERT_NE(evaluation_, nullptr);
+  EXPECT_EQ(result_->frames.size(), 300u);
+  EXPECT_EQ(evaluation_->homography.failed, 0);
+  EXPECT_EQ(evaluation_->homography.frames, 299);
+  EXPECT_LT(evaluation_->homography.median_px, 0.1);
+  EXPECT_LT(evaluation_->homography.p95_px, 0.3);
+  // Every estimate carries a covariance.
+  for (size_t i = 1; i < result_->frames.size(); ++i) {
+    ASSERT_TRUE(result_->frames[i].homography_ok);
+    EXPECT_GT(result_->frames[i].covariance(2, 2), 0);
+  }
+}
+
+TEST_F(FrontEndTest, KeyFramesAndLinks) {
+  ASSERT_NE(result_, nullptr);
+  // 12 s at 15 m/s is 180 m, 2.5 footprints of 72 m: a few key frames at 30 % overlap.
+  EXPECT_GE(result_->key_frames.size(), 3u);
+  EXPECT_LE(result_->key_frames.size(), 8u);
+  EXPECT_EQ(result_->links.size(), result_->key_frames.size() - 1);
+  EXPECT_TRUE(result_->breaks.empty());
+  EXPECT_EQ(result_->key_frame_images.size(), result_->key_frames.size());
+}
+
+TEST_F(FrontEndTest, MovingVehiclesAreFound) {
+  ASSERT_NE(evaluation_, nullptr);
+  ASSERT_GE(evaluation_->vehicles.truth_targets, 3);
+  // Floors with a margin under what is measured (0.75 / 0.45 / 0.73 here; the demo's figures and
+  // the gap to the targets are in docs/front-end.md). Short clips over a small footprint
+  // lose the first half second of every vehicle to the confirmation delay.
+  EXPECT_GE(evaluation_->vehicles.track_recall, 0.5);
+  EXPECT_GE(evaluation_->vehicles.frame_recall, 0.35);
+  EXPECT_GE(evaluation_->targets.frame_precision, 0.6);
+}
+
+TEST(FrontEndRunTest, ABlankIntervalBreaksTheChainAndItRecovers) {
+  const std::filesystem::path dir = saker::testing::MakeTempDir("saker-frontend-blank");
+  sim::SimulationOptions options = SmallOptions(dir / "blank.ts", 6);
+  options.imaging.blank_start_s = 2;
+  options.imaging.blank_duration_s = 1;
+  ASSERT_TRUE(sim::Simulate(options).ok());
+  StatusOr<FrontEndResult> result = RunFrontEnd(options.output.string(), {});
+  ASSERT_TRUE(result.ok()) << result.status().ToString();
+  ASSERT_GE(result->breaks.size(), 1u);
+  EXPECT_NEAR(double(result->breaks[0].frame_index), 50, 2);
+  // A new segment starts after the cloud.
+  bool key_frame_after = false;
+  for (const track::KeyFrame& k : result->key_frames) key_frame_after |= k.frame_index >= 75;
+  EXPECT_TRUE(key_frame_after);
+}
+
+TEST(FrontEndRunTest, RealClipEndToEnd) {
+  SAKER_REQUIRE_TEST_DATA(path, "kwiver/aphill_short.ts");
+  StatusOr<FrontEndResult> result = RunFrontEnd(path.string(), {});
+  ASSERT_TRUE(result.ok()) << result.status().ToString();
+  EXPECT_EQ(result->frames.size(), 48u);
+  int estimated = 0;
+  for (const FrameResult& f : result->frames) estimated += f.homography_ok;
+  EXPECT_GE(estimated, 40);
+  EXPECT_GE(result->key_frames.size(), 1u);
+}
+
+TEST(FrontEndRunTest, ErrorsAndCancel) {
+  StatusOr<FrontEndResult> missing = RunFrontEnd("/nonexistent/sortie.ts", {});
+  ASSERT_FALSE(missing.ok());
+  EXPECT_NE(missing.status().message().find("/nonexistent/sortie.ts"), std::string::npos);
+  FrontEndOptions bad;
+  bad.queue_frames = 0;
+  EXPECT_FALSE(RunFrontEnd("/nonexistent/sortie.ts", bad).ok());
+
+  const std::filesystem::path dir = saker::testing::MakeTempDir("saker-frontend-cancel");
+  const sim::SimulationOptions options = SmallOptions(dir / "c.ts", 2);
+  ASSERT_TRUE(sim::Simulate(options).ok());
+  JobContext job([&](const std::string&, double fraction) {
+    if (fraction > 0.2) job.RequestCancel();
+  });
+  StatusOr<FrontEndResult> cancelled = RunFrontEnd(options.output.string(), {}, &job);
+  ASSERT_FALSE(cancelled.ok());
+  EXPECT_EQ(cancelled.status().code(), StatusCode::kCancelled);
+}
+
+}  // namespace
+}  // namespace saker::frontend
