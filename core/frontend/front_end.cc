@@ -230,8 +230,7 @@ StatusOr<FrontEndResult> RunFrontEnd(const std::string& path, const FrontEndOpti
   SAKER_RETURN_IF_ERROR(queue.status());
   targets.FinishAll();
   for (track::TargetTrack& t : targets.TakeFinished()) result.targets.push_back(std::move(t));
-  std::sort(result.targets.begin(), result.targets.end(),
-            [](const track::TargetTrack& a, const track::TargetTrack& b) { return a.id < b.id; });
+  result.targets = track::LinkFragments(std::move(result.targets), options.targets);
   result.key_frames = chain.key_frames();
   result.links = chain.links();
   result.breaks = chain.breaks();

@@ -231,4 +231,118 @@ void TargetTracker::FinishAll() {
   active_.clear();
 }
 
+namespace {
+
+// Folds `from` into `into` by frame (averaging frames both saw, weighted by feature counts).
+void FoldInto(TargetTrack& into, TargetTrack&& from) {
+  std::map<int64_t, TargetObservation> by_frame;
+  for (TargetObservation& o : into.observations) by_frame.emplace(o.frame, std::move(o));
+  for (TargetObservation& o : from.observations) {
+    auto [it, inserted] = by_frame.emplace(o.frame, o);
+    if (inserted) continue;
+    TargetObservation& m = it->second;
+    const double na = double(std::max<size_t>(1, m.features.size()));
+    const double nb = double(std::max<size_t>(1, o.features.size()));
+    m.position = (m.position * na + o.position * nb) / (na + nb);
+    m.velocity = (m.velocity * na + o.velocity * nb) / (na + nb);
+    m.box_min = m.box_min.cwiseMin(o.box_min);
+    m.box_max = m.box_max.cwiseMax(o.box_max);
+    m.features.insert(m.features.end(), o.features.begin(), o.features.end());
+    std::sort(m.features.begin(), m.features.end());
+  }
+  into.observations.clear();
+  for (auto& [f, o] : by_frame) into.observations.push_back(std::move(o));
+  into.max_features = std::max(into.max_features, from.max_features);
+  into.confirmed = into.confirmed || from.confirmed;
+}
+
+// Image velocity at the end of a track, from its last few observations.
+Eigen::Vector2d EndVelocity(const TargetTrack& t) {
+  const size_t n = t.observations.size();
+  if (n < 2) return t.image_velocity;
+  const TargetObservation& last = t.observations[n - 1];
+  const TargetObservation& earlier = t.observations[n - std::min<size_t>(n, 6)];
+  if (last.frame == earlier.frame) return t.image_velocity;
+  return (last.position - earlier.position) / double(last.frame - earlier.frame);
+}
+
+// Mean ground-relative speed of a track, pixels per frame.
+double MeanSpeed(const TargetTrack& t) {
+  double sum = 0;
+  for (const TargetObservation& o : t.observations) sum += o.velocity.norm();
+  return t.observations.empty() ? 0 : sum / double(t.observations.size());
+}
+
+// Mean distance between two tracks over the frames both saw, and how many frames that is.
+std::pair<double, int> SideBySide(const TargetTrack& a, const TargetTrack& b) {
+  size_t i = 0, j = 0;
+  double sum = 0;
+  int n = 0;
+  while (i < a.observations.size() && j < b.observations.size()) {
+    if (a.observations[i].frame < b.observations[j].frame) {
+      ++i;
+    } else if (a.observations[i].frame > b.observations[j].frame) {
+      ++j;
+    } else {
+      sum += (a.observations[i].position - b.observations[j].position).norm();
+      ++n, ++i, ++j;
+    }
+  }
+  return {n > 0 ? sum / n : std::numeric_limits<double>::infinity(), n};
+}
+
+}  // namespace
+
+std::vector<TargetTrack> LinkFragments(std::vector<TargetTrack> tracks,
+                                       const TargetTrackOptions& options) {
+  std::sort(tracks.begin(), tracks.end(), [](const TargetTrack& a, const TargetTrack& b) {
+    return a.observations.front().frame != b.observations.front().frame
+               ? a.observations.front().frame < b.observations.front().frame
+               : a.id < b.id;
+  });
+  bool changed = true;
+  while (changed) {
+    changed = false;
+    // Duplicates: side by side for a while.
+    for (size_t a = 0; a < tracks.size() && !changed; ++a) {
+      for (size_t b = a + 1; b < tracks.size() && !changed; ++b) {
+        const auto [distance, frames] = SideBySide(tracks[a], tracks[b]);
+        // As for grouping features: walkers side by side stay two, a car's two halves are one.
+        const double speed = std::max(MeanSpeed(tracks[a]), MeanSpeed(tracks[b]));
+        const double limit = options.group_distance_px * std::clamp(speed / 1.5, 0.35, 1.0);
+        if (frames >= options.duplicate_overlap_frames && distance <= limit) {
+          FoldInto(tracks[a], std::move(tracks[b]));
+          tracks.erase(tracks.begin() + long(b));
+          changed = true;
+        }
+      }
+    }
+    // Continuations: the best-placed track starting after each one's end.
+    for (size_t a = 0; a < tracks.size() && !changed; ++a) {
+      const TargetObservation& end = tracks[a].observations.back();
+      const Eigen::Vector2d velocity = EndVelocity(tracks[a]);
+      double best = std::numeric_limits<double>::infinity();
+      size_t best_b = 0;
+      for (size_t b = 0; b < tracks.size(); ++b) {
+        const TargetObservation& start = tracks[b].observations.front();
+        const int64_t gap = start.frame - end.frame;
+        if (b == a || gap <= 0 || gap > options.link_gap_frames) continue;
+        const Eigen::Vector2d predicted = end.position + velocity * double(gap);
+        const double distance = (start.position - predicted).norm();
+        if (distance <= options.association_gate_px + double(gap) && distance < best)
+          best = distance, best_b = b;
+      }
+      if (std::isfinite(best)) {
+        TargetTrack piece = std::move(tracks[best_b]);
+        FoldInto(tracks[a], std::move(piece));
+        tracks.erase(tracks.begin() + long(best_b));
+        changed = true;
+      }
+    }
+  }
+  std::sort(tracks.begin(), tracks.end(),
+            [](const TargetTrack& a, const TargetTrack& b) { return a.id < b.id; });
+  return tracks;
+}
+
 }  // namespace saker::track

@@ -35,6 +35,10 @@ struct TargetTrackOptions {
   int min_frames_single = 20;       // ... and one only ever seen as a single feature
   double min_travel_px = 8;         // ground-relative distance travelled before confirmation
   double box_margin_px = 4;         // added around the features for the target's box
+  // LinkFragments: a track that starts within this many frames of another's end, near where
+  // that one was heading, continues it; tracks side by side for this many frames are one.
+  int link_gap_frames = 60;
+  int duplicate_overlap_frames = 5;
   Status Validate() const;
 };
 
@@ -78,5 +82,13 @@ class TargetTracker {
   std::vector<TargetTrack> finished_;
   int64_t next_id_ = 1;
 };
+
+// Joins the pieces of one object's track, once the video is over: a track that starts shortly
+// after another ended, where that one was heading (image position extrapolated with its image
+// velocity, within association_gate_px plus 1 px per frame of gap), continues it; two tracks that
+// run side by side (within group_distance_px) for at least duplicate_overlap_frames frames are
+// one. Ids of the earlier pieces are kept; the result is ordered by id.
+std::vector<TargetTrack> LinkFragments(std::vector<TargetTrack> tracks,
+                                       const TargetTrackOptions& options);
 
 }  // namespace saker::track

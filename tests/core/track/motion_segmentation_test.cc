@@ -162,5 +162,44 @@ TEST(TargetTrackerTest, ShortBlipsAreNeverConfirmed) {
   EXPECT_TRUE(tracker.TakeFinished().empty());
 }
 
+TargetTrack Track(int64_t id, int64_t first, int64_t last, Eigen::Vector2d start,
+                  Eigen::Vector2d image_step, Eigen::Vector2d velocity) {
+  TargetTrack t;
+  t.id = TargetTrackId{id};
+  for (int64_t f = first; f <= last; ++f) {
+    TargetObservation o;
+    o.frame = f;
+    o.position = start + image_step * double(f - first);
+    o.velocity = velocity;
+    o.features = {FeatureTrackId{id * 1000 + f}};
+    t.observations.push_back(o);
+  }
+  t.confirmed = true;
+  return t;
+}
+
+TEST(LinkFragmentsTest, JoinsContinuationsAndDuplicatesButNotPassersBy) {
+  const TargetTrackOptions options;
+  std::vector<TargetTrack> tracks;
+  // A car lost for 20 frames: the second piece starts where the first was heading.
+  tracks.push_back(Track(1, 0, 40, {100, 100}, {4, 0}, {2, 0}));
+  tracks.push_back(Track(2, 60, 100, {100 + 4 * 60.0, 100}, {4, 0}, {2, 0}));
+  // The same car's rear corners tracked as another target alongside the first piece.
+  tracks.push_back(Track(3, 10, 30, {100 + 4 * 10.0 - 12, 101}, {4, 0}, {2, 0}));
+  // Two walkers side by side, 3 m (15 px) apart: two people.
+  tracks.push_back(Track(4, 0, 100, {500, 500}, {3, 0.3}, {0, 0.3}));
+  tracks.push_back(Track(5, 0, 100, {515, 500}, {3, 0.3}, {0, 0.3}));
+  // A car elsewhere, heading another way.
+  tracks.push_back(Track(6, 70, 90, {100, 400}, {0, 4}, {0, 2}));
+  const std::vector<TargetTrack> linked = LinkFragments(tracks, options);
+  ASSERT_EQ(linked.size(), 4u);
+  EXPECT_EQ(linked[0].id, TargetTrackId{1});
+  EXPECT_EQ(linked[0].observations.front().frame, 0);
+  EXPECT_EQ(linked[0].observations.back().frame, 100);
+  EXPECT_EQ(linked[1].id, TargetTrackId{4});
+  EXPECT_EQ(linked[2].id, TargetTrackId{5});
+  EXPECT_EQ(linked[3].id, TargetTrackId{6});
+}
+
 }  // namespace
 }  // namespace saker::track
