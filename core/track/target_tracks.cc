@@ -309,7 +309,9 @@ std::vector<TargetTrack> LinkFragments(std::vector<TargetTrack> tracks,
         const auto [distance, frames] = SideBySide(tracks[a], tracks[b]);
         // As for grouping features: walkers side by side stay two, a car's two halves are one.
         const double speed = std::max(MeanSpeed(tracks[a]), MeanSpeed(tracks[b]));
-        const double limit = options.group_distance_px * std::clamp(speed / 1.5, 0.35, 1.0);
+        // Pieces of one long vehicle (a van's front and rear corners) keep their distance, up
+        // to 30 % more than the grouping distance.
+        const double limit = options.group_distance_px * std::clamp(speed / 1.5 * 1.3, 0.35, 1.3);
         if (frames >= options.duplicate_overlap_frames && distance <= limit) {
           FoldInto(tracks[a], std::move(tracks[b]));
           tracks.erase(tracks.begin() + long(b));

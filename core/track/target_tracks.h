@@ -32,7 +32,7 @@ struct TargetTrackOptions {
                                     // growing by 1 px per frame unseen
   int max_gap_frames = 25;          // frames a target may go unseen before it ends
   int min_frames = 6;               // frames seen before a target with 2+ features is confirmed
-  int min_frames_single = 20;       // ... and one only ever seen as a single feature
+  int min_frames_single = 32;       // ... and one only ever seen as a single feature
   double min_travel_px = 8;         // ground-relative distance travelled before confirmation
   double box_margin_px = 4;         // added around the features for the target's box
   // LinkFragments: a track that starts within this many frames of another's end, near where
