@@ -140,21 +140,29 @@ StatusOr<std::vector<uint8_t>> EncodeNumber(const TagSpec* spec, double value, s
   return WrongType(spec, "the number " + NumberText(value));
 }
 
+// The item length for an integer value: the tag's fixed length, the length asked for, or (0 for
+// a variable-length tag) the shortest that holds the value; a value too big for the longest is
+// refused by the caller.
+template <typename Fits>
+StatusOr<size_t> IntegerLength(const TagSpec& spec, size_t length, Fits fits) {
+  size_t n = length;
+  if (!spec.variable_length) {
+    SAKER_ASSIGN_OR_RETURN(n, FixedLength(spec, length));
+  } else if (n == 0) {
+    n = 1;
+    while (n < spec.length && !fits(n)) ++n;
+  }
+  SAKER_RETURN_IF_ERROR(CheckVariableLength(spec, n));
+  return n;
+}
+
 StatusOr<std::vector<uint8_t>> EncodeUnsigned(const TagSpec* spec, uint64_t value, size_t length) {
   if (spec == nullptr || spec->mapping != Mapping::kUint) {
     return WrongType(spec, "the unsigned integer " + std::to_string(value));
   }
-  size_t n = length;
-  if (!spec->variable_length) {
-    auto fixed = FixedLength(*spec, length);
-    if (!fixed.ok()) return fixed.status();
-    n = *fixed;
-  } else if (n == 0) {
-    // The shortest form; a value too big for the longest is refused below.
-    n = 1;
-    while (n < spec->length && !FitsUnsigned(value, n)) ++n;
-  }
-  SAKER_RETURN_IF_ERROR(CheckVariableLength(*spec, n));
+  SAKER_ASSIGN_OR_RETURN(const size_t n, IntegerLength(*spec, length, [&](size_t k) {
+                           return FitsUnsigned(value, k);
+                         }));
   if (!FitsUnsigned(value, n)) {
     return Refuse("value " + std::to_string(value) + " does not fit in " + Bytes(n));
   }
@@ -165,16 +173,8 @@ StatusOr<std::vector<uint8_t>> EncodeSigned(const TagSpec* spec, int64_t value, 
   if (spec == nullptr || spec->mapping != Mapping::kInt) {
     return WrongType(spec, "the signed integer " + std::to_string(value));
   }
-  size_t n = length;
-  if (!spec->variable_length) {
-    auto fixed = FixedLength(*spec, length);
-    if (!fixed.ok()) return fixed.status();
-    n = *fixed;
-  } else if (n == 0) {
-    n = 1;
-    while (n < spec->length && !FitsSigned(value, n)) ++n;
-  }
-  SAKER_RETURN_IF_ERROR(CheckVariableLength(*spec, n));
+  SAKER_ASSIGN_OR_RETURN(
+      const size_t n, IntegerLength(*spec, length, [&](size_t k) { return FitsSigned(value, k); }));
   if (!FitsSigned(value, n)) {
     return Refuse("value " + std::to_string(value) + " does not fit in " + Bytes(n));
   }

@@ -105,8 +105,8 @@ class [[nodiscard]] StatusOr {
 #define SAKER_STATUS_CONCAT_(a, b) SAKER_STATUS_CONCAT_INNER_(a, b)
 // `lhs = value of expr` (a StatusOr), or returns its Status from the enclosing function.
 // `lhs` may declare a variable: SAKER_ASSIGN_OR_RETURN(auto x, MakeX());
-#define SAKER_ASSIGN_OR_RETURN(lhs, expr)                                         \
-  auto SAKER_STATUS_CONCAT_(saker_statusor_, __LINE__) = (expr);                  \
-  if (!SAKER_STATUS_CONCAT_(saker_statusor_, __LINE__).ok())                      \
-    return SAKER_STATUS_CONCAT_(saker_statusor_, __LINE__).status();              \
+#define SAKER_ASSIGN_OR_RETURN(lhs, expr)                            \
+  auto SAKER_STATUS_CONCAT_(saker_statusor_, __LINE__) = (expr);     \
+  if (!SAKER_STATUS_CONCAT_(saker_statusor_, __LINE__).ok())         \
+    return SAKER_STATUS_CONCAT_(saker_statusor_, __LINE__).status(); \
   lhs = std::move(SAKER_STATUS_CONCAT_(saker_statusor_, __LINE__)).value()

@@ -125,7 +125,7 @@ std::optional<HomographyEstimate> FrameToFrame(const std::map<int, Eigen::Vector
 // Track ids for the observed points: the ground index, or (renew_every > 0) a fresh id for
 // every point each renew_every frames, as if the tracker lost and re-found them all at once.
 std::vector<StationaryPoint> Tracks(const std::map<int, Eigen::Vector2d>& seen, int64_t n,
-                                 int renew_every) {
+                                    int renew_every) {
   std::vector<StationaryPoint> tracks;
   for (const auto& [index, p] : seen) {
     int64_t id = index;
@@ -344,9 +344,9 @@ TEST(KeyFrameChainTest, ChainedLinkWhenTooFewSharedTracks) {
     EXPECT_GT(link.correspondences.size(), 0u);
     for (const Correspondence& c : link.correspondences) {
       const KeyFrame& from = chain.key_frames()[static_cast<size_t>(link.from)];
-      const auto it =
-          std::lower_bound(from.points.begin(), from.points.end(), c.id,
-                           [](const StationaryPoint& p, FeatureTrackId id) { return p.first < id; });
+      const auto it = std::lower_bound(
+          from.points.begin(), from.points.end(), c.id,
+          [](const StationaryPoint& p, FeatureTrackId id) { return p.first < id; });
       ASSERT_NE(it, from.points.end());
       EXPECT_EQ(it->second, c.source);
     }
