@@ -283,8 +283,22 @@ Eigen::Matrix2d TransferCovariance(const Eigen::Matrix3d& h, const HomographyCov
   return 0.5 * (result + result.transpose());
 }
 
-Eigen::Matrix<double, 8, 16> ComposeJacobian(const Eigen::Matrix3d& c_from_b,
-                                             const Eigen::Matrix3d& b_from_a) {
+namespace {
+
+// H / H(2,2): the matrix whose 8 parameters a covariance describes.
+Eigen::Matrix3d Normalised(const Eigen::Matrix3d& h) {
+  SAKER_CHECK(h(2, 2) != 0) << "a homography with H(2,2) = 0 has no parameters";
+  return h / h(2, 2);
+}
+
+}  // namespace
+
+Eigen::Matrix<double, 8, 16> ComposeJacobian(const Eigen::Matrix3d& c_from_b_in,
+                                             const Eigen::Matrix3d& b_from_a_in) {
+  // The derivatives are taken with respect to the parameters of the normalised inputs (the ones
+  // the covariances describe), so a scaled input must not scale them.
+  const Eigen::Matrix3d c_from_b = Normalised(c_from_b_in);
+  const Eigen::Matrix3d b_from_a = Normalised(b_from_a_in);
   const Eigen::Matrix3d product = c_from_b * b_from_a;
   SAKER_CHECK(product(2, 2) != 0) << "composed homography has H(2,2) = 0";
   // d(C B) / dC_ij = E_ij B (row i of the product gets row j of B);
@@ -318,7 +332,7 @@ StatusOr<HomographyWithCovariance> Compose(const Eigen::Matrix3d& c_from_b,
 }
 
 Eigen::Matrix<double, 8, 8> InverseJacobian(const Eigen::Matrix3d& target_from_source) {
-  const Eigen::Matrix3d g = target_from_source.inverse();
+  const Eigen::Matrix3d g = Normalised(target_from_source).inverse();
   SAKER_CHECK(g.allFinite() && g(2, 2) != 0) << "homography has no normalised inverse";
   // d(H^-1) = -H^-1 dH H^-1, with dH = E_ij: the outer product of column i and row j of H^-1.
   std::array<Eigen::Matrix3d, 8> dp;

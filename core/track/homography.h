@@ -101,7 +101,9 @@ StatusOr<HomographyWithCovariance> Compose(const Eigen::Matrix3d& c_from_b,
                                            const Eigen::Matrix3d& b_from_a,
                                            const HomographyCovariance& cov_ba);
 // The 16 columns [d/d(c_from_b params) | d/d(b_from_a params)] of the normalised product's
-// parameters; Compose uses them. The product must have H(2,2) != 0 (SAKER_CHECK).
+// parameters; Compose uses them. Inputs may be any scale (they are normalised first: the
+// covariances describe normalised parameters); inputs and product must have H(2,2) != 0
+// (SAKER_CHECK).
 Eigen::Matrix<double, 8, 16> ComposeJacobian(const Eigen::Matrix3d& c_from_b,
                                              const Eigen::Matrix3d& b_from_a);
 
