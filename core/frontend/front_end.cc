@@ -73,6 +73,27 @@ class FrameQueue {
   Status status_;
 };
 
+// The epipole for the parallax test, only when the scene shows parallax. Over flat ground the
+// fundamental matrix is not determined (any epipole fits a plane), and a random epipole would
+// let slow movers pass as parallax. So F is fitted to all ground matches, and its epipole is used
+// only when enough matches fit F but not the homography: points off the ground plane.
+std::optional<Eigen::Vector3d> ParallaxEpipole(const std::vector<track::Correspondence>& ground,
+                                               const track::HomographyEstimate& plane,
+                                               const FrontEndOptions& options) {
+  StatusOr<track::FundamentalEstimate> f = track::EstimateFundamental(ground, {});
+  if (!f.ok()) return std::nullopt;
+  int off_plane = 0;
+  for (size_t i = 0; i < ground.size(); ++i) {
+    if (!f->inliers[i]) continue;
+    const double transfer =
+        (track::Transfer(plane.target_from_source, ground[i].source) - ground[i].target).norm();
+    off_plane += transfer > options.frame_homography.ransac_threshold_px;
+  }
+  const int needed = std::max(options.min_parallax_points, int(ground.size() / 20));
+  if (off_plane < needed) return std::nullopt;
+  return f->epipole_target;
+}
+
 }  // namespace
 
 Status FrontEndOptions::Validate() const {
@@ -94,7 +115,9 @@ StatusOr<FrontEndResult> RunFrontEnd(const std::string& path, const FrontEndOpti
                                      JobContext* job) {
   SAKER_RETURN_IF_ERROR(options_in.Validate());
   FrontEndOptions options = options_in;
-  options.tracker.keep_finished = false;  // the front end needs live tracks only
+  // The front end needs live tracks only, and of each only its latest positions.
+  options.tracker.keep_finished = false;
+  options.tracker.max_history = 2;
 
   video::ReaderOptions reader_options;
   reader_options.want_bgr = false;
@@ -140,7 +163,6 @@ StatusOr<FrontEndResult> RunFrontEnd(const std::string& path, const FrontEndOpti
   track::MotionSegmenter segmenter(options.segmentation);
   track::TargetTracker targets(options.targets);
   track::KeyFrameChain chain(options.key_frames);
-  track::FundamentalOptions fundamental_options;
   FrontEndTiming& timing = result.timing;
   const auto wall_start = Clock::now();
   bool segment_open = false;
@@ -170,11 +192,7 @@ StatusOr<FrontEndResult> RunFrontEnd(const std::string& path, const FrontEndOpti
       if (h.ok()) estimate = std::move(h).value();
     }
     std::optional<Eigen::Vector3d> epipole;
-    if (estimate && options.parallax_check) {
-      StatusOr<track::FundamentalEstimate> f =
-          track::EstimateFundamental(estimate->inliers, fundamental_options);
-      if (f.ok()) epipole = f->epipole_target;
-    }
+    if (estimate && options.parallax_check) epipole = ParallaxEpipole(ground, *estimate, options);
     timing.homography_ms += MillisecondsSince(start);
 
     start = Clock::now();

@@ -37,8 +37,9 @@ struct FrontEndOptions {
   track::TargetTrackOptions targets;
   track::HomographyOptions frame_homography;  // frame to frame, from stationary tracks
   track::KeyFrameOptions key_frames;
-  bool parallax_check = true;       // estimate the epipole (fundamental matrix) for the MTI test
-  int queue_frames = 6;             // decoded frames waiting for the tracker, at most
+  bool parallax_check = true;    // estimate the epipole (fundamental matrix) for the MTI test
+  int min_parallax_points = 20;  // matches on F but off the ground plane needed to use F's epipole
+  int queue_frames = 6;          // decoded frames waiting for the tracker, at most
   int key_frame_image_width = 640;  // width of the grey copy kept per key frame (0: none)
   int decoder_threads = 0;          // 0 = automatic
   Status Validate() const;

@@ -51,7 +51,6 @@ MotionSegmenter::MotionSegmenter(const SegmentationOptions& options) : options_(
 void MotionSegmenter::Reset() {
   tracks_.clear();
   moving_.clear();
-  not_moving_.clear();
 }
 
 void MotionSegmenter::AddFrame(const std::vector<Correspondence>& matches,
@@ -60,7 +59,6 @@ void MotionSegmenter::AddFrame(const std::vector<Correspondence>& matches,
   std::unordered_map<int64_t, TrackState> next;
   next.reserve(matches.size());
   moving_.clear();
-  not_moving_.clear();
   const double cos_limit = std::cos(options_.epipolar_angle_deg * M_PI / 180.0);
   const size_t window = size_t(options_.window_frames);
   for (const Correspondence& m : matches) {
@@ -131,8 +129,6 @@ void MotionSegmenter::AddFrame(const std::vector<Correspondence>& matches,
 
     if (state.label == MotionLabel::kMoving) {
       moving_.push_back({m.id, m.target, sum / double(state.residuals.size())});
-    } else {
-      not_moving_.push_back(m.id);
     }
     next.emplace(key, std::move(state));
   }

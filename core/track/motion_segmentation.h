@@ -78,8 +78,6 @@ class MotionSegmenter {
   MotionLabel LabelOf(FeatureTrackId id) const;
   // The tracks labelled moving after the latest frame.
   const std::vector<MovingPoint>& moving() const { return moving_; }
-  // Ids of tracks that are not moving (stationary or still unknown) in the latest frame.
-  const std::vector<FeatureTrackId>& not_moving() const { return not_moving_; }
 
   void Reset();
 
@@ -94,7 +92,6 @@ class MotionSegmenter {
   SegmentationOptions options_;
   std::unordered_map<int64_t, TrackState> tracks_;
   std::vector<MovingPoint> moving_;
-  std::vector<FeatureTrackId> not_moving_;
 };
 
 }  // namespace saker::track
