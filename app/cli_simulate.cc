@@ -304,7 +304,8 @@ int DemoCommand::Prepare() const {
   sim::SimulationOptions options;
   options.scenario = sim::Scenario::kRoundaboutLoop;
   options.output = VideoPath();
-  // A stamp records the options the demo was made with, so a newer Saker remakes it.
+  // A stamp records the simulator version and options the demo was made with; when either
+  // changes, the demo is made again.
   const std::filesystem::path stamp = state_->directory / "demo.options.json";
   const std::string wanted = options.ToJson().dump();
   std::string existing;

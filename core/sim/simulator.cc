@@ -94,6 +94,13 @@ Status SimulationOptions::Validate() const {
         "choose figure-eight, raster or straight");
   }
   SAKER_RETURN_IF_ERROR(geo::LocalTangentPlane::Create(origin).status());
+  // KLV heights (tags 15, 25, 75, 78) reach -900 to 19000 m.
+  if (!(origin.height_m >= -900 &&
+        origin.height_m + flight.altitude_m + 4 * flight.altitude_jitter_m <= 19000)) {
+    return InvalidArgumentError(
+        "simulate: ground height and flying height must keep the sensor between -900 and 19000 m "
+        "(the KLV altitude range)");
+  }
   return Status::Ok();
 }
 
@@ -108,6 +115,7 @@ nlohmann::json SimulationOptions::ToJson() const {
   nlohmann::json only = nlohmann::json::array();
   for (int64_t f : metadata.only_frames) only.push_back(f);
   return {
+      {"simulator_version", kSimulatorVersion},
       {"scenario", ScenarioName(scenario)},
       {"seed", seed},
       {"fps", fps},
@@ -157,6 +165,9 @@ StatusOr<std::vector<uint8_t>> EncodeFrameKlv(
     const geo::LocalTangentPlane& plane, uint64_t time_us, const CameraIntrinsics& camera,
     const CameraPose& pose, const Eigen::Vector3d& sensor_m, const Vector2d& centre_m,
     const std::array<Vector2d, 4>& corners_m, const std::string& mission) {
+  // Heights: 75 and 78 are above the ellipsoid, as the simulator's world is. 15 and 25 are
+  // defined above mean sea level; with no geoid model available offline the simulator takes the
+  // geoid as the ellipsoid there (docs/simulator.md).
   const double ground_height = plane.origin().height_m;
   const geo::Wgs84 sensor = plane.Wgs84FromEnu(sensor_m);
   const geo::Wgs84 centre = plane.LatLonFromMap(centre_m);
@@ -179,10 +190,14 @@ StatusOr<std::vector<uint8_t>> EncodeFrameKlv(
       .Add(19, -90.0)
       .Add(20, 0.0)
       .Add(21, (Eigen::Vector3d(centre_m.x(), centre_m.y(), 0) - pose.position_m).norm())
-      .Add(22, (corners_m[2] - corners_m[3]).norm())
       .Add(23, centre.latitude_deg)
       .Add(24, centre.longitude_deg)
-      .Add(25, ground_height);
+      .Add(25, ground_height)
+      .Add(75, sensor.height_m)
+      .Add(78, ground_height);
+  // Target width (22) only reaches 10 km; very wide footprints leave it out.
+  const double target_width = (corners_m[2] - corners_m[3]).norm();
+  if (target_width <= 10000) e.Add(22, target_width);
   std::array<geo::Wgs84, 4> corners;
   bool offsets_fit = true;
   for (int k = 0; k < 4; ++k) {
@@ -248,11 +263,11 @@ StatusOr<SimulationSetup> SimulationSetup::Create(const SimulationOptions& optio
   }
   setup.frame_count_ = std::max<int64_t>(1, int64_t(std::floor(duration / frame_interval + 1e-9)));
 
-  // Everything the camera sees, to size the world.
+  // Everything the camera sees, to size the world; every frame, so that a pose looking above the
+  // horizon is an error here rather than a failed check in the renderer.
   double x0 = 1e300, y0 = 1e300, x1 = -1e300, y1 = -1e300;
-  const int64_t stride = std::max<int64_t>(1, int64_t(0.5 / frame_interval));
-  for (int64_t i = 0; i < setup.frame_count_ + stride; i += stride) {
-    const double t = double(std::min(i, setup.frame_count_ - 1)) * frame_interval;
+  for (int64_t i = 0; i < setup.frame_count_; ++i) {
+    const double t = double(i) * frame_interval;
     const auto footprint = GroundFootprint(camera, setup.flight_->PoseAt(t));
     if (!footprint) {
       return InvalidArgumentError(

@@ -23,6 +23,10 @@
 
 namespace saker::sim {
 
+// Version of what the simulator draws: raise it whenever the same options and seed would give a
+// different world, traffic or video, so truth files and the cached demo say what made them.
+inline constexpr int kSimulatorVersion = 1;
+
 // Which frames carry a KLV packet, and how accurate it is. The paper studies metadata that is
 // only moderately accurate and not on every frame.
 struct MetadataOptions {
@@ -61,7 +65,7 @@ struct SimulationOptions {
 
   Status Validate() const;
   std::filesystem::path TruthPath() const;
-  nlohmann::json ToJson() const;  // every option, recorded in the truth file
+  nlohmann::json ToJson() const;  // kSimulatorVersion and every option, recorded in the truth file
 };
 
 struct SimulationSummary {

@@ -264,14 +264,7 @@ struct TargetSimulation::Impl {
       t.target_class = k < options.cars ? TargetClass::kCar : TargetClass::kVan;
       Mover m;
       m.random = Random(HashCombine(seed, uint64_t(k) + 1000));
-      t.look.van = t.target_class == TargetClass::kVan;
-      t.look.length_m = t.look.van ? m.random.Uniform(5.0, 5.8) : m.random.Uniform(4.0, 4.9);
-      t.look.width_m = t.look.van ? 2.0 : m.random.Uniform(1.7, 1.85);
-      static const cv::Scalar kPaints[] = {{230, 230, 232}, {28, 28, 30},   {150, 150, 155},
-                                           {35, 35, 180},   {150, 70, 25},  {40, 120, 200},
-                                           {60, 110, 40},   {200, 200, 205}};
-      t.look.body_bgr = t.look.van && m.random.Bernoulli(0.6) ? cv::Scalar(240, 240, 240)
-                                                              : kPaints[m.random.UniformInt(0, 7)];
+      t.look = RandomVehicleLook(m.random, t.target_class == TargetClass::kVan);
       m.cruise = t.look.van ? m.random.Uniform(8, 12) : m.random.Uniform(9, 14);
       m.follows_loop = k % 4 == 0;
       int road = town_roads[0];

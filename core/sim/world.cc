@@ -286,24 +286,6 @@ cv::Scalar RoofColour(Random& random) {
   return c * shade;
 }
 
-cv::Scalar VehicleColour(Random& random) {
-  static const cv::Scalar kPaints[] = {
-      {235, 235, 235}, {30, 30, 30},  {160, 160, 165}, {40, 40, 170},   {140, 60, 20},
-      {200, 200, 205}, {60, 110, 40}, {30, 60, 110},   {100, 100, 100}, {180, 150, 60},
-  };
-  return kPaints[random.UniformInt(0, 9)];
-}
-
-VehicleLook ParkedLook(Random& random) {
-  VehicleLook look;
-  look.van = random.Bernoulli(0.12);
-  look.length_m = look.van ? random.Uniform(5.0, 5.6) : random.Uniform(4.0, 4.9);
-  look.width_m = look.van ? 2.0 : random.Uniform(1.7, 1.85);
-  look.body_bgr =
-      look.van && random.Bernoulli(0.6) ? cv::Scalar(240, 240, 240) : VehicleColour(random);
-  return look;
-}
-
 // Houses along both sides of a street, and trees in their back gardens.
 void LineStreetWithHouses(const Road& road, Occupancy& occupancy, Random& random, World* world) {
   const Polyline& line = road.centreline;
@@ -341,8 +323,7 @@ void LineStreetWithHouses(const Road& road, Occupancy& occupancy, Random& random
           }
           if (random.Bernoulli(0.35)) {
             ParkedVehicle car;
-            car.look = ParkedLook(random);
-            car.look.van = false;
+            car.look = RandomVehicleLook(random, /*van=*/false);
             car.position = house.footprint.centre - normal * (depth / 2 + setback / 2) +
                            along * (frontage / 2 + 1.6);
             const Vector2d facing = -normal;
@@ -368,7 +349,7 @@ void FillCarPark(const OrientedBox& park, Random& random, World* world) {
     for (int k = 0; k < bays; ++k) {
       if (!random.Bernoulli(0.7)) continue;
       ParkedVehicle car;
-      car.look = ParkedLook(random);
+      car.look = RandomVehicleLook(random, random.Bernoulli(0.12));
       const double x = -park.size.x() / 2 + 1.0 + (k + 0.5) * bay_width;
       const double y = row * (park.size.y() / 2 - bay_depth / 2 - 0.4);
       car.position = park.centre + x * ax + y * ay + random.Uniform(-0.15, 0.15) * ax;
@@ -455,6 +436,21 @@ void MakeCountryside(const cv::Rect2d& extent, const Vector2d& town_centre, doub
 }
 
 }  // namespace
+
+VehicleLook RandomVehicleLook(Random& random, bool van) {
+  static const cv::Scalar kPaints[] = {
+      {235, 235, 235}, {30, 30, 30},  {160, 160, 165}, {40, 40, 170},   {140, 60, 20},
+      {200, 200, 205}, {60, 110, 40}, {30, 60, 110},   {100, 100, 100}, {180, 150, 60},
+  };
+  VehicleLook look;
+  look.van = van;
+  look.length_m = van ? random.Uniform(5.0, 5.6) : random.Uniform(4.0, 4.9);
+  look.width_m = van ? 2.0 : random.Uniform(1.7, 1.85);
+  // Most vans are white.
+  look.body_bgr =
+      van && random.Bernoulli(0.6) ? cv::Scalar(240, 240, 240) : kPaints[random.UniformInt(0, 9)];
+  return look;
+}
 
 std::vector<Vector2d> OrientedBox::Corners() const {
   const double a = angle_deg * kDegToRad;
@@ -578,7 +574,7 @@ StatusOr<World> GenerateWorld(const WorldOptions& options, const cv::Rect2d& ext
   // Reserve the roads, then the park, shops and car parks, then houses along the streets.
   Occupancy occupancy(town_box);
   for (const Road& road : world.roads) occupancy.MarkPolyline(road.centreline, road.width_m + 5);
-  occupancy.MarkPolygon(Grown({{0, 0}, {40, 40}, 0}, 0).Corners());
+  occupancy.MarkPolygon(OrientedBox{{0, 0}, {40, 40}, 0}.Corners());  // the roundabout
 
   {  // The park: grass and trees inside the loop's south-west, crossed by footpaths.
     const double x0 = chord_x[0] + 12, x1 = chord_x[1] - 12;

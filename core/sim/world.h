@@ -64,6 +64,12 @@ struct VehicleLook {
   bool van = false;
 };
 
+class Random;  // random.h
+
+// A car's or van's size and paint, drawn from the simulator's palette (parked and moving
+// vehicles alike).
+VehicleLook RandomVehicleLook(Random& random, bool van);
+
 struct ParkedVehicle {
   Eigen::Vector2d position{0, 0};
   double heading_deg = 0;  // clockwise from north

@@ -555,7 +555,7 @@ cv::Mat ProceduralGround::PaintTile(const TileKey& key) const {
         MakeMaterial(cv::Scalar(35, 95, 55) * r.Uniform(0.8, 1.2), 0.18f, 0.22f, 0.0f, 0.0f);
     p.FillCircle(top, t.centre, t.radius_m, p.AddMaterial(canopy));
   }
-  cv::Mat top_image = image.clone();
+  cv::Mat top_image(image.size(), CV_8UC3);  // only the pixels under the mask are shaded and used
   p.Shade(top, &top_image, true);
   cv::Mat top_mask = top != 0;
   top_image.copyTo(image, top_mask);

@@ -5,6 +5,8 @@
 
 #include "core/geo/local_tangent_plane.h"
 #include "core/ingest/video_scan.h"
+#include "core/klv/klv.h"
+#include "core/klv/st0601.h"
 #include "core/sim/truth.h"
 #include "core/video/video_reader.h"
 #include "tests/testing/test_data.h"
@@ -366,6 +368,63 @@ TEST_F(SimulatorTest, OrthophotoGround) {
   ASSERT_FALSE(frames.empty());
   EXPECT_GT(GroundCorrelation(*setup, *truth, 0, frames[0], truth->frames[0].frame_from_ground),
             0.85);
+}
+
+}  // namespace
+}  // namespace saker::sim
+
+namespace saker::sim {
+namespace {
+
+// The KLV of one frame, decoded again with Saker's own decoder.
+klv::St0601Set FrameKlv(const CameraIntrinsics& camera, const CameraPose& pose,
+                        double ground_height_m) {
+  StatusOr<geo::LocalTangentPlane> plane =
+      geo::LocalTangentPlane::Create({51.15, -1.75, ground_height_m});
+  EXPECT_TRUE(plane.ok());
+  const auto footprint = GroundFootprint(camera, pose);
+  const auto centre = GroundCentre(camera, pose);
+  EXPECT_TRUE(footprint && centre);
+  StatusOr<std::vector<uint8_t>> bytes = EncodeFrameKlv(
+      *plane, 1790000000000000, camera, pose, pose.position_m, *centre, *footprint, "TEST");
+  EXPECT_TRUE(bytes.ok()) << bytes.status().ToString();
+  if (!bytes.ok()) return {};
+  const std::vector<klv::KlvPacket> packets = klv::SplitKlvPackets(*bytes).packets;
+  EXPECT_EQ(packets.size(), 1u);
+  StatusOr<klv::St0601Set> set = klv::DecodeSt0601(packets.at(0));
+  EXPECT_TRUE(set.ok() && set->checksum_ok);
+  return set.ok() ? *set : klv::St0601Set{};
+}
+
+TEST(EncodeFrameKlvTest, HeightsAndWidthOfAnOrdinaryFrame) {
+  CameraPose pose;
+  pose.position_m = {10, 20, 400};
+  const klv::St0601Set set = FrameKlv(CameraIntrinsics(), pose, 100);
+  EXPECT_NEAR(*set.GetDouble(75), 500, 0.5);  // sensor above the ellipsoid
+  EXPECT_NEAR(*set.GetDouble(78), 100, 0.5);  // frame centre above the ellipsoid
+  EXPECT_NEAR(*set.GetDouble(15), 500, 0.5);
+  EXPECT_NEAR(*set.GetDouble(22), 1280 * NadirGsd(CameraIntrinsics(), 400), 0.5);
+  EXPECT_TRUE(set.Find(26) != nullptr);
+}
+
+TEST(EncodeFrameKlvTest, WideFootprintsLeaveOutWhatDoesNotFit) {
+  // 14 km wide: beyond target width's 10 km and the offset corners' 0.075 degrees.
+  CameraIntrinsics camera;
+  camera.width = 64, camera.height = 48, camera.hfov_deg = 100;
+  CameraPose pose;
+  pose.position_m = {0, 0, 6000};
+  const klv::St0601Set set = FrameKlv(camera, pose, 100);
+  EXPECT_EQ(set.Find(22), nullptr);
+  EXPECT_EQ(set.Find(26), nullptr);
+  EXPECT_TRUE(set.Find(82) != nullptr);
+}
+
+TEST(EncodeFrameKlvTest, HeightsOutsideTheKlvRangeAreRefusedUpFront) {
+  SimulationOptions options = SmallOptions("/tmp/unused.ts");
+  options.origin.height_m = 18900;
+  const Status status = options.Validate();
+  EXPECT_FALSE(status.ok());
+  EXPECT_NE(status.message().find("19000"), std::string::npos) << status.message();
 }
 
 }  // namespace
