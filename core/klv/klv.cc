@@ -108,6 +108,17 @@ std::string ToValidUtf8(std::string_view text) {
   return out;
 }
 
+void AppendBerLength(uint64_t n, std::vector<uint8_t>* out) {
+  if (n < 0x80) {
+    out->push_back(static_cast<uint8_t>(n));
+    return;
+  }
+  size_t count = 0;
+  for (uint64_t rest = n; rest != 0; rest >>= 8) ++count;
+  out->push_back(static_cast<uint8_t>(0x80 | count));
+  for (size_t i = count; i-- > 0;) out->push_back(static_cast<uint8_t>(n >> (8 * i)));
+}
+
 StatusOr<uint64_t> ReadBerLength(ByteSpan data, size_t* consumed) {
   if (data.empty()) return InvalidDataError("BER length: no bytes left");
   const uint8_t first = data[0];

@@ -63,6 +63,9 @@ inline constexpr std::array<uint8_t, 4> kUniversalKeyPrefix = {0x06, 0x0E, 0x2B,
 // `*consumed` (which may be null) receives the number of bytes read.
 StatusOr<uint64_t> ReadBerLength(ByteSpan data, size_t* consumed);
 
+// Appends the shortest BER length encoding of `n` (short form below 128, else long form).
+void AppendBerLength(uint64_t n, std::vector<uint8_t>* out);
+
 // Reads a BER-OID encoded tag (7 bits per byte, high bit set on every byte
 // but the last), as used by local-set tags >= 128. More than 4 bytes (tags
 // beyond 2^28 - 1, far past any MISB tag) or running past `data` is an error.

@@ -177,15 +177,7 @@ StatusOr<St0601Set> DecodeSt0601(const KlvPacket& packet) {
   if (whole.size() < value.size() + 17 ||
       !std::equal(value.begin(), value.end(), whole.end() - value.size())) {
     rebuilt.assign(packet.key.bytes.begin(), packet.key.bytes.end());
-    const uint64_t n = value.size();
-    if (n < 0x80) {
-      rebuilt.push_back(static_cast<uint8_t>(n));
-    } else {
-      int count = 0;
-      for (uint64_t rest = n; rest != 0; rest >>= 8) ++count;
-      rebuilt.push_back(static_cast<uint8_t>(0x80 | count));
-      for (int i = count - 1; i >= 0; --i) rebuilt.push_back(static_cast<uint8_t>(n >> (8 * i)));
-    }
+    AppendBerLength(value.size(), &rebuilt);
     rebuilt.insert(rebuilt.end(), value.begin(), value.end());
     whole = rebuilt;
   }

@@ -184,17 +184,19 @@ StatusOr<std::vector<uint8_t>> EncodeSigned(const TagSpec* spec, int64_t value, 
 StatusOr<std::vector<uint8_t>> EncodeText(const TagSpec* spec, std::string_view text) {
   // Messages quote at most this much of the text.
   constexpr size_t kQuoted = 24;
-  const std::string quoted =
-      "\"" + ToValidUtf8(text.substr(0, kQuoted)) + (text.size() > kQuoted ? "...\"" : "\"");
+  // Only built for error messages.
+  const auto quoted = [&] {
+    return "\"" + ToValidUtf8(text.substr(0, kQuoted)) + (text.size() > kQuoted ? "...\"" : "\"");
+  };
   if (spec == nullptr || spec->mapping != Mapping::kString) {
-    return WrongType(spec, "the text " + quoted);
+    return WrongType(spec, "the text " + quoted());
   }
   if (text.empty()) {
     return Refuse(
         "empty text: a zero-length item means \"no value\" in MISB KLV (use AddAbsent for that)");
   }
   if (text.size() > spec->length) {
-    return Refuse("text " + quoted + " of " + Bytes(text.size()) + " is longer than the " +
+    return Refuse("text " + quoted() + " of " + Bytes(text.size()) + " is longer than the " +
                   std::to_string(spec->length) + " the tag allows");
   }
   return std::vector<uint8_t>(text.begin(), text.end());
@@ -213,17 +215,6 @@ StatusOr<std::vector<uint8_t>> EncodeAbsent(const TagSpec* spec) {
   // Every other mapping has no indicator of its own; a zero-length item is
   // MISB's general "value unknown" (and what the decoder reads as Absent).
   return std::vector<uint8_t>{};
-}
-
-void AppendBerLength(uint64_t n, std::vector<uint8_t>* out) {
-  if (n < 0x80) {
-    out->push_back(static_cast<uint8_t>(n));
-    return;
-  }
-  size_t count = 0;
-  for (uint64_t rest = n; rest != 0; rest >>= 8) ++count;
-  out->push_back(static_cast<uint8_t>(0x80 | count));
-  for (size_t i = count; i-- > 0;) out->push_back(static_cast<uint8_t>(n >> (8 * i)));
 }
 
 void AppendBerOid(uint32_t tag, std::vector<uint8_t>* out) {

@@ -525,7 +525,7 @@ TEST(St0601EncodeTest, PacketLayoutAndChecksum) {
   }
 }
 
-TEST(St0601EncodeTest, ChainedCallsAsTheSimulatorMakesThem) {
+TEST(St0601EncodeTest, ChainedCallsBuildOnePacket) {
   St0601Encoder e;
   e.AddUnsigned(2, kTime)
       .AddString(3, "Saker sim")

@@ -1,5 +1,7 @@
 #include "tests/core/video/synthetic_ts.h"
 
+#include "core/klv/st0601_encode.h"
+#include "core/util/check.h"
 #include "core/video/ts_writer.h"
 
 #include <opencv2/core.hpp>
@@ -31,22 +33,12 @@ uint64_t SyntheticKlvTimestampUs(int index) {
 }
 
 std::vector<uint8_t> SyntheticKlvPacket(int index) {
-  std::vector<uint8_t> bytes = {0x06, 0x0E, 0x2B, 0x34, 0x02, 0x0B, 0x01, 0x01,
-                                0x0E, 0x01, 0x03, 0x01, 0x01, 0x00, 0x00, 0x00};
-  bytes.push_back(17);  // BER short-form length of the value below
-  bytes.push_back(2);   // tag 2: precision time stamp, 8 bytes big-endian
-  bytes.push_back(8);
-  const uint64_t time_us = SyntheticKlvTimestampUs(index);
-  for (int shift = 56; shift >= 0; shift -= 8) bytes.push_back((time_us >> shift) & 0xFF);
-  bytes.insert(bytes.end(), {65, 1, 17});  // tag 65: UAS LS version 17
-  bytes.insert(bytes.end(), {1, 2});       // tag 1: checksum over everything up to here
-  uint16_t sum = 0;
-  for (size_t i = 0; i < bytes.size(); ++i) {
-    sum = static_cast<uint16_t>(sum + (bytes[i] << (8 * ((i + 1) % 2))));
-  }
-  bytes.push_back(static_cast<uint8_t>(sum >> 8));
-  bytes.push_back(static_cast<uint8_t>(sum & 0xFF));
-  return bytes;
+  StatusOr<std::vector<uint8_t>> bytes = klv::St0601Encoder()
+                                             .AddUnsigned(2, SyntheticKlvTimestampUs(index))
+                                             .AddUnsigned(65, 17)
+                                             .Finish();
+  SAKER_CHECK(bytes.ok()) << bytes.status().ToString();
+  return *bytes;
 }
 
 Status WriteSyntheticTs(const std::filesystem::path& path, const SyntheticTsOptions& options) {

@@ -37,7 +37,8 @@ cv::Rect SyntheticSquare(int index, const SyntheticTsOptions& options);
 // The KLV packet carried with frame `index`: a MISB ST 0601 local set with a precision time
 // stamp (tag 2), LS version 17 (tag 65) and a valid checksum (tag 1).
 std::vector<uint8_t> SyntheticKlvPacket(int index);
-// Microseconds since 1970 in tag 2 of SyntheticKlvPacket(index).
+// Microseconds since 1970 in tag 2 of SyntheticKlvPacket(index): 40 ms steps whatever the
+// stream's frame rate (the payload is only compared as bytes).
 uint64_t SyntheticKlvTimestampUs(int index);
 
 // Writes the stream. Synchronous KLV gets the 5-byte metadata access-unit cell header of MISB
