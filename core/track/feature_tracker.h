@@ -25,16 +25,17 @@
 // Positions are full-resolution pixels whatever the processing width, with the repository's
 // convention (integer = pixel centre): x_full = (x_small + 0.5) * scale - 0.5 per axis.
 //
-// Speed. The flow costs the same per point at any processing width (window area times pyramid
-// levels, twice for the round trip) and dominates; the width only sets the cost of the pyramid
-// and of detection, and how far in full-resolution pixels a window and the pyramid reach. With
-// the defaults, 1000 corners and simulated airborne video, one core of a shared AMD EPYC takes
-// 5.8-7 ms per frame at 1280x720 and at 1920x1080 (quietest runs: pyramid 0.6 ms, flow 5.1 ms,
-// detection 0.1 ms on average); two OpenCV threads on two free cores: 3.3 ms at 1280x720. An
-// 11-pixel window instead of the customary 21 is what makes that: 21 takes 14-17 ms, for a median
-// frame-to-frame error of 0.11 px against 0.14-0.15 px. Fewer levels or a smaller window cut the
-// time further (2 levels: about 5 ms, a 9-pixel window: about 4 ms) at the cost of reach and
-// accuracy.
+// Speed (measured once during development with a scratch program; saker-bench-frontend reports
+// the tracker's time per frame inside the front end). The flow costs the same per point at any
+// processing width (window area times pyramid levels, twice for the round trip) and dominates; the
+// width only sets the cost of the pyramid and of detection, and how far in full-resolution pixels a
+// window and the pyramid reach. With the defaults, 1000 corners and simulated airborne video, one
+// core of a shared AMD EPYC takes 5.8-7 ms per frame at 1280x720 and at 1920x1080 (quietest runs:
+// pyramid 0.6 ms, flow 5.1 ms, detection 0.1 ms on average); two OpenCV threads on two free
+// cores: 3.3 ms at 1280x720. An 11-pixel window instead of the customary 21 is what makes that: 21
+// takes 14-17 ms, for a median frame-to-frame error of 0.11 px against 0.14-0.15 px. Fewer levels
+// or a smaller window cut the time further (2 levels: about 5 ms, a 9-pixel window: about 4 ms) at
+// the cost of reach and accuracy.
 //
 // Memory is bounded: only live tracks keep a history (at most 1.25 * `max_history` positions
 // each); lost tracks are handed out by TakeFinished(), which the caller must call regularly

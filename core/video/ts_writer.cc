@@ -419,15 +419,16 @@ struct TsWriter::Impl {
 
   Status WriteFrame(const cv::Mat& image) {
     SAKER_RETURN_IF_ERROR(Usable("WriteFrame"));
-    const std::string which = "frame " + std::to_string(frames_written);
-    if (image.empty()) return InvalidArgumentError(path + ": " + which + " is an empty image");
+    // Only built for error messages.
+    const auto which = [&] { return "frame " + std::to_string(frames_written); };
+    if (image.empty()) return InvalidArgumentError(path + ": " + which() + " is an empty image");
     if (image.type() != CV_8UC3 && image.type() != CV_8UC1) {
       return InvalidArgumentError(
-          path + ": " + which + " must be CV_8UC3 (BGR) or CV_8UC1 (luma), got type " +
+          path + ": " + which() + " must be CV_8UC3 (BGR) or CV_8UC1 (luma), got type " +
           std::to_string(image.type()) + " with " + std::to_string(image.channels()) + " channels");
     }
     if (image.dims != 2 || image.cols != options.width || image.rows != options.height) {
-      return InvalidArgumentError(path + ": " + which + " is " + Size(image.cols, image.rows) +
+      return InvalidArgumentError(path + ": " + which() + " is " + Size(image.cols, image.rows) +
                                   ", the stream is " + Size(options.width, options.height));
     }
     // The encoder may still hold the previous picture (reordering): write into a fresh buffer.
@@ -438,37 +439,37 @@ struct TsWriter::Impl {
     frame->pict_type = AV_PICTURE_TYPE_NONE;
     if (options.codec == VideoCodec::kMpeg2) frame->quality = encoder->global_quality;
     ret = avcodec_send_frame(encoder.get(), frame.get());
-    if (ret < 0) return Fail(FfmpegError("cannot encode " + which, ret));
+    if (ret < 0) return Fail(FfmpegError("cannot encode " + which(), ret));
     ++frames_written;
     return Drain();
   }
 
   Status WriteKlv(std::span<const uint8_t> bytes, int64_t frame_index) {
     SAKER_RETURN_IF_ERROR(Usable("WriteKlv"));
-    const std::string which = "KLV for frame " + std::to_string(frame_index);
+    const auto which = [&] { return "KLV for frame " + std::to_string(frame_index); };
     if (klv == nullptr) {
-      return InvalidArgumentError(path + ": " + which +
+      return InvalidArgumentError(path + ": " + which() +
                                   ": the writer has no KLV stream (opened with with_klv = false)");
     }
-    if (bytes.empty()) return InvalidArgumentError(path + ": " + which + ": empty packet");
+    if (bytes.empty()) return InvalidArgumentError(path + ": " + which() + ": empty packet");
     if (frame_index < 0 || frame_index > kMaxFrameIndex) {
-      return InvalidArgumentError(path + ": " + which + ": frame index out of range [0, " +
+      return InvalidArgumentError(path + ": " + which() + ": frame index out of range [0, " +
                                   std::to_string(kMaxFrameIndex) + "]");
     }
     if (frame_index < last_klv_frame) {
-      return InvalidArgumentError(path + ": " + which + " comes after KLV for frame " +
+      return InvalidArgumentError(path + ": " + which() + " comes after KLV for frame " +
                                   std::to_string(last_klv_frame) +
                                   "; frame indices must not decrease");
     }
     if (frame_index <= muxed_klv_frame) {
-      return InvalidArgumentError(path + ": " + which +
+      return InvalidArgumentError(path + ": " + which() +
                                   ": that frame's KLV is already in the file; write all packets "
                                   "of a frame before WriteFrame of that frame");
     }
     const bool join = !klv_queue.empty() && klv_queue.back().frame == frame_index;
     const size_t total = bytes.size() + (join ? klv_queue.back().bytes.size() : 0);
     if (total > kMaxKlvBytesPerFrame) {
-      return InvalidArgumentError(path + ": " + which + ": " + std::to_string(total) +
+      return InvalidArgumentError(path + ": " + which() + ": " + std::to_string(total) +
                                   " bytes of KLV for one frame, at most " +
                                   std::to_string(kMaxKlvBytesPerFrame));
     }
@@ -487,7 +488,6 @@ struct TsWriter::Impl {
     int ret = avcodec_send_frame(encoder.get(), nullptr);
     if (ret < 0) return Fail(FfmpegError("cannot flush the video encoder", ret));
     SAKER_RETURN_IF_ERROR(Drain());
-    offset_known = true;
     SAKER_RETURN_IF_ERROR(FlushKlv(std::numeric_limits<int64_t>::max()));
     ret = av_write_trailer(format.get());
     if (ret < 0) return Fail(FfmpegError("cannot finish the file", ret));
