@@ -28,10 +28,6 @@
 namespace saker::frontend {
 
 struct FrontEndOptions {
-  // More corners than the tracker's default: moving objects only get corners where a grid cell
-  // has room, so denser coverage finds more of them (demo: vehicles 16 -> 17 of 18).
-  FrontEndOptions() { tracker.max_corners = 1500; }
-
   track::TrackerOptions tracker;
   track::SegmentationOptions segmentation;
   track::TargetTrackOptions targets;
