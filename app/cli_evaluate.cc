@@ -2,6 +2,8 @@
 
 #include "core/frontend/evaluate.h"
 #include "core/frontend/front_end.h"
+#include "core/mosaic/evaluate.h"
+#include "core/mosaic/mosaic_builder.h"
 #include "core/sim/truth.h"
 
 #include <filesystem>
@@ -14,6 +16,7 @@ struct EvaluateCommand::State {
   std::string video;
   std::filesystem::path truth;
   bool json = false;
+  bool no_metadata = false;
   frontend::EvaluationOptions evaluation;
 };
 
@@ -24,11 +27,14 @@ EvaluateCommand::EvaluateCommand(CLI::App& app) : state_(std::make_unique<State>
       "Run the engine on a simulated video and print its accuracy against the simulator's truth:\n"
       "frame-to-frame homography error (image-corner transfer, pixels) and moving-target "
       "detection\n"
-      "(recall and precision of target tracks and per frame, detection latency). See\n"
-      "docs/front-end.md for the definitions.");
+      "(recall and precision of target tracks and per frame, detection latency); the mosaic's\n"
+      "loop closures and the key frames' corner error before and after bundle adjustment. See\n"
+      "docs/front-end.md and docs/mosaic.md for the definitions.");
   s.command->add_option("VIDEO", s.video, "Simulated video (saker-cli simulate)")->required();
   s.command->add_option("--truth", s.truth, "Its truth file (default: VIDEO with .truth.json)");
   s.command->add_flag("--json", s.json, "Print the figures as JSON");
+  s.command->add_flag("--no-metadata", s.no_metadata,
+                      "Build the mosaic without the metadata corners");
   s.command->add_option("--gate", s.evaluation.gate_px, "Pairing distance, pixels")
       ->capture_default_str();
   s.command
@@ -60,10 +66,36 @@ int EvaluateCommand::Run() const {
     std::cerr << "saker-cli: " << s.video << ": " << evaluation.status().message() << "\n";
     return 1;
   }
+  mosaic::MosaicOptions mosaic_options;
+  mosaic_options.use_metadata = !s.no_metadata;
+  StatusOr<mosaic::MosaicResult> built = mosaic::BuildMosaic(*result, mosaic_options);
+  if (!built.ok()) {
+    std::cerr << "saker-cli: " << s.video << ": " << built.status().message() << "\n";
+    return 1;
+  }
+  StatusOr<mosaic::MosaicAccuracy> mosaic_accuracy = mosaic::EvaluateMosaic(*built, *truth);
+  if (!mosaic_accuracy.ok()) {
+    std::cerr << "saker-cli: " << s.video << ": " << mosaic_accuracy.status().message() << "\n";
+    return 1;
+  }
+  StatusOr<mosaic::MetadataExperiment> experiment = mosaic::RunMetadataExperiment(*built, *truth);
   if (s.json) {
-    std::cout << frontend::EvaluationToJson(*evaluation).dump(2) << "\n";
+    nlohmann::json j = frontend::EvaluationToJson(*evaluation);
+    j["mosaic"] = mosaic::MosaicAccuracyToJson(*mosaic_accuracy);
+    if (experiment.ok()) {
+      j["metadata_experiment"] = {{"start_error_m", experiment->start_error_m},
+                                  {"metadata_key_frames", experiment->metadata_key_frames},
+                                  {"metadata_sigma_m", experiment->metadata_sigma_m},
+                                  {"without_metadata_rms_m", experiment->without_metadata.rms_m},
+                                  {"without_metadata_max_m", experiment->without_metadata.max_m},
+                                  {"with_metadata_rms_m", experiment->with_metadata.rms_m},
+                                  {"with_metadata_max_m", experiment->with_metadata.max_m}};
+    }
+    std::cout << j.dump(2) << "\n";
   } else {
     std::cout << frontend::EvaluationToText(*evaluation);
+    std::cout << mosaic::MosaicAccuracyToText(*mosaic_accuracy);
+    if (experiment.ok()) std::cout << mosaic::MetadataExperimentToText(*experiment);
   }
   return 0;
 }

@@ -1,8 +1,9 @@
 // saker-cli: the headless client of the Saker engine. Everything the GUI can
-// do is reachable from here; `probe`, `klv`, `simulate`
+// do is reachable from here: `probe`, `klv`, `simulate`, `evaluate`, `mosaic`
 // and `demo` so far.
 
 #include "app/cli_evaluate.h"
+#include "app/cli_mosaic.h"
 #include "app/cli_simulate.h"
 #include "core/ingest/report.h"
 #include "core/ingest/video_scan.h"
@@ -11,6 +12,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include <filesystem>
 #include <iostream>
 #include <string>
 
@@ -91,6 +93,7 @@ int main(int argc, char** argv) {
   saker::app::SimulateCommand simulate(app);
   saker::app::DemoCommand demo(app);
   saker::app::EvaluateCommand evaluate(app);
+  saker::app::MosaicCommand mosaic(app);
 
   try {
     app.parse(argc, argv);
@@ -106,9 +109,13 @@ int main(int argc, char** argv) {
     if (klv->parsed()) return RunScan(file, json, /*dump_klv=*/true, tolerance_s);
     if (simulate.parsed()) return simulate.Run();
     if (evaluate.parsed()) return evaluate.Run();
+    if (mosaic.parsed()) return mosaic.Run();
     if (demo.parsed()) {
+      // The main job: the mosaic of the demo mission, written next to it.
       return demo.Run([&](const std::string& video) {
-        return RunScan(video, json, /*dump_klv=*/false, tolerance_s);
+        const std::string picture =
+            (std::filesystem::path(video).parent_path() / "mosaic.png").string();
+        return mosaic.RunOn(video, picture);
       });
     }
   } catch (const saker::CheckError& e) {

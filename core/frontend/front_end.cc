@@ -119,14 +119,19 @@ StatusOr<FrontEndResult> RunFrontEnd(const std::string& path, const FrontEndOpti
   options.tracker.keep_finished = false;
   options.tracker.max_history = 2;
 
-  video::ReaderOptions reader_options;
-  reader_options.want_bgr = false;
-  reader_options.want_grey = true;
-  reader_options.decoder_threads = options.decoder_threads;
-  SAKER_ASSIGN_OR_RETURN(std::unique_ptr<video::VideoReader> reader,
-                         video::VideoReader::Open(path, reader_options));
+  // The scan decodes every frame and every KLV packet in one pass on the decode thread; the
+  // frames go through the queue, the metadata is tied to the frames when the scan ends.
+  ingest::ScanOptions scan_options;
+  scan_options.reader.want_bgr = false;
+  scan_options.reader.want_grey = true;
+  scan_options.reader.decoder_threads = options.decoder_threads;
   FrontEndResult result;
-  result.video = reader->info();
+  {
+    // Opened here first so that a bad file fails at once, with the reader's message.
+    SAKER_ASSIGN_OR_RETURN(std::unique_ptr<video::VideoReader> probe,
+                           video::VideoReader::Open(path, scan_options.reader));
+    result.video = probe->info();
+  }
   // For progress only: the declared count, else duration x rate.
   double expected_frames = double(result.video.declared_frame_count);
   if (expected_frames <= 0) expected_frames = result.video.duration_s * result.video.fps;
@@ -134,30 +139,32 @@ StatusOr<FrontEndResult> RunFrontEnd(const std::string& path, const FrontEndOpti
 
   FrameQueue queue(size_t(options.queue_frames));
   double decode_ms = 0;
+  JobContext decode_job;  // cancelled when the consumer stops early
+  StatusOr<ingest::VideoScan> scan = CancelledError("front end: the scan did not run");
   std::thread decoder([&] {
-    video::Frame frame;
-    std::vector<video::DataPacket> data;
-    while (true) {
-      const auto start = Clock::now();
-      StatusOr<bool> more = reader->ReadNext(&frame, &data);
+    auto start = Clock::now();
+    scan = ingest::ScanVideo(path, scan_options, &decode_job, [&](const video::Frame& frame) {
+      video::Frame copy = frame;
+      copy.grey = frame.grey.clone();  // the reader reuses its buffers
       decode_ms += MillisecondsSince(start);
-      if (!more.ok()) return queue.Close(more.status());
-      if (!*more) return queue.Close(Status::Ok());
-      if (!queue.Push(std::move(frame))) return queue.Close(Status::Ok());
-      frame = video::Frame();
-    }
+      if (!queue.Push(std::move(copy))) decode_job.RequestCancel();
+      start = Clock::now();
+    });
+    queue.Close(scan.ok() ? Status::Ok() : scan.status());
   });
   // Whatever happens below, the decode thread is stopped and joined.
   struct Joiner {
     FrameQueue& queue;
+    JobContext& job;
     std::thread& thread;
     ~Joiner() {
+      job.RequestCancel();
       queue.Stop();
       while (queue.Pop()) {
       }
       if (thread.joinable()) thread.join();
     }
-  } joiner{queue, decoder};
+  } joiner{queue, decode_job, decoder};
 
   track::FeatureTracker tracker(options.tracker);
   track::MotionSegmenter segmenter(options.segmentation);
@@ -246,6 +253,12 @@ StatusOr<FrontEndResult> RunFrontEnd(const std::string& path, const FrontEndOpti
     }
   }
   SAKER_RETURN_IF_ERROR(queue.status());
+  decoder.join();
+  SAKER_RETURN_IF_ERROR(scan.status());
+  result.scan = std::move(scan).value();
+  SAKER_CHECK(result.scan.frames.size() == result.frames.size())
+      << "the scan saw " << result.scan.frames.size() << " frames, the tracker "
+      << result.frames.size();
   targets.FinishAll();
   for (track::TargetTrack& t : targets.TakeFinished()) result.targets.push_back(std::move(t));
   result.targets = track::LinkFragments(std::move(result.targets), options.targets);

@@ -9,6 +9,7 @@
 // stationary points and a downscaled grey image for later matching), the per-frame homographies
 // and the target tracks.
 
+#include "core/ingest/video_scan.h"
 #include "core/track/feature_tracker.h"
 #include "core/track/homography.h"
 #include "core/track/key_frames.h"
@@ -79,6 +80,8 @@ struct FrontEndResult {
   std::vector<track::SequentialLink> links;
   std::vector<track::ChainBreak> breaks;
   std::vector<track::TargetTrack> targets;  // confirmed target tracks, by id
+  // The same pass's KLV: packets, per-frame metadata (scan.MetadataOf(frame)), warnings.
+  ingest::VideoScan scan;
   FrontEndTiming timing;
 };
 

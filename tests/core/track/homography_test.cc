@@ -1,5 +1,7 @@
 #include "core/track/homography.h"
 
+#include "tests/testing/noise.h"
+
 #include <Eigen/Cholesky>
 #include <Eigen/Geometry>
 #include <gtest/gtest.h>
@@ -9,42 +11,12 @@
 #include <cmath>
 #include <cstdint>
 #include <iostream>
-#include <random>
 #include <vector>
 
 namespace saker::track {
 namespace {
 
-// Test noise from a fully specified engine and our own transforms (the standard distributions
-// differ between library versions), so the Monte Carlo figures are the same everywhere.
-class Noise {
- public:
-  explicit Noise(uint64_t seed) : engine_(seed) {}
-  double Uniform(double lo, double hi) {
-    return lo + (hi - lo) * (static_cast<double>(engine_() >> 11) * 0x1.0p-53);
-  }
-  double Gaussian() {
-    // Box-Muller; 1 - u keeps the logarithm finite.
-    const double u = 1.0 - Uniform(0, 1);
-    const double v = Uniform(0, 1);
-    return std::sqrt(-2.0 * std::log(u)) * std::cos(2.0 * M_PI * v);
-  }
-  Eigen::Vector2d Gaussian2(double sigma) {
-    return sigma * Eigen::Vector2d(Gaussian(), Gaussian());
-  }
-  // A draw from N(mean, cov) through the Cholesky factor.
-  template <int N>
-  Eigen::Matrix<double, N, 1> Draw(const Eigen::Matrix<double, N, 1>& mean,
-                                   const Eigen::Matrix<double, N, N>& cov) {
-    Eigen::Matrix<double, N, 1> z;
-    for (int i = 0; i < N; ++i) z(i) = Gaussian();
-    const Eigen::Matrix<double, N, N> l = cov.llt().matrixL();
-    return mean + l * z;
-  }
-
- private:
-  std::mt19937_64 engine_;
-};
+using saker::testing::Noise;
 
 constexpr double kWidth = 1280;
 constexpr double kHeight = 720;

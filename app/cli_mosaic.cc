@@ -1,0 +1,198 @@
+#include "app/cli_mosaic.h"
+
+#include "core/frontend/front_end.h"
+#include "core/mosaic/mosaic_builder.h"
+#include "core/mosaic/render.h"
+
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include <filesystem>
+#include <iostream>
+#include <map>
+#include <system_error>
+
+namespace saker::app {
+
+struct MosaicCommand::State {
+  CLI::App* command = nullptr;
+  std::string video;
+  std::filesystem::path output;
+  bool json = false;
+  bool quiet = false;
+  bool no_metadata = false;
+  bool outlines = false;
+  bool unadjusted = false;
+  mosaic::MosaicOptions mosaic;
+  mosaic::RenderOptions render;
+};
+
+namespace {
+
+// Progress on one stderr line, rewritten in place; silent when quiet or not a terminal's job.
+JobContext ProgressContext(bool quiet) {
+  if (quiet) return JobContext();
+  return JobContext(
+      [last = std::string(), percent = -1](const std::string& stage, double fraction) mutable {
+        const int p = int(fraction * 100);
+        if (stage == last && p == percent) return;
+        last = stage;
+        percent = p;
+        std::cerr << "\r" << stage << ": " << p << " %   " << std::flush;
+      });
+}
+
+// Writes the picture under a temporary name and renames it into place: never half a file.
+Status WritePicture(const cv::Mat& image, const std::filesystem::path& path) {
+  const std::filesystem::path part = path.string() + ".part.png";
+  bool written = false;
+  try {
+    written = cv::imwrite(part.string(), image);
+  } catch (const cv::Exception& e) {
+    written = false;
+  }
+  if (!written) {
+    std::error_code ignored;
+    std::filesystem::remove(part, ignored);
+    return IoError("cannot write " + path.string() +
+                   " (the folder must exist and be writable; the name must end in .png, .jpg or "
+                   ".tif)");
+  }
+  std::error_code error;
+  std::filesystem::rename(part, path, error);
+  if (error) return IoError("cannot write " + path.string() + ": " + error.message());
+  return Status::Ok();
+}
+
+}  // namespace
+
+MosaicCommand::MosaicCommand(CLI::App& app) : state_(std::make_unique<State>()) {
+  State& s = *state_;
+  s.command = app.add_subcommand(
+      "mosaic",
+      "Build the mosaic map of a video: track features, chain key frames, close loops (geometric\n"
+      "matching inside uncertainty ellipses, SIFT appearance matching when lost), bundle adjust\n"
+      "the key frames' absolute homographies (with the metadata corners when present) and write\n"
+      "the key frames warped and blended into one picture. See docs/mosaic.md.");
+  s.command->add_option("VIDEO", s.video, "Video file (MPEG-TS, MP4, ...)")->required();
+  s.command->add_option("-o,--output", s.output, "Mosaic picture to write (.png, .jpg, .tif)")
+      ->required();
+  s.command->add_flag("--json", s.json, "Print the summary as JSON");
+  s.command->add_flag("-q,--quiet", s.quiet, "No progress on stderr");
+  s.command->add_flag("--no-metadata", s.no_metadata,
+                      "Ignore the metadata corners (map frame = the first key frame's pixels)");
+  s.command
+      ->add_option("--metadata-sigma", s.mosaic.adjustment.metadata_sigma_m,
+                   "Stated accuracy of the metadata corners, metres (1 sigma)")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
+  s.command->add_flag("--outlines", s.outlines,
+                      "Draw key frame outlines (by chain segment) and links (cross-links in red)");
+  s.command->add_flag("--unadjusted", s.unadjusted,
+                      "Draw the key frames as the sequential chain alone places them (before loop "
+                      "closure and adjustment), to see the drift the adjustment removes");
+  s.command
+      ->add_option("--ellipses", s.render.ellipse_confidence,
+                   "Draw the key frame corners' uncertainty ellipses at this confidence (0..1)")
+      ->check(CLI::Range(0.0, 0.9999));
+  s.command->add_option("--max-side", s.render.max_side_px, "Longer side of the picture, pixels")
+      ->capture_default_str()
+      ->check(CLI::Range(16, 30000));
+}
+
+MosaicCommand::~MosaicCommand() = default;
+bool MosaicCommand::parsed() const { return state_->command->parsed(); }
+int MosaicCommand::Run() const { return RunOn(state_->video, state_->output.string()); }
+
+int MosaicCommand::RunOn(const std::string& video, const std::string& output) const {
+  const State& s = *state_;
+  JobContext job = ProgressContext(s.quiet || s.json);
+  const auto fail = [&](const Status& status) {
+    if (!s.quiet && !s.json) std::cerr << "\n";
+    std::cerr << "saker-cli: " << status.message() << "\n";
+    return 1;
+  };
+  StatusOr<frontend::FrontEndResult> front = frontend::RunFrontEnd(video, {}, &job);
+  if (!front.ok()) return fail(front.status());
+  mosaic::MosaicOptions options = s.mosaic;
+  options.use_metadata = !s.no_metadata;
+  StatusOr<mosaic::MosaicResult> result = mosaic::BuildMosaic(*front, options, &job);
+  if (!result.ok())
+    return fail(Status(result.status().code(), video + ": " + result.status().message()));
+  mosaic::RenderOptions render = s.render;
+  render.outlines = render.links = s.outlines;
+  mosaic::LinkGraph drawn = result->graph;
+  if (s.unadjusted) {
+    for (size_t k = 0; k < drawn.nodes.size(); ++k)
+      drawn.nodes[k].map_from_frame = result->chained[k];
+  }
+  StatusOr<mosaic::MosaicImage> picture = mosaic::RenderMosaic(
+      drawn, front->key_frame_images, render,
+      s.unadjusted ? std::vector<track::HomographyCovariance>() : result->covariances);
+  if (!picture.ok()) return fail(picture.status());
+  if (Status written = WritePicture(picture->bgr, output); !written.ok()) return fail(written);
+  if (!s.quiet && !s.json) std::cerr << "\r" << std::string(40, ' ') << "\r";
+
+  const mosaic::LinkGraph& graph = result->graph;
+  std::map<std::string, int> links;
+  for (const mosaic::Link& l : graph.links) ++links[mosaic::LinkKindName(l.kind)];
+  const int segments = graph.nodes.empty() ? 0 : graph.nodes.back().segment + 1;
+  if (s.json) {
+    nlohmann::json closures = nlohmann::json::array();
+    for (const mosaic::LoopClosure& c : result->closures) {
+      closures.push_back({{"from", int(c.from)},
+                          {"to", int(c.to)},
+                          {"kind", mosaic::LinkKindName(c.kind)},
+                          {"inliers", c.inliers}});
+    }
+    nlohmann::json adjustments = nlohmann::json::array();
+    for (const mosaic::AdjustmentSummary& a : result->adjustments)
+      adjustments.push_back(a.ToString());
+    nlohmann::json j = {{"video", video},
+                        {"output", output},
+                        {"frames", front->frames.size()},
+                        {"key_frames", graph.nodes.size()},
+                        {"segments", segments},
+                        {"chain_breaks", front->breaks.size()},
+                        {"key_frames_with_metadata", result->key_frames_with_metadata},
+                        {"geo_referenced", graph.geo_referenced},
+                        {"links", links},
+                        {"loop_closures", closures},
+                        {"adjustments", adjustments},
+                        {"picture_width", picture->bgr.cols},
+                        {"picture_height", picture->bgr.rows},
+                        {"map_units_per_pixel", picture->map_units_per_px},
+                        {"front_end_s", front->timing.wall_s},
+                        {"mosaic_s", result->timing.total_s}};
+    std::cout << j.dump(2) << "\n";
+    return 0;
+  }
+  std::cout << video << ": " << front->frames.size() << " frames, " << graph.nodes.size()
+            << " key frames in " << segments << " segment" << (segments == 1 ? "" : "s") << " ("
+            << front->breaks.size() << " chain breaks)\n";
+  std::cout << "  map frame: "
+            << (graph.geo_referenced
+                    ? "east-north-up metres from the metadata corners (" +
+                          std::to_string(result->key_frames_with_metadata) +
+                          " key frames with corners)"
+                    : std::string("the first key frame's pixels (no metadata corners)"))
+            << "\n";
+  std::cout << "  links:";
+  for (const auto& [kind, n] : links) std::cout << " " << n << " " << kind;
+  std::cout << "\n  loop closures: " << result->closures.size() << "\n";
+  for (const mosaic::LoopClosure& c : result->closures) {
+    std::cout << "    key frame " << int(c.from) << " -> " << int(c.to) << " ("
+              << mosaic::LinkKindName(c.kind) << ", " << c.inliers << " inliers)\n";
+  }
+  std::cout << "  adjustments: " << result->adjustments.size();
+  if (!result->adjustments.empty())
+    std::cout << ", last: " << result->adjustments.back().ToString();
+  std::cout << "\n  time: front end " << front->timing.wall_s << " s, mosaic "
+            << result->timing.total_s << " s\n";
+  std::cout << "  wrote " << output << " (" << picture->bgr.cols << "x" << picture->bgr.rows << ", "
+            << picture->map_units_per_px << (graph.geo_referenced ? " m" : " px")
+            << " per pixel)\n";
+  return 0;
+}
+
+}  // namespace saker::app

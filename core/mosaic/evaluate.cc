@@ -1,0 +1,292 @@
+#include "core/mosaic/evaluate.h"
+
+#include "core/geo/local_tangent_plane.h"
+#include "core/track/homography.h"
+
+#include <Eigen/Geometry>
+#include <opencv2/calib3d.hpp>
+#include <opencv2/core/eigen.hpp>
+
+#include <cmath>
+#include <random>
+#include <sstream>
+
+namespace saker::mosaic {
+namespace {
+
+// Errors of map_from_frame per key frame against the truth ground positions of its corners, the
+// estimate first passed through `truth_from_map`.
+CornerErrors Errors(const std::vector<Eigen::Matrix3d>& map_from_frame,
+                    const std::vector<std::array<Eigen::Vector2d, 4>>& truth_ground,
+                    const std::vector<Eigen::Matrix3d>& frame_from_truth,
+                    const Eigen::Matrix3d& truth_from_map, int width, int height) {
+  CornerErrors e;
+  double sum_px = 0, sum_m = 0;
+  int n = 0;
+  const auto corners = ImageCorners(width, height);
+  for (size_t k = 0; k < map_from_frame.size(); ++k) {
+    for (int c = 0; c < 4; ++c) {
+      const Eigen::Vector3d q =
+          truth_from_map * map_from_frame[k] * corners[size_t(c)].homogeneous();
+      const Eigen::Vector2d ground = q.hnormalized();
+      const double m = (ground - truth_ground[k][size_t(c)]).norm();
+      const Eigen::Vector3d image = frame_from_truth[k] * ground.homogeneous();
+      const double px = (image.hnormalized() - corners[size_t(c)]).norm();
+      sum_m += m * m;
+      sum_px += px * px;
+      e.max_m = std::max(e.max_m, m);
+      ++n;
+    }
+  }
+  if (n > 0) {
+    e.rms_m = std::sqrt(sum_m / n);
+    e.rms_px = std::sqrt(sum_px / n);
+  }
+  return e;
+}
+
+// The homography from the estimated map onto the truth ground that fits all corners best.
+Eigen::Matrix3d GaugeFit(const std::vector<Eigen::Matrix3d>& map_from_frame,
+                         const std::vector<std::array<Eigen::Vector2d, 4>>& truth_ground, int width,
+                         int height) {
+  std::vector<cv::Point2d> from, to;
+  const auto corners = ImageCorners(width, height);
+  for (size_t k = 0; k < map_from_frame.size(); ++k) {
+    for (int c = 0; c < 4; ++c) {
+      const Eigen::Vector2d p = track::Transfer(map_from_frame[k], corners[size_t(c)]);
+      from.emplace_back(p.x(), p.y());
+      to.emplace_back(truth_ground[k][size_t(c)].x(), truth_ground[k][size_t(c)].y());
+    }
+  }
+  Eigen::Matrix3d g = Eigen::Matrix3d::Identity();
+  const cv::Mat h = cv::findHomography(from, to, 0);
+  if (!h.empty()) cv::cv2eigen(h, g);
+  return g;
+}
+
+}  // namespace
+
+StatusOr<MosaicAccuracy> EvaluateMosaic(const MosaicResult& mosaic, const sim::Truth& truth) {
+  const LinkGraph& graph = mosaic.graph;
+  if (graph.image_width != truth.width || graph.image_height != truth.height) {
+    return InvalidArgumentError("evaluate: the mosaic's frames are " +
+                                std::to_string(graph.image_width) + "x" +
+                                std::to_string(graph.image_height) + " but the truth's " +
+                                std::to_string(truth.width) + "x" + std::to_string(truth.height));
+  }
+  MosaicAccuracy a;
+  a.key_frames = int(graph.nodes.size());
+  a.geo_referenced = graph.geo_referenced;
+  a.closures = mosaic.closures;
+  if (graph.nodes.empty()) return a;
+
+  // Truth positions of every key frame's corners, on the truth ground and, when geo-referenced,
+  // in the mosaic's map frame.
+  std::optional<geo::LocalTangentPlane> truth_plane, map_plane;
+  if (graph.geo_referenced && mosaic.origin) {
+    SAKER_ASSIGN_OR_RETURN(truth_plane, geo::LocalTangentPlane::Create({truth.origin_latitude_deg,
+                                                                        truth.origin_longitude_deg,
+                                                                        truth.origin_height_m}));
+    SAKER_ASSIGN_OR_RETURN(map_plane, geo::LocalTangentPlane::Create(*mosaic.origin));
+  }
+  const auto corners = ImageCorners(graph.image_width, graph.image_height);
+  std::vector<std::array<Eigen::Vector2d, 4>> ground(graph.nodes.size()),
+      in_map(graph.nodes.size());
+  std::vector<Eigen::Matrix3d> frame_from_ground(graph.nodes.size()), adjusted, chained;
+  for (size_t k = 0; k < graph.nodes.size(); ++k) {
+    const int64_t f = graph.nodes[k].frame_index;
+    if (f < 0 || size_t(f) >= truth.frames.size()) {
+      return InvalidArgumentError("evaluate: key frame " + std::to_string(k) + " is frame " +
+                                  std::to_string(f) + " but the truth has " +
+                                  std::to_string(truth.frames.size()) + " frames");
+    }
+    frame_from_ground[k] = truth.frames[size_t(f)].frame_from_ground;
+    const Eigen::Matrix3d ground_from_frame = frame_from_ground[k].inverse();
+    for (int c = 0; c < 4; ++c) {
+      ground[k][size_t(c)] = track::Transfer(ground_from_frame, corners[size_t(c)]);
+      if (truth_plane) {
+        const geo::Wgs84 w =
+            truth_plane->Wgs84FromEnu({ground[k][size_t(c)].x(), ground[k][size_t(c)].y(), 0.0});
+        in_map[k][size_t(c)] = map_plane->EnuFromWgs84(w).head<2>();
+      }
+    }
+    adjusted.push_back(graph.nodes[k].map_from_frame);
+    chained.push_back(k < mosaic.chained.size() ? mosaic.chained[k]
+                                                : graph.nodes[k].map_from_frame);
+  }
+  const int w = graph.image_width, h = graph.image_height;
+  a.before = Errors(chained, ground, frame_from_ground, GaugeFit(chained, ground, w, h), w, h);
+  a.after = Errors(adjusted, ground, frame_from_ground, GaugeFit(adjusted, ground, w, h), w, h);
+  if (truth_plane) {
+    // The map frame and the truth ground are related by geodesy alone (two tangent planes): fit
+    // it on the truth corners expressed in both, no estimate involved.
+    std::vector<cv::Point2d> from, to;
+    for (size_t k = 0; k < ground.size(); ++k) {
+      for (int c = 0; c < 4; ++c) {
+        from.emplace_back(in_map[k][size_t(c)].x(), in_map[k][size_t(c)].y());
+        to.emplace_back(ground[k][size_t(c)].x(), ground[k][size_t(c)].y());
+      }
+    }
+    Eigen::Matrix3d ground_from_map = Eigen::Matrix3d::Identity();
+    const cv::Mat fit = cv::findHomography(from, to, 0);
+    if (!fit.empty()) cv::cv2eigen(fit, ground_from_map);
+    a.before_absolute = Errors(chained, ground, frame_from_ground, ground_from_map, w, h);
+    a.after_absolute = Errors(adjusted, ground, frame_from_ground, ground_from_map, w, h);
+  }
+  return a;
+}
+
+StatusOr<MetadataExperiment> RunMetadataExperiment(const MosaicResult& mosaic,
+                                                   const sim::Truth& truth,
+                                                   const MetadataExperimentOptions& options) {
+  const LinkGraph& graph = mosaic.graph;
+  if (graph.nodes.size() < 2) {
+    return InvalidArgumentError("metadata experiment: needs at least two key frames");
+  }
+  if (options.metadata_key_frames < 1 || !(options.start_error_fraction >= 0) ||
+      !(options.metadata_sigma_m >= 0)) {
+    return InvalidArgumentError("metadata experiment: bad options");
+  }
+  const int w = graph.image_width, h = graph.image_height;
+  const auto corners = ImageCorners(w, h);
+  const size_t n = graph.nodes.size();
+  std::vector<Eigen::Matrix3d> frame_from_ground(n);
+  std::vector<std::array<Eigen::Vector2d, 4>> ground(n);
+  for (size_t k = 0; k < n; ++k) {
+    const int64_t f = graph.nodes[k].frame_index;
+    if (f < 0 || size_t(f) >= truth.frames.size()) {
+      return InvalidArgumentError("metadata experiment: the truth does not cover key frame " +
+                                  std::to_string(k));
+    }
+    frame_from_ground[k] = truth.frames[size_t(f)].frame_from_ground;
+    for (int c = 0; c < 4; ++c) {
+      ground[k][size_t(c)] = track::Transfer(frame_from_ground[k].inverse(), corners[size_t(c)]);
+    }
+  }
+  // The wrong start: the true map_from_frame of key frame 0 (truth ground as the map) after a
+  // keystone distortion of the image: the top corners moved inwards by the stated fraction of the
+  // width. A perspective error like this is what a poor initialisation gives; far from the start
+  // it is magnified, as in the paper's figure 11.
+  std::array<Eigen::Vector2d, 4> distorted = corners;
+  const double shift = options.start_error_fraction * w;
+  distorted[0].x() += shift;
+  distorted[1].x() -= shift;
+  SAKER_ASSIGN_OR_RETURN(track::HomographyWithCovariance keystone,
+                         HomographyFromCorners(corners, distorted, 1.0));
+  const Eigen::Matrix3d rotate = keystone.target_from_source;
+  LinkGraph start = graph;
+  start.geo_referenced = true;
+  start.nodes[0].map_from_frame = frame_from_ground[0].inverse() * rotate;
+  start.nodes[0].map_from_frame /= start.nodes[0].map_from_frame(2, 2);
+  for (size_t k = 1; k < n; ++k) {
+    // Chain from the previous key frame through the sequential link into k, if there is one;
+    // else keep the previous one's (a break).
+    Eigen::Matrix3d m = start.nodes[k - 1].map_from_frame;
+    for (const Link& l : graph.links) {
+      if (l.kind == LinkKind::kSequential && size_t(l.to) == k && size_t(l.from) == k - 1) {
+        m = m * l.to_from_from.inverse();
+      }
+    }
+    start.nodes[k].map_from_frame = m / m(2, 2);
+  }
+  for (Node& node : start.nodes) node.metadata_corners.reset();
+  std::vector<Eigen::Matrix3d> wrong;
+  for (const Node& node : start.nodes) wrong.push_back(node.map_from_frame);
+
+  MetadataExperiment e;
+  e.start_error_m =
+      Errors({wrong[0]}, {ground[0]}, {frame_from_ground[0]}, Eigen::Matrix3d::Identity(), w, h)
+          .rms_m;
+  const auto solved = [&](const LinkGraph& g) {
+    std::vector<Eigen::Matrix3d> m;
+    for (const Node& node : g.nodes) m.push_back(node.map_from_frame);
+    return Errors(m, ground, frame_from_ground, Eigen::Matrix3d::Identity(), w, h);
+  };
+  AdjustmentOptions adjustment;
+  LinkGraph without = start;
+  SAKER_ASSIGN_OR_RETURN(AdjustmentSummary s1, Adjust(&without, adjustment));
+  (void)s1;
+  e.without_metadata = solved(without);
+
+  // Metadata on key frames spread evenly along the flight (the paper's nodal key frames).
+  double sigma = options.metadata_sigma_m;
+  if (sigma <= 0) sigma = (ground[0][1] - ground[0][0]).norm();
+  e.metadata_sigma_m = sigma;
+  std::mt19937_64 random(options.seed);
+  std::normal_distribution<double> noise(0.0, sigma);
+  LinkGraph with = start;
+  const int count = std::min<int>(options.metadata_key_frames, int(n));
+  for (int i = 0; i < count; ++i) {
+    const size_t k = count == 1 ? 0 : size_t(std::lround(double(i) * double(n - 1) / (count - 1)));
+    std::array<Eigen::Vector2d, 4> noisy = ground[k];
+    for (Eigen::Vector2d& p : noisy) p += Eigen::Vector2d(noise(random), noise(random));
+    if (!with.nodes[k].metadata_corners) ++e.metadata_key_frames;
+    with.nodes[k].metadata_corners = noisy;
+  }
+  adjustment.metadata_sigma_m = sigma;
+  SAKER_ASSIGN_OR_RETURN(AdjustmentSummary summary, Adjust(&with, adjustment));
+  (void)summary;
+  e.with_metadata = solved(with);
+  return e;
+}
+
+std::string MetadataExperimentToText(const MetadataExperiment& e) {
+  std::ostringstream out;
+  out.setf(std::ios::fixed);
+  out.precision(1);
+  out << "Metadata experiment: start homography off by " << e.start_error_m
+      << " m RMS at its corners\n"
+      << "  without metadata: key frame corners RMS " << e.without_metadata.rms_m << " m, max "
+      << e.without_metadata.max_m << " m\n"
+      << "  with metadata on " << e.metadata_key_frames << " key frames (sigma "
+      << e.metadata_sigma_m << " m): RMS " << e.with_metadata.rms_m << " m, max "
+      << e.with_metadata.max_m << " m\n";
+  return out.str();
+}
+
+nlohmann::json MosaicAccuracyToJson(const MosaicAccuracy& a) {
+  const auto errors = [](const CornerErrors& e) {
+    return nlohmann::json{{"rms_px", e.rms_px}, {"rms_m", e.rms_m}, {"max_m", e.max_m}};
+  };
+  nlohmann::json closures = nlohmann::json::array();
+  for (const LoopClosure& c : a.closures) {
+    closures.push_back({{"from", int(c.from)},
+                        {"to", int(c.to)},
+                        {"kind", LinkKindName(c.kind)},
+                        {"inliers", c.inliers}});
+  }
+  nlohmann::json j = {{"key_frames", a.key_frames},
+                      {"geo_referenced", a.geo_referenced},
+                      {"before", errors(a.before)},
+                      {"after", errors(a.after)},
+                      {"loop_closures", closures}};
+  if (a.before_absolute) j["before_absolute"] = errors(*a.before_absolute);
+  if (a.after_absolute) j["after_absolute"] = errors(*a.after_absolute);
+  return j;
+}
+
+std::string MosaicAccuracyToText(const MosaicAccuracy& a) {
+  std::ostringstream out;
+  out.setf(std::ios::fixed);
+  out.precision(2);
+  out << "Mosaic: " << a.key_frames << " key frames, "
+      << (a.geo_referenced ? "geo-referenced (metadata corners)" : "no metadata") << "\n";
+  out << "  key frame corners, gauge removed: RMS " << a.before.rms_px << " px / " << a.before.rms_m
+      << " m before adjustment, " << a.after.rms_px << " px / " << a.after.rms_m << " m after";
+  if (a.after.rms_m > 0) out << " (" << a.before.rms_m / a.after.rms_m << "x smaller)";
+  out << "\n";
+  if (a.before_absolute && a.after_absolute) {
+    out << "  key frame corners in map coordinates: RMS " << a.before_absolute->rms_m
+        << " m before, " << a.after_absolute->rms_m << " m after (max " << a.after_absolute->max_m
+        << " m)\n";
+  }
+  out << "  loop closures: " << a.closures.size();
+  for (const LoopClosure& c : a.closures) {
+    out << "\n    key frame " << int(c.from) << " -> " << int(c.to) << " (" << LinkKindName(c.kind)
+        << ", " << c.inliers << " inliers)";
+  }
+  out << "\n";
+  return out.str();
+}
+
+}  // namespace saker::mosaic

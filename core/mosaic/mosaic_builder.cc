@@ -1,0 +1,430 @@
+#include "core/mosaic/mosaic_builder.h"
+
+#include "core/track/homography.h"
+#include "core/util/check.h"
+
+#include <Eigen/Dense>
+#include <Eigen/Geometry>
+#include <opencv2/imgproc.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+
+namespace saker::mosaic {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+using track::HomographyCovariance;
+using track::HomographyWithCovariance;
+
+double SecondsSince(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+Eigen::Matrix3d Normalised(const Eigen::Matrix3d& h) { return h / h(2, 2); }
+
+// Fraction of frame b's area covered by frame a mapped through b_from_a (0 when a does not map
+// to a convex quadrilateral in front of the camera).
+double PredictedOverlap(const Eigen::Matrix3d& b_from_a, int width, int height) {
+  std::vector<cv::Point2f> quad, rect, overlap;
+  for (const Eigen::Vector2d& c : ImageCorners(width, height)) {
+    const Eigen::Vector3d q = b_from_a * c.homogeneous();
+    if (!(q.z() > 1e-9)) return 0;
+    quad.emplace_back(float(q.x() / q.z()), float(q.y() / q.z()));
+    rect.emplace_back(float(c.x()), float(c.y()));
+  }
+  if (!cv::isContourConvex(quad)) return 0;
+  const float area = cv::intersectConvexConvex(quad, rect, overlap, true);
+  return double(area) / (double(width - 1) * double(height - 1));
+}
+
+// A covariance that says "we know nothing useful": a standard deviation of the frame size on
+// every projected corner, expressed on the parameters of `h` through the corners.
+HomographyCovariance UninformativeCovariance(const Eigen::Matrix3d& h, int width, int height) {
+  Eigen::Matrix<double, 8, 8> j;
+  const auto corners = ImageCorners(width, height);
+  for (int i = 0; i < 4; ++i) j.block<2, 8>(2 * i, 0) = track::TransferJacobian(h, corners[i]);
+  // Map units per pixel near the centre, so that the sigma is one frame in the map too.
+  const Eigen::Matrix2d a = track::TransferPointJacobian(h, {width / 2.0, height / 2.0});
+  const double sigma = std::sqrt(std::abs(a.determinant())) * std::max(width, height);
+  const Eigen::FullPivLU<Eigen::Matrix<double, 8, 8>> lu(j);
+  if (!lu.isInvertible()) return HomographyCovariance::Identity() * 1e6;
+  const Eigen::Matrix<double, 8, 8> inverse = lu.inverse();
+  return sigma * sigma * inverse * inverse.transpose();
+}
+
+// Covariance of k's image point p predicted in j's image, both key frames' map_from_frame
+// uncertain and taken as independent.
+Eigen::Matrix2d PredictionCovariance(const Eigen::Matrix3d& map_from_k,
+                                     const HomographyCovariance& cov_k,
+                                     const Eigen::Matrix3d& map_from_j,
+                                     const HomographyCovariance& cov_j,
+                                     const Eigen::Matrix3d& j_from_map, const Eigen::Vector2d& p,
+                                     double floor_px) {
+  const Eigen::Vector2d x = track::Transfer(map_from_k, p);
+  const Eigen::Vector2d q = track::Transfer(j_from_map, x);
+  const Eigen::Matrix2d in_map = track::TransferCovariance(map_from_k, cov_k, p) +
+                                 track::TransferCovariance(map_from_j, cov_j, q);
+  const Eigen::Matrix2d a = track::TransferPointJacobian(j_from_map, x);
+  return a * in_map * a.transpose() + floor_px * floor_px * Eigen::Matrix2d::Identity();
+}
+
+struct Builder {
+  const frontend::FrontEndResult& front;
+  const MosaicOptions& options;
+  JobContext* job;
+  MosaicResult result;
+  std::optional<geo::LocalTangentPlane> plane;
+  std::vector<KeyFrameFeatures> features;
+  AppearanceIndex index;
+  int metadata_since_adjustment = 0;
+  bool dirty = false;  // links or metadata added since the last adjustment
+
+  Builder(const frontend::FrontEndResult& f, const MosaicOptions& o, JobContext* j)
+      : front(f), options(o), job(j), index(o.index) {}
+
+  int width() const { return result.graph.image_width; }
+  int height() const { return result.graph.image_height; }
+
+  // The map frame: ENU around the first key frame's metadata footprint, when there is one.
+  Status ChooseMapFrame() {
+    if (!options.use_metadata) return Status::Ok();
+    for (const track::KeyFrame& kf : front.key_frames) {
+      const klv::FrameMetadata* m = front.scan.MetadataOf(size_t(kf.frame_index));
+      if (m == nullptr || !m->corners) continue;
+      geo::Wgs84 origin;
+      for (const klv::LatLon& c : *m->corners) {
+        origin.latitude_deg += c.latitude_deg / 4;
+        origin.longitude_deg += c.longitude_deg / 4;
+      }
+      origin.height_m = m->frame_center_elevation_m.value_or(0.0);
+      StatusOr<geo::LocalTangentPlane> p = geo::LocalTangentPlane::Create(origin);
+      if (!p.ok()) continue;  // corners off the Earth: treat as no metadata
+      plane = std::move(p).value();
+      result.origin = origin;
+      result.graph.geo_referenced = true;
+      return Status::Ok();
+    }
+    return Status::Ok();
+  }
+
+  std::optional<std::array<Eigen::Vector2d, 4>> MetadataCorners(int64_t frame_index) const {
+    if (!plane) return std::nullopt;
+    const klv::FrameMetadata* m = front.scan.MetadataOf(size_t(frame_index));
+    if (m == nullptr || !m->corners) return std::nullopt;
+    std::array<Eigen::Vector2d, 4> corners;
+    for (int i = 0; i < 4; ++i) {
+      const klv::LatLon& c = (*m->corners)[size_t(i)];
+      corners[size_t(i)] = plane->MapFromLatLon(c.latitude_deg, c.longitude_deg);
+      if (!corners[size_t(i)].allFinite()) return std::nullopt;
+    }
+    return corners;
+  }
+
+  // The sequential link of the front end that ends at key frame `k`, if any.
+  const track::SequentialLink* LinkInto(int k) const {
+    for (const track::SequentialLink& l : front.links) {
+      if (int(l.to) == k) return &l;
+    }
+    return nullptr;
+  }
+
+  // Initial map_from_frame of key frame k and its covariance, from the chain (or metadata at a
+  // segment start). `previous` is key frame k-1's (nullopt for k = 0).
+  HomographyWithCovariance Initial(int k, const std::optional<HomographyWithCovariance>& previous,
+                                   const Node& node) const {
+    const track::SequentialLink* link = LinkInto(k);
+    if (link != nullptr && previous) {
+      StatusOr<HomographyWithCovariance> back = track::Invert(link->to_from_from, link->covariance);
+      if (back.ok()) {
+        StatusOr<HomographyWithCovariance> chained =
+            track::Compose(previous->target_from_source, previous->covariance,
+                           back->target_from_source, back->covariance);
+        if (chained.ok()) return *chained;
+      }
+    }
+    if (node.metadata_corners) {
+      StatusOr<HomographyWithCovariance> h =
+          HomographyFromCorners(ImageCorners(width(), height()), *node.metadata_corners,
+                                options.adjustment.metadata_sigma_m);
+      if (h.ok()) return *h;
+    }
+    HomographyWithCovariance guess;
+    if (previous) {
+      guess.target_from_source = previous->target_from_source;
+      guess.covariance = UninformativeCovariance(guess.target_from_source, width(), height());
+    }
+    // The very first key frame without metadata defines the map frame: exact, identity.
+    return guess;
+  }
+
+  // The first key frame with metadata corners in a segment that began without: the segment so far
+  // was chained from a guess (or, for the first segment, from the pixel frame), so it is moved as
+  // a whole onto the metadata (map_from_i <- G map_from_i with G = metadata map_from_k *
+  // (chained map_from_k)^-1). Later key frames chain from the moved ones.
+  void AnchorSegment(int k) {
+    LinkGraph& graph = result.graph;
+    const Node& node = graph.nodes[size_t(k)];
+    int first = k;
+    while (first > 0 && graph.nodes[size_t(first - 1)].segment == node.segment) --first;
+    for (int i = first; i < k; ++i) {
+      if (graph.nodes[size_t(i)].metadata_corners) return;  // already anchored
+    }
+    if (first == k) return;  // a segment start: Initial used the metadata directly
+    StatusOr<HomographyWithCovariance> anchored =
+        HomographyFromCorners(ImageCorners(width(), height()), *node.metadata_corners,
+                              options.adjustment.metadata_sigma_m);
+    if (!anchored.ok()) return;
+    const Eigen::Matrix3d g = anchored->target_from_source * node.map_from_frame.inverse();
+    for (int i = first; i <= k; ++i) {
+      Node& n = graph.nodes[size_t(i)];
+      n.map_from_frame = Normalised(g * n.map_from_frame);
+      // Known to about the metadata's accuracy, like the anchor.
+      std::array<Eigen::Vector2d, 4> corners;
+      const auto image = ImageCorners(width(), height());
+      for (int c = 0; c < 4; ++c)
+        corners[size_t(c)] = track::Transfer(n.map_from_frame, image[size_t(c)]);
+      StatusOr<HomographyWithCovariance> h =
+          HomographyFromCorners(image, corners, options.adjustment.metadata_sigma_m);
+      if (h.ok()) result.covariances[size_t(i)] = h->covariance;
+    }
+  }
+
+  Status Adjust() {
+    const auto start = Clock::now();
+    SAKER_ASSIGN_OR_RETURN(AdjustmentSummary summary,
+                           mosaic::Adjust(&result.graph, options.adjustment, job));
+    result.timing.adjust_s += SecondsSince(start);
+    result.adjustments.push_back(summary);
+    if (summary.cancelled) return CancelledError("mosaic: cancelled during bundle adjustment");
+    const auto covariance_start = Clock::now();
+    StatusOr<std::vector<HomographyCovariance>> covariances =
+        NodeCovariances(result.graph, options.adjustment);
+    result.timing.covariance_s += SecondsSince(covariance_start);
+    // A rank-deficient problem keeps the chain's covariances; the solution itself stands.
+    if (covariances.ok()) result.covariances = std::move(covariances).value();
+    metadata_since_adjustment = 0;
+    dirty = false;
+    return Status::Ok();
+  }
+
+  // Loop closure for the newest key frame k. Returns the number of cross-links added.
+  int CloseLoops(int k) {
+    const KeyFrameFeatures& fk = features[size_t(k)];
+    if (fk.points.empty()) return 0;
+    const Node& node_k = result.graph.nodes[size_t(k)];
+    const double limit = options.lost_fraction * std::min(width(), height());
+    struct Candidate {
+      int j;
+      double overlap;
+      Eigen::Matrix3d j_from_k;
+    };
+    std::vector<Candidate> geometric;
+    bool lost = false;
+    const Eigen::Vector2d centre((width() - 1) / 2.0, (height() - 1) / 2.0);
+    for (int j = 0; j + options.skip_recent < k; ++j) {
+      if (features[size_t(j)].points.empty()) continue;
+      if (result.graph.Linked(KeyFrameId(j), KeyFrameId(k))) continue;
+      const Node& node_j = result.graph.nodes[size_t(j)];
+      const Eigen::FullPivLU<Eigen::Matrix3d> lu(node_j.map_from_frame);
+      if (!lu.isInvertible()) continue;
+      const Eigen::Matrix3d j_from_map = lu.inverse();
+      const Eigen::Matrix3d j_from_k = Normalised(j_from_map * node_k.map_from_frame);
+      const Eigen::Matrix2d cov = PredictionCovariance(
+          node_k.map_from_frame, result.covariances[size_t(k)], node_j.map_from_frame,
+          result.covariances[size_t(j)], j_from_map, centre, options.prediction_floor_px);
+      const Ellipse e = ConfidenceEllipse(centre, cov, options.match.confidence);
+      if (!(e.semi_major < limit)) {
+        lost = true;
+        continue;
+      }
+      const double overlap = PredictedOverlap(j_from_k, width(), height());
+      if (overlap >= options.min_predicted_overlap) geometric.push_back({j, overlap, j_from_k});
+    }
+    std::sort(geometric.begin(), geometric.end(),
+              [](const Candidate& a, const Candidate& b) { return a.overlap > b.overlap; });
+
+    int added = 0;
+    const auto add = [&](Link link) {
+      result.closures.push_back({link.from, link.to, link.kind, int(link.correspondences.size())});
+      result.graph.links.push_back(std::move(link));
+      ++added;
+      dirty = true;
+    };
+    for (const Candidate& c : geometric) {
+      if (added >= options.max_cross_links) break;
+      const Node& node_j = result.graph.nodes[size_t(c.j)];
+      const Eigen::Matrix3d j_from_map = node_j.map_from_frame.inverse();
+      const auto covariance_in_j = [&](const Eigen::Vector2d& p) {
+        return PredictionCovariance(node_k.map_from_frame, result.covariances[size_t(k)],
+                                    node_j.map_from_frame, result.covariances[size_t(c.j)],
+                                    j_from_map, p, options.prediction_floor_px);
+      };
+      std::optional<Link> link = MatchGeometric(fk, features[size_t(c.j)], c.j_from_k,
+                                                covariance_in_j, width(), height(), options.match);
+      if (link) add(std::move(*link));
+    }
+    if (added == 0 && (lost || !geometric.empty())) {
+      const auto skip = [&](KeyFrameId id) {
+        return int(id) + options.skip_recent >= k || result.graph.Linked(id, KeyFrameId(k));
+      };
+      for (const auto& [id, score] : index.Query(fk, options.appearance_candidates, skip)) {
+        if (added >= options.max_cross_links) break;
+        std::optional<Link> link =
+            MatchAppearance(fk, features[size_t(id)], width(), height(), options.match);
+        if (link) add(std::move(*link));
+      }
+    }
+    return added;
+  }
+
+  StatusOr<MosaicResult> Run() {
+    const auto start = Clock::now();
+    LinkGraph& graph = result.graph;
+    graph.image_width = front.video.width;
+    graph.image_height = front.video.height;
+    if (front.key_frames.empty()) {
+      return InvalidDataError(
+          "mosaic: the front end found no key frame (no trackable ground in the video)");
+    }
+    SAKER_RETURN_IF_ERROR(ChooseMapFrame());
+
+    // The chain alone, for the "before" figures.
+    std::optional<HomographyWithCovariance> previous_chained;
+    const size_t count = front.key_frames.size();
+    features.resize(count);
+    for (size_t k = 0; k < count; ++k) {
+      if (job != nullptr && job->IsCancelled()) return CancelledError("mosaic: cancelled");
+      const track::KeyFrame& kf = front.key_frames[k];
+      SAKER_CHECK(size_t(kf.id) == k) << "key frame ids must be their indices";
+      Node node;
+      node.id = kf.id;
+      node.frame_index = kf.frame_index;
+      node.segment = kf.segment;
+      if (size_t(kf.frame_index) < front.frames.size())
+        node.time_s = front.frames[size_t(kf.frame_index)].time_s;
+      node.metadata_corners = MetadataCorners(kf.frame_index);
+      result.key_frames_with_metadata += node.metadata_corners.has_value();
+
+      const HomographyWithCovariance chained = Initial(int(k), previous_chained, node);
+      result.chained.push_back(chained.target_from_source);
+      previous_chained = chained;
+
+      // The running solution continues from the adjusted previous key frame.
+      std::optional<HomographyWithCovariance> running_previous;
+      if (k > 0) {
+        running_previous =
+            HomographyWithCovariance{graph.nodes.back().map_from_frame, result.covariances.back()};
+      }
+      HomographyWithCovariance initial = Initial(int(k), running_previous, node);
+      node.map_from_frame = initial.target_from_source;
+      graph.nodes.push_back(node);
+      result.covariances.push_back(initial.covariance);
+      if (node.metadata_corners) AnchorSegment(int(k));
+      if (const track::SequentialLink* l = LinkInto(int(k))) {
+        Link link;
+        link.from = l->from;
+        link.to = l->to;
+        link.kind = LinkKind::kSequential;
+        link.to_from_from = l->to_from_from;
+        link.covariance = l->covariance;
+        link.correspondences = l->correspondences;
+        graph.links.push_back(std::move(link));
+      }
+      if (node.metadata_corners) {
+        ++metadata_since_adjustment;
+        dirty = true;
+      }
+
+      auto describe_start = Clock::now();
+      if (k < front.key_frame_images.size() && front.key_frame_images[k].id == kf.id) {
+        const frontend::KeyFrameImage& image = front.key_frame_images[k];
+        features[k] = DescribeKeyFrame(kf.id, image.grey, image.scale, kf.points, options.describe);
+      } else {
+        features[k].id = kf.id;
+      }
+      result.timing.describe_s += SecondsSince(describe_start);
+
+      const auto match_start = Clock::now();
+      const int added = CloseLoops(int(k));
+      index.Add(features[k]);
+      result.timing.match_s += SecondsSince(match_start);
+
+      const bool metadata_due = options.adjust_every_metadata > 0 &&
+                                metadata_since_adjustment >= options.adjust_every_metadata;
+      if (added > 0 || metadata_due) SAKER_RETURN_IF_ERROR(Adjust());
+      if (job != nullptr) job->ReportProgress("mosaic", double(k + 1) / double(count));
+    }
+    // A last adjustment for what arrived since (metadata residuals; cross-links always adjust at
+    // once), and so that the covariances describe the final graph.
+    if (dirty || result.adjustments.empty()) SAKER_RETURN_IF_ERROR(Adjust());
+    result.timing.total_s = SecondsSince(start);
+    return std::move(result);
+  }
+};
+
+}  // namespace
+
+Status MosaicOptions::Validate() const {
+  SAKER_RETURN_IF_ERROR(adjustment.Validate());
+  SAKER_RETURN_IF_ERROR(describe.Validate());
+  SAKER_RETURN_IF_ERROR(match.Validate());
+  SAKER_RETURN_IF_ERROR(index.Validate());
+  if (!(lost_fraction > 0)) return InvalidArgumentError("mosaic: lost_fraction must be positive");
+  if (!(prediction_floor_px >= 0)) {
+    return InvalidArgumentError("mosaic: the prediction floor must be >= 0 pixels");
+  }
+  if (skip_recent < 1) return InvalidArgumentError("mosaic: skip_recent must be at least 1");
+  if (!(min_predicted_overlap >= 0 && min_predicted_overlap <= 1)) {
+    return InvalidArgumentError("mosaic: the predicted overlap must be in [0, 1]");
+  }
+  if (max_cross_links < 1 || appearance_candidates < 0 || adjust_every_metadata < 0) {
+    return InvalidArgumentError(
+        "mosaic: need max_cross_links >= 1, appearance_candidates >= 0, "
+        "adjust_every_metadata >= 0");
+  }
+  return Status::Ok();
+}
+
+StatusOr<HomographyWithCovariance> HomographyFromCorners(
+    const std::array<Eigen::Vector2d, 4>& image, const std::array<Eigen::Vector2d, 4>& map,
+    double sigma) {
+  // u = (h00 x + h01 y + h02) / (h20 x + h21 y + 1), likewise v: linear in the 8 parameters.
+  Eigen::Matrix<double, 8, 8> a;
+  Eigen::Matrix<double, 8, 1> b;
+  for (int i = 0; i < 4; ++i) {
+    const double x = image[size_t(i)].x(), y = image[size_t(i)].y();
+    const double u = map[size_t(i)].x(), v = map[size_t(i)].y();
+    a.row(2 * i) << x, y, 1, 0, 0, 0, -x * u, -y * u;
+    a.row(2 * i + 1) << 0, 0, 0, x, y, 1, -x * v, -y * v;
+    b(2 * i) = u;
+    b(2 * i + 1) = v;
+  }
+  const Eigen::FullPivLU<Eigen::Matrix<double, 8, 8>> lu(a);
+  if (!lu.isInvertible() || !a.allFinite() || !b.allFinite()) {
+    return InvalidDataError("mosaic: the four corners do not define a homography");
+  }
+  HomographyWithCovariance h;
+  h.target_from_source = track::HomographyFromParameters(lu.solve(b));
+  Eigen::Matrix<double, 8, 8> j;
+  for (int i = 0; i < 4; ++i) {
+    j.block<2, 8>(2 * i, 0) = track::TransferJacobian(h.target_from_source, image[size_t(i)]);
+  }
+  const Eigen::FullPivLU<Eigen::Matrix<double, 8, 8>> lu_j(j);
+  if (!lu_j.isInvertible()) {
+    return InvalidDataError("mosaic: the four corners do not define a homography");
+  }
+  const Eigen::Matrix<double, 8, 8> inverse = lu_j.inverse();
+  h.covariance = sigma * sigma * inverse * inverse.transpose();
+  return h;
+}
+
+StatusOr<MosaicResult> BuildMosaic(const frontend::FrontEndResult& front,
+                                   const MosaicOptions& options, JobContext* job) {
+  SAKER_RETURN_IF_ERROR(options.Validate());
+  Builder builder(front, options, job);
+  return builder.Run();
+}
+
+}  // namespace saker::mosaic
