@@ -6,6 +6,7 @@
 
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <unistd.h>
 
 #include <filesystem>
 #include <iostream>
@@ -29,9 +30,10 @@ struct MosaicCommand::State {
 
 namespace {
 
-// Progress on one stderr line, rewritten in place; silent when quiet or not a terminal's job.
+// Progress on one stderr line, rewritten in place; silent when quiet or when stderr is not a
+// terminal (a log file would collect every update).
 JobContext ProgressContext(bool quiet) {
-  if (quiet) return JobContext();
+  if (quiet || isatty(STDERR_FILENO) == 0) return JobContext();
   return JobContext(
       [last = std::string(), percent = -1](const std::string& stage, double fraction) mutable {
         const int p = int(fraction * 100);
@@ -108,10 +110,17 @@ int MosaicCommand::RunOn(const std::string& video, const std::string& output) co
   const State& s = *state_;
   JobContext job = ProgressContext(s.quiet || s.json);
   const auto fail = [&](const Status& status) {
-    if (!s.quiet && !s.json) std::cerr << "\n";
+    if (!s.quiet && !s.json && isatty(STDERR_FILENO) != 0) std::cerr << "\n";
     std::cerr << "saker-cli: " << status.message() << "\n";
     return 1;
   };
+  // Fail before the work, not after it, when the picture cannot be written there.
+  const std::filesystem::path folder = std::filesystem::absolute(output).parent_path();
+  if (std::error_code error; !std::filesystem::is_directory(folder, error)) {
+    std::cerr << "saker-cli: cannot write " << output << ": the folder " << folder.string()
+              << " does not exist\n";
+    return 1;
+  }
   StatusOr<frontend::FrontEndResult> front = frontend::RunFrontEnd(video, {}, &job);
   if (!front.ok()) return fail(front.status());
   mosaic::MosaicOptions options = s.mosaic;
@@ -131,7 +140,9 @@ int MosaicCommand::RunOn(const std::string& video, const std::string& output) co
       s.unadjusted ? std::vector<track::HomographyCovariance>() : result->covariances);
   if (!picture.ok()) return fail(picture.status());
   if (Status written = WritePicture(picture->bgr, output); !written.ok()) return fail(written);
-  if (!s.quiet && !s.json) std::cerr << "\r" << std::string(40, ' ') << "\r";
+  if (!s.quiet && !s.json && isatty(STDERR_FILENO) != 0) {
+    std::cerr << "\r" << std::string(40, ' ') << "\r";
+  }
 
   const mosaic::LinkGraph& graph = result->graph;
   std::map<std::string, int> links;

@@ -13,6 +13,7 @@
 
 #include "core/mosaic/adjustment.h"
 #include "core/mosaic/link_graph.h"
+#include "core/mosaic/loop_closure.h"
 #include "core/track/homography.h"
 #include "tests/core/mosaic/synthetic_camera.h"
 
@@ -268,13 +269,88 @@ std::vector<double> BenchmarkAdjustment(const std::vector<int>& sizes,
   return times;
 }
 
+// Synthetic SIFT-like descriptors: each key frame sees a random selection of "places" (cluster
+// centres in descriptor space) with noise, so words and posting lists behave as with real
+// imagery; the query frame shares half its places with one indexed frame.
+cv::Mat PlaceDescriptors(const cv::Mat& places, int count, std::mt19937_64& random) {
+  cv::Mat d(count, 128, CV_32F);
+  std::uniform_int_distribution<int> pick(0, places.rows - 1);
+  std::normal_distribution<float> noise(0.0f, 12.0f);
+  for (int i = 0; i < count; ++i) {
+    const float* c = places.ptr<float>(pick(random));
+    float* row = d.ptr<float>(i);
+    for (int j = 0; j < 128; ++j) row[j] = std::max(0.0f, c[j] + noise(random));
+  }
+  return d;
+}
+
+// Loop-closure candidate query time against the number of indexed key frames, next to one
+// pairwise appearance matching measured in the same run: a query that cost O(n) matchings would
+// grow n-fold.
+void BenchmarkQuery(const std::vector<int>& sizes, uint64_t seed) {
+  using saker::mosaic::KeyFrameFeatures;
+  std::mt19937_64 random(seed);
+  cv::Mat places(5000, 128, CV_32F);
+  std::uniform_real_distribution<float> uniform(0.0f, 60.0f);
+  for (int i = 0; i < places.rows; ++i)
+    for (int j = 0; j < 128; ++j) places.at<float>(i, j) = uniform(random);
+  const int per_frame = 900;
+  const auto frame = [&](int id) {
+    KeyFrameFeatures f;
+    f.id = saker::mosaic::KeyFrameId(id);
+    f.descriptors = PlaceDescriptors(places, per_frame, random);
+    for (int i = 0; i < per_frame; ++i) {
+      f.points.emplace_back(std::uniform_real_distribution<double>(0, 1279)(random),
+                            std::uniform_real_distribution<double>(0, 719)(random));
+      f.track_ids.push_back(saker::track::FeatureTrackId(i));
+    }
+    return f;
+  };
+  // The baseline: one appearance matching of two frames (descriptor matching + RANSAC).
+  const KeyFrameFeatures a = frame(0), b = frame(1);
+  std::vector<double> pair_times;
+  for (int r = 0; r < 5; ++r) {
+    const auto start = Clock::now();
+    (void)saker::mosaic::MatchAppearance(a, b, 1280, 720, {});
+    pair_times.push_back(Seconds(start));
+  }
+  const double pair_s = Median(pair_times);
+  std::printf(
+      "\nLoop-closure candidates: appearance index (bag of words), %d descriptors per key "
+      "frame\n",
+      per_frame);
+  std::printf("one pairwise appearance matching (baseline): %.2f ms\n", pair_s * 1e3);
+  std::printf("%6s %10s %10s %16s\n", "n", "add_ms", "query_ms", "query/matching");
+  saker::mosaic::AppearanceIndex index({});
+  int added = 0;
+  for (int n : sizes) {
+    const auto add_start = Clock::now();
+    const int before = added;
+    for (; added < n; ++added) index.Add(frame(added));
+    const double add_ms = added > before ? Seconds(add_start) * 1e3 / (added - before) : 0;
+    std::vector<double> query_times;
+    for (int r = 0; r < 20; ++r) {
+      const KeyFrameFeatures q = frame(1000000 + r);
+      const auto start = Clock::now();
+      (void)index.Query(q, 4);
+      query_times.push_back(Seconds(start));
+    }
+    const double q = Median(query_times);
+    std::printf("%6d %10.2f %10.2f %16.2f\n", n, add_ms, q * 1e3, q / pair_s);
+  }
+  std::printf(
+      "query/matching: the query's cost in pairwise matchings; O(n) matching would be n.\n");
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   CLI::App app{
       "saker-bench-mosaic: bundle adjustment time against the number of key frames on synthetic "
       "raster link graphs with loops (sequential links plus cross-links between adjacent rows, "
-      "noisy measurements, drifted start). Target: 1000 key frames in <= 1 s on 2 cores."};
+      "noisy measurements, drifted start). Target: 1000 key frames in <= 1 s on 2 cores. Then the\n"
+      "loop-closure candidate query of the appearance index against the number of key frames,\n"
+      "next to one pairwise appearance matching measured in the same run."};
   std::vector<int> sizes = {100, 1000};
   saker::mosaic::AdjustmentOptions options;
   int& threads = options.num_threads;
@@ -310,5 +386,7 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "%s\n", valid.ToString().c_str());
     return 2;
   }
-  return BenchmarkAdjustment(sizes, options, repeats, covariance_max, seed).empty() ? 1 : 0;
+  if (BenchmarkAdjustment(sizes, options, repeats, covariance_max, seed).empty()) return 1;
+  BenchmarkQuery(sizes, seed);
+  return 0;
 }

@@ -145,3 +145,29 @@ TEST(CliSimulateTest, BadArgumentsAreUsageErrors) {
 }
 
 }  // namespace
+
+TEST(CliMosaicTest, WritesThePictureAndSummarises) {
+  const std::filesystem::path dir = saker::testing::MakeTempDir("saker-cli-mosaic");
+  const std::string video = (dir / "flight.ts").string();
+  ASSERT_EQ(RunCli("simulate --scenario straight -o '" + video + "' " + kSmallSimulation).exit_code,
+            0);
+  const std::string picture = (dir / "mosaic.png").string();
+  const CliRun run = RunCli("mosaic --json -o '" + picture + "' '" + video + "'");
+  ASSERT_EQ(run.exit_code, 0) << run.out;
+  const nlohmann::json j = nlohmann::json::parse(run.out);
+  EXPECT_GE(j["key_frames"].get<int>(), 2);
+  EXPECT_TRUE(j["geo_referenced"].get<bool>());
+  EXPECT_GT(j["picture_width"].get<int>(), 0);
+  EXPECT_TRUE(std::filesystem::exists(picture));
+  EXPECT_FALSE(std::filesystem::exists(picture + ".part.png"));
+}
+
+TEST(CliMosaicTest, BadInputsNameTheProblem) {
+  CliRun run = RunCli("mosaic /nonexistent/sortie-7.ts -o /tmp/saker-never.png");
+  EXPECT_EQ(run.exit_code, 1);
+  EXPECT_NE(run.out.find("sortie-7.ts"), std::string::npos) << run.out;
+  run = RunCli("mosaic /nonexistent/sortie-7.ts -o /nonexistent/folder/m.png");
+  EXPECT_EQ(run.exit_code, 1);
+  EXPECT_NE(run.out.find("/nonexistent/folder"), std::string::npos) << run.out;
+  EXPECT_EQ(RunCli("mosaic x.ts").exit_code, 2);  // no -o
+}

@@ -124,6 +124,26 @@ TEST_F(MosaicTest, MetadataGeoReferencesTheMap) {
   EXPECT_LE(run->accuracy.after_absolute->rms_m, run->accuracy.before_absolute->rms_m);
 }
 
+TEST_F(MosaicTest, MetadataReattachesASegmentAfterABreak) {
+  // A blank second in the middle of the flight (cloud, dropout) breaks the chain; the key frames
+  // after it start a new segment, placed by their metadata corners in the same map.
+  sim::SimulationOptions options = SmallOptions(*dir_ / "break.ts", sim::Scenario::kStraight);
+  options.flight.straight_length_m = 400;
+  options.imaging.blank_start_s = 12;
+  options.imaging.blank_duration_s = 1;
+  options.metadata.position_noise_m = 3;
+  std::optional<Outcome> run = MakeRun(options, {});
+  ASSERT_TRUE(run.has_value());
+  ASSERT_FALSE(run->front.breaks.empty());
+  const LinkGraph& graph = run->mosaic.graph;
+  ASSERT_GE(graph.nodes.size(), 4u);
+  EXPECT_GE(graph.nodes.back().segment, 1);
+  EXPECT_TRUE(graph.geo_referenced);
+  // Both segments lie where they belong: corner errors of a few metres, not a frame (128 m).
+  ASSERT_TRUE(run->accuracy.after_absolute.has_value());
+  EXPECT_LT(run->accuracy.after_absolute->max_m, 10.0);
+}
+
 TEST_F(MosaicTest, FigureEightClosesAtTheCrossingAndAtTheEnd) {
   sim::SimulationOptions options = SmallOptions(*dir_ / "eight.ts", sim::Scenario::kFigureEight);
   options.flight.figure_eight_key_frames = 24;
