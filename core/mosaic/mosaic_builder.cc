@@ -234,8 +234,9 @@ struct Builder {
       const Eigen::Matrix2d cov = PredictionCovariance(
           node_k.map_from_frame, result.covariances[size_t(k)], node_j.map_from_frame,
           result.covariances[size_t(j)], j_from_map, centre, options.prediction_floor_px);
-      const Ellipse e = ConfidenceEllipse(centre, cov, options.match.confidence);
-      if (!(e.semi_major < limit)) {
+      // A covariance that is not finite (a degenerate solve) says nothing: lost.
+      if (!cov.allFinite() ||
+          !(ConfidenceEllipse(centre, cov, options.match.confidence).semi_major < limit)) {
         lost = true;
         continue;
       }

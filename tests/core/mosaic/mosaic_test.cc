@@ -12,7 +12,6 @@
 #include <gtest/gtest.h>
 
 #include <iostream>
-#include <set>
 
 namespace saker::mosaic {
 namespace {
@@ -190,7 +189,6 @@ TEST_F(MosaicTest, RasterLinksNeighbouringRows) {
   std::optional<Outcome> run = MakeRun(options, mosaic);
   ASSERT_TRUE(run.has_value());
   // Cross-links between rows: key frames far apart in time, side by side on the ground.
-  std::set<std::pair<int, int>> rows;
   EXPECT_GE(run->mosaic.closures.size(), 3u);
   EXPECT_LT(run->accuracy.after.rms_px, run->accuracy.before.rms_px);
 }
