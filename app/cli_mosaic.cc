@@ -50,7 +50,7 @@ Status WritePicture(const cv::Mat& image, const std::filesystem::path& path) {
   bool written = false;
   try {
     written = cv::imwrite(part.string(), image);
-  } catch (const cv::Exception& e) {
+  } catch (const cv::Exception&) {
     written = false;
   }
   if (!written) {

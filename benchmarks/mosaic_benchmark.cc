@@ -14,7 +14,9 @@
 #include "core/mosaic/adjustment.h"
 #include "core/mosaic/link_graph.h"
 #include "core/mosaic/loop_closure.h"
+#include "core/mosaic/mosaic_builder.h"
 #include "core/track/homography.h"
+#include "core/util/check.h"
 #include "tests/core/mosaic/synthetic_camera.h"
 
 #include <CLI/CLI.hpp>
@@ -63,18 +65,12 @@ class Noise {
   std::normal_distribution<double> normal_;
 };
 
+// The homography taking the 4 points `from` exactly to `to`.
 Eigen::Matrix3d FourPointHomography(const std::array<Eigen::Vector2d, 4>& from,
                                     const std::array<Eigen::Vector2d, 4>& to) {
-  Matrix8 a;
-  Vector8 b;
-  for (size_t i = 0; i < 4; ++i) {
-    const double x = from[i].x(), y = from[i].y(), u = to[i].x(), v = to[i].y();
-    a.row(2 * int(i)) << x, y, 1, 0, 0, 0, -u * x, -u * y;
-    a.row(2 * int(i) + 1) << 0, 0, 0, x, y, 1, -v * x, -v * y;
-    b(2 * int(i)) = u;
-    b(2 * int(i) + 1) = v;
-  }
-  return saker::track::HomographyFromParameters(a.fullPivLu().solve(b));
+  const auto h = saker::mosaic::HomographyFromCorners(from, to, 1.0);
+  SAKER_CHECK(h.ok()) << h.status().ToString();
+  return h->target_from_source;
 }
 
 // The truth corners of `from` in `to` perturbed by N(0, S) (S random, correlated, average sigma

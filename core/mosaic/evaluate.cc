@@ -45,23 +45,35 @@ CornerErrors Errors(const std::vector<Eigen::Matrix3d>& map_from_frame,
   return e;
 }
 
+// The homography taking every key frame's corners in `from` to the same corners in `to` best
+// (least squares over all of them).
+Eigen::Matrix3d FitCorners(const std::vector<std::array<Eigen::Vector2d, 4>>& from,
+                           const std::vector<std::array<Eigen::Vector2d, 4>>& to) {
+  std::vector<cv::Point2d> p, q;
+  for (size_t k = 0; k < from.size(); ++k) {
+    for (int c = 0; c < 4; ++c) {
+      p.emplace_back(from[k][size_t(c)].x(), from[k][size_t(c)].y());
+      q.emplace_back(to[k][size_t(c)].x(), to[k][size_t(c)].y());
+    }
+  }
+  Eigen::Matrix3d g = Eigen::Matrix3d::Identity();
+  const cv::Mat h = cv::findHomography(p, q, 0);
+  if (!h.empty()) cv::cv2eigen(h, g);
+  return g;
+}
+
 // The homography from the estimated map onto the truth ground that fits all corners best.
 Eigen::Matrix3d GaugeFit(const std::vector<Eigen::Matrix3d>& map_from_frame,
                          const std::vector<std::array<Eigen::Vector2d, 4>>& truth_ground, int width,
                          int height) {
-  std::vector<cv::Point2d> from, to;
   const auto corners = ImageCorners(width, height);
+  std::vector<std::array<Eigen::Vector2d, 4>> estimated(map_from_frame.size());
   for (size_t k = 0; k < map_from_frame.size(); ++k) {
     for (int c = 0; c < 4; ++c) {
-      const Eigen::Vector2d p = track::Transfer(map_from_frame[k], corners[size_t(c)]);
-      from.emplace_back(p.x(), p.y());
-      to.emplace_back(truth_ground[k][size_t(c)].x(), truth_ground[k][size_t(c)].y());
+      estimated[k][size_t(c)] = track::Transfer(map_from_frame[k], corners[size_t(c)]);
     }
   }
-  Eigen::Matrix3d g = Eigen::Matrix3d::Identity();
-  const cv::Mat h = cv::findHomography(from, to, 0);
-  if (!h.empty()) cv::cv2eigen(h, g);
-  return g;
+  return FitCorners(estimated, truth_ground);
 }
 
 }  // namespace
@@ -120,16 +132,7 @@ StatusOr<MosaicAccuracy> EvaluateMosaic(const MosaicResult& mosaic, const sim::T
   if (truth_plane) {
     // The map frame and the truth ground are related by geodesy alone (two tangent planes): fit
     // it on the truth corners expressed in both, no estimate involved.
-    std::vector<cv::Point2d> from, to;
-    for (size_t k = 0; k < ground.size(); ++k) {
-      for (int c = 0; c < 4; ++c) {
-        from.emplace_back(in_map[k][size_t(c)].x(), in_map[k][size_t(c)].y());
-        to.emplace_back(ground[k][size_t(c)].x(), ground[k][size_t(c)].y());
-      }
-    }
-    Eigen::Matrix3d ground_from_map = Eigen::Matrix3d::Identity();
-    const cv::Mat fit = cv::findHomography(from, to, 0);
-    if (!fit.empty()) cv::cv2eigen(fit, ground_from_map);
+    const Eigen::Matrix3d ground_from_map = FitCorners(in_map, ground);
     a.before_absolute = Errors(chained, ground, frame_from_ground, ground_from_map, w, h);
     a.after_absolute = Errors(adjusted, ground, frame_from_ground, ground_from_map, w, h);
   }
@@ -173,10 +176,10 @@ StatusOr<MetadataExperiment> RunMetadataExperiment(const MosaicResult& mosaic,
   distorted[1].x() -= shift;
   SAKER_ASSIGN_OR_RETURN(track::HomographyWithCovariance keystone,
                          HomographyFromCorners(corners, distorted, 1.0));
-  const Eigen::Matrix3d rotate = keystone.target_from_source;
+
   LinkGraph start = graph;
   start.geo_referenced = true;
-  start.nodes[0].map_from_frame = frame_from_ground[0].inverse() * rotate;
+  start.nodes[0].map_from_frame = frame_from_ground[0].inverse() * keystone.target_from_source;
   start.nodes[0].map_from_frame /= start.nodes[0].map_from_frame(2, 2);
   for (size_t k = 1; k < n; ++k) {
     // Chain from the previous key frame through the sequential link into k, if there is one;

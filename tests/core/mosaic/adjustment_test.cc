@@ -1,7 +1,9 @@
 #include "core/mosaic/adjustment.h"
 
 #include "core/mosaic/link_graph.h"
+#include "core/mosaic/mosaic_builder.h"
 #include "core/track/homography.h"
+#include "core/util/check.h"
 #include "core/util/job_context.h"
 #include "tests/core/mosaic/synthetic_camera.h"
 #include "tests/testing/noise.h"
@@ -58,17 +60,9 @@ std::vector<Eigen::Matrix3d> CurvePath(int n, double step) {
 // The homography taking the 4 points `from` exactly to `to`.
 Eigen::Matrix3d FourPointHomography(const std::array<Eigen::Vector2d, 4>& from,
                                     const std::array<Eigen::Vector2d, 4>& to) {
-  Matrix8 a;
-  Vector8 b;
-  for (int i = 0; i < 4; ++i) {
-    const double x = from[size_t(i)].x(), y = from[size_t(i)].y();
-    const double u = to[size_t(i)].x(), v = to[size_t(i)].y();
-    a.row(2 * i) << x, y, 1, 0, 0, 0, -u * x, -u * y;
-    a.row(2 * i + 1) << 0, 0, 0, x, y, 1, -v * x, -v * y;
-    b(2 * i) = u;
-    b(2 * i + 1) = v;
-  }
-  return track::HomographyFromParameters(a.fullPivLu().solve(b));
+  const auto h = HomographyFromCorners(from, to, 1.0);
+  SAKER_CHECK(h.ok()) << h.status().ToString();
+  return h->target_from_source;
 }
 
 Eigen::Matrix<double, 8, 8> StackedJacobian(const Eigen::Matrix3d& h) {
