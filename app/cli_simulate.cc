@@ -291,7 +291,7 @@ DemoCommand::DemoCommand(CLI::App& app) : state_(std::make_unique<State>()) {
       "demo",
       "The built-in demo mission: generates DIR/demo.ts (the roundabout-loop scenario, 71 s of\n"
       "1280x720 video at 25 fps with KLV, and its truth) unless it is already there, then runs\n"
-      "the main job on it (for now: probe).");
+      "the main job on it: the mosaic, written to DIR/mosaic.png.");
   state_->command->add_option("--dir", state_->directory, "Where the demo mission lives")
       ->capture_default_str();
 }
