@@ -16,7 +16,9 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <cstddef>
 #include <cstdio>
+#include <limits>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -198,33 +200,136 @@ Eigen::Matrix3d Conditioner(const std::vector<Eigen::Vector2d>& points) {
   return t;
 }
 
-// The homography g with g p ~ q in the algebraic least-squares sense (normalised DLT); nullopt
-// when the points do not determine it (fewer than 4, collinear) or it is not finite.
-std::optional<Eigen::Matrix3d> FitHomography(const std::vector<Eigen::Vector2d>& p,
+double Median(std::vector<double> values) {
+  const auto middle = values.begin() + std::ptrdiff_t(values.size() / 2);
+  std::nth_element(values.begin(), middle, values.end());
+  return *middle;
+}
+
+// The similarity that moves homogeneous points to their median (per coordinate, dehomogenised)
+// and scales them to a median distance of sqrt(2); nullopt when fewer than half are finite or
+// they all coincide. The medians, not Hartley's mean, because the points are the current map's:
+// a few of them may lie near or beyond a horizon, tens of kilometres off or mirrored, and a mean
+// would be theirs.
+std::optional<Eigen::Matrix3d> RobustConditioner(const std::vector<Eigen::Vector3d>& points) {
+  std::vector<double> x, y;
+  for (const Eigen::Vector3d& p : points) {
+    if (p.z() == 0) continue;
+    const Eigen::Vector2d d = p.hnormalized();
+    if (!d.allFinite()) continue;
+    x.push_back(d.x());
+    y.push_back(d.y());
+  }
+  if (x.empty() || 2 * x.size() < points.size()) return std::nullopt;
+  const Eigen::Vector2d centre(Median(x), Median(y));
+  std::vector<double> distance;
+  for (size_t i = 0; i < x.size(); ++i) {
+    distance.push_back((Eigen::Vector2d(x[i], y[i]) - centre).norm());
+  }
+  const double scale = Median(distance);
+  if (!(scale > 0)) return std::nullopt;
+  const double s = std::sqrt(2.0) / scale;
+  Eigen::Matrix3d t;
+  t << s, 0, -s * centre.x(), 0, s, -s * centre.y(), 0, 0, 1;
+  return t;
+}
+
+// Reweighted DLT passes of FitHomography after the plain one, and the floor on a point's |w|
+// (relative to the median) in its weight.
+constexpr int kReweightings = 5;
+constexpr double kMinReweightingW = 1e-3;
+
+// The homography g with g p ~ q, fitted by the DLT and reweighted towards the geometric metadata
+// misfit; nullopt when the points do not determine it (fewer than 4, collinear) or it is not
+// finite.
+//
+// p are homogeneous 3-vectors (the map's M c, any scale and sign), not dehomogenised points: a
+// component whose start went through a projective error (a wrong first homography chained along
+// a long flight) has key frames near or past that error's horizon, whose dehomogenised corners
+// are tens to hundreds of kilometres out or mirrored. As 2-D points they dominated the algebraic
+// error (its rows scale with the point's size) and the Hartley conditioning, and the fit missed
+// (the figure eight of the metadata experiment: 2.0 km RMS metadata misfit after the fit, against
+// 0.36 km for this one). Here the map side is conditioned by a similarity from the medians and
+// each point scaled to unit norm, so every corner weighs alike, wherever the current map put it;
+// q, the metadata, is well behaved and gets Hartley's conditioning.
+//
+// The DLT minimises an algebraic error: a point's rows are (g a)_w times its misfit in metadata
+// metres, so where g is strongly projective (undoing the start's error, it is) the points it
+// sends near its horizon count for little. Dividing each point's rows by |(g a)_w| of the
+// previous pass turns that into the metric misfit (iteratively reweighted least squares); the
+// passes are not guaranteed to improve, so the one with the least metric misfit is returned. On
+// the figure eight with a 20 % keystone (seed 8), the plain DLT misfits the metadata by 20 km RMS
+// (|w| over the points spans 0.008-7.7x its median) and the reweighted one by 0.39 km.
+std::optional<Eigen::Matrix3d> FitHomography(const std::vector<Eigen::Vector3d>& p,
                                              const std::vector<Eigen::Vector2d>& q) {
   if (p.size() < 4 || p.size() != q.size()) return std::nullopt;
-  const Eigen::Matrix3d tp = Conditioner(p), tq = Conditioner(q);
-  using Matrix9 = Eigen::Matrix<double, 9, 9>;
-  Matrix9 normal = Matrix9::Zero();
+  const std::optional<Eigen::Matrix3d> tp = RobustConditioner(p);
+  if (!tp) return std::nullopt;
+  const Eigen::Matrix3d tq = Conditioner(q);
+  std::vector<Eigen::Vector3d> a, b;
   for (size_t i = 0; i < p.size(); ++i) {
-    const Eigen::Vector3d a = tp * p[i].homogeneous();
-    const Eigen::Vector3d b = tq * q[i].homogeneous();
-    Eigen::Matrix<double, 2, 9> rows;
-    rows << Eigen::RowVector3d::Zero(), -b.z() * a.transpose(), b.y() * a.transpose(),  //
-        b.z() * a.transpose(), Eigen::RowVector3d::Zero(), -b.x() * a.transpose();
-    normal += rows.transpose() * rows;
+    const Eigen::Vector3d conditioned = *tp * p[i];
+    if (!(conditioned.norm() > 0) || !conditioned.allFinite()) continue;
+    a.push_back(conditioned.normalized());
+    b.push_back(tq * q[i].homogeneous());
   }
-  const Eigen::SelfAdjointEigenSolver<Matrix9> eigen(normal);
-  if (eigen.info() != Eigen::Success ||
-      !(eigen.eigenvalues()(1) > 1e-12 * eigen.eigenvalues()(8))) {
-    return std::nullopt;
+  if (a.size() < 4) return std::nullopt;
+  std::vector<double> weight(a.size(), 1.0);
+  using Matrix9 = Eigen::Matrix<double, 9, 9>;
+  std::optional<Eigen::Matrix3d> best;
+  double best_misfit = std::numeric_limits<double>::infinity();
+  for (int iteration = 0; iteration <= kReweightings; ++iteration) {
+    Matrix9 normal = Matrix9::Zero();
+    for (size_t i = 0; i < a.size(); ++i) {
+      const Eigen::RowVector3d at = weight[i] * a[i].transpose();
+      Eigen::Matrix<double, 2, 9> rows;
+      rows << Eigen::RowVector3d::Zero(), -b[i].z() * at, b[i].y() * at,  //
+          b[i].z() * at, Eigen::RowVector3d::Zero(), -b[i].x() * at;
+      normal += rows.transpose() * rows;
+    }
+    const Eigen::SelfAdjointEigenSolver<Matrix9> eigen(normal);
+    if (eigen.info() != Eigen::Success ||
+        !(eigen.eigenvalues()(1) > 1e-12 * eigen.eigenvalues()(8))) {
+      break;
+    }
+    const Eigen::Matrix<double, 9, 1> h = eigen.eigenvectors().col(0);
+    Eigen::Matrix3d hn;
+    hn << h(0), h(1), h(2), h(3), h(4), h(5), h(6), h(7), h(8);
+    // The metadata misfit of this fit (in conditioned metadata units, a fixed multiple of
+    // metres), and the reweighting towards it.
+    double misfit = 0;
+    std::vector<double> w(a.size());
+    for (size_t i = 0; i < a.size(); ++i) {
+      const Eigen::Vector3d mapped = hn * a[i];
+      w[i] = std::abs(mapped.z());
+      misfit += w[i] > 0 ? (mapped.hnormalized() - b[i].head<2>()).squaredNorm()
+                         : std::numeric_limits<double>::infinity();
+    }
+    const Eigen::Matrix3d g = tq.inverse() * hn * *tp;
+    if (g.allFinite() && misfit < best_misfit) {
+      best_misfit = misfit;
+      best = g;
+    }
+    const double median = Median(w);
+    if (!(median > 0)) break;
+    for (size_t i = 0; i < a.size(); ++i) {
+      weight[i] = 1 / std::max(w[i], kMinReweightingW * median);
+    }
   }
-  const Eigen::Matrix<double, 9, 1> h = eigen.eigenvectors().col(0);
-  Eigen::Matrix3d hn;
-  hn << h(0), h(1), h(2), h(3), h(4), h(5), h(6), h(7), h(8);
-  const Eigen::Matrix3d g = tq.inverse() * hn * tp;
-  if (!g.allFinite()) return std::nullopt;
-  return g;
+  return best;
+}
+
+// Whether the image (its 4 corners; w is affine in the pixel, so then the whole image) maps to
+// one side of the horizon of map_from_frame, i.e. nowhere to infinity.
+bool OneSideOfHorizon(const Eigen::Matrix3d& map_from_frame,
+                      const std::array<Eigen::Vector2d, 4>& corners) {
+  int positive = 0, negative = 0;
+  for (const Eigen::Vector2d& c : corners) {
+    const double w = map_from_frame.row(2).dot(c.homogeneous());
+    positive += w > 0;
+    negative += w < 0;
+  }
+  return positive == 4 || negative == 4;
 }
 
 // The Ceres problem of a graph: the parameter blocks (one per node) and what was added. The
@@ -345,8 +450,20 @@ class AdjustmentProblem {
 // only the metadata does, and reaching a far-off gauge by local steps is slow (the step is
 // nonlinear in the node parameters, and the soft metadata against the stiff links makes it
 // ill-conditioned). So each component with metadata first gets the map homography G that best
-// takes its nodes' corners to their metadata corners (DLT), applied to all its nodes, kept only
-// when it lowers the total cost and leaves every corner on the same side of G's horizon.
+// takes its nodes' corners to their metadata corners (FitHomography), applied to all its nodes,
+// kept only when it lowers the total cost and sends no image across G's horizon that was not
+// across the map's already.
+//
+// The horizon test guards the nodes without metadata: the cost cannot see one that G sends
+// across its horizon (the links do not see G, and it has no metadata residual), yet its image
+// would then reach infinity. It is per node, on the sign of w over that node's own corners. A
+// whole-component test (every corner of every node on one side) rejects exactly the starts the
+// alignment is for: each node is stored with H(2,2) = 1, so a node that a projectively wrong
+// start put wholly beyond its horizon carries the opposite sign of w, and G, undoing that start,
+// leaves it with w < 0 at all its corners, which is where it belongs once normalised. In the
+// metadata experiment on the figure eight (86 key frames, 10 % keystone) 16 key frames of the
+// start straddle its horizon; the exact inverse of the start's error straddles none but failed
+// the whole-component test, so no alignment was ever applied and LM stopped 2.3 km RMS off.
 bool AlignGaugesToMetadata(const LinkGraph& graph, AdjustmentProblem* adjustment) {
   bool aligned = false;
   const std::array<Eigen::Vector2d, 4> corners =
@@ -354,39 +471,39 @@ bool AlignGaugesToMetadata(const LinkGraph& graph, AdjustmentProblem* adjustment
   for (int c = 0; c < adjustment->components(); ++c) {
     if (!adjustment->has_metadata(c)) continue;
     std::vector<size_t> members;
-    std::vector<Eigen::Vector2d> from, to;
+    std::vector<Eigen::Vector3d> from;
+    std::vector<Eigen::Vector2d> to;
     for (size_t i = 0; i < graph.nodes.size(); ++i) {
       if (adjustment->component(i) != c || !adjustment->in_problem(i)) continue;
       members.push_back(i);
       if (!graph.nodes[i].metadata_corners) continue;
       const Eigen::Matrix3d m = HomographyFrom(adjustment->parameters(i));
       for (int k = 0; k < 4; ++k) {
-        from.push_back(track::Transfer(m, corners[size_t(k)]));
+        from.push_back(m * corners[size_t(k)].homogeneous());
         to.push_back((*graph.nodes[i].metadata_corners)[size_t(k)]);
       }
     }
     const std::optional<Eigen::Matrix3d> g = FitHomography(from, to);
     if (!g) continue;
-    std::vector<std::array<double, kParameters>> saved;
-    std::vector<Eigen::Matrix3d> moved;
-    double sign = 0;
+    std::vector<std::array<double, kParameters>> moved;
     bool ok = true;
     for (size_t i : members) {
-      const Eigen::Matrix3d m = *g * HomographyFrom(adjustment->parameters(i));
-      for (const Eigen::Vector2d& corner : corners) {
-        const double w = m.row(2).dot(corner.homogeneous());
-        if (sign == 0) sign = w > 0 ? 1 : -1;
-        ok = ok && w * sign > 0 && std::abs(m(2, 2)) > 0;
-      }
-      moved.push_back(m / m(2, 2));
+      const Eigen::Matrix3d current = HomographyFrom(adjustment->parameters(i));
+      const Eigen::Matrix3d m = *g * current;
+      ok = ok && std::abs(m(2, 2)) > 0 &&
+           (OneSideOfHorizon(m, corners) || !OneSideOfHorizon(current, corners));
+      if (!ok) break;
+      moved.emplace_back();
+      for (int j = 0; j < kParameters; ++j) moved.back()[size_t(j)] = m(j / 3, j % 3) / m(2, 2);
     }
     if (!ok) continue;
     const double before = adjustment->Cost();
+    std::vector<std::array<double, kParameters>> saved;
     for (size_t k = 0; k < members.size(); ++k) {
       double* p = adjustment->parameters(members[k]);
       saved.emplace_back();
       std::copy(p, p + kParameters, saved.back().data());
-      for (int j = 0; j < kParameters; ++j) p[j] = moved[k](j / 3, j % 3);
+      std::copy(moved[k].begin(), moved[k].end(), p);
     }
     const double after = adjustment->Cost();
     if (after < before) {

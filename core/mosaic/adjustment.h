@@ -26,7 +26,10 @@
 // - Gauge: a connected component without metadata residuals holds its first node fixed. A
 //   component with metadata is first moved as a whole by the map homography that best takes its
 //   corners to the metadata corners (the links do not see that gauge, and local steps reach a
-//   far-off one only slowly); kept only when it lowers the cost.
+//   far-off one only slowly): a DLT on the corners as homogeneous vectors, reweighted towards the
+//   metric misfit, so that key frames a projectively wrong start put near or past its horizon
+//   neither wreck nor escape the fit; kept only when it lowers the cost and sends no key frame's
+//   image across its horizon that was not already.
 // - Solver: Levenberg-Marquardt with non-monotonic steps (the best solution is what is kept),
 //   sparse normal Cholesky (SuiteSparse, else Eigen, else dense QR), silent.
 #include "core/mosaic/link_graph.h"
