@@ -17,6 +17,7 @@ struct EvaluateCommand::State {
   std::filesystem::path truth;
   bool json = false;
   bool no_metadata = false;
+  bool no_change = false;
   frontend::EvaluationOptions evaluation;
 };
 
@@ -41,6 +42,14 @@ EvaluateCommand::EvaluateCommand(CLI::App& app) : state_(std::make_unique<State>
       ->add_option("--min-speed", s.evaluation.min_speed_mps,
                    "Slowest truth target counted as moving, m/s")
       ->capture_default_str();
+  s.command
+      ->add_option("--sighting-gap", s.evaluation.max_sighting_gap_frames,
+                   "Frames a target may be out of view within one sighting; longer, and it is "
+                   "counted again when it comes back")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
+  s.command->add_flag("--no-change-detection", s.no_change,
+                      "Run the front end without change detection (feature tracks only)");
 }
 
 EvaluateCommand::~EvaluateCommand() = default;
@@ -56,7 +65,9 @@ int EvaluateCommand::Run() const {
     std::cerr << "saker-cli: " << truth.status().message() << "\n";
     return 1;
   }
-  StatusOr<frontend::FrontEndResult> result = frontend::RunFrontEnd(s.video, {});
+  frontend::FrontEndOptions front_end;
+  front_end.change.enabled = !s.no_change;
+  StatusOr<frontend::FrontEndResult> result = frontend::RunFrontEnd(s.video, front_end);
   if (!result.ok()) {
     std::cerr << "saker-cli: " << result.status().message() << "\n";
     return 1;

@@ -91,6 +91,7 @@ int main(int argc, char** argv) {
                      {"track_ms", t.track_ms},
                      {"homography_ms", t.homography_ms},
                      {"segment_ms", t.segment_ms},
+                     {"change_ms", t.change_ms},
                      {"key_frames_ms", t.key_frames_ms},
                      {"peak_rss_mb", PeakRssMb()},
                      {"peak_rss_before_mb", rss_before}});
@@ -99,10 +100,10 @@ int main(int argc, char** argv) {
           "%dx%d, %lld frames: front end %.1f fps, decode alone %.1f fps, front end time = %.2fx "
           "decode "
           "time; per frame: decode %.1f ms (own thread), track %.1f, homography %.1f, segment "
-          "%.1f, key "
-          "frames %.2f ms; peak RSS %.0f MB\n",
+          "%.1f, change %.1f, key frames %.2f ms; peak RSS %.0f MB\n",
           w, h, static_cast<long long>(t.frames), front_fps, decode_fps, decode_fps / front_fps,
-          t.decode_ms, t.track_ms, t.homography_ms, t.segment_ms, t.key_frames_ms, PeakRssMb());
+          t.decode_ms, t.track_ms, t.homography_ms, t.segment_ms, t.change_ms, t.key_frames_ms,
+          PeakRssMb());
     }
   }
   if (json) std::cout << out.dump(2) << "\n";

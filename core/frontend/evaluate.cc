@@ -67,6 +67,24 @@ HomographyAccuracy EvaluateHomographies(const FrontEndResult& result, const sim:
 
 enum class Classes { kAll, kVehicles, kPeople };
 
+// The sightings of a target: frame ranges [begin, end) in which it is in view, joined across
+// shorter absences (a car under a tree); a target that leaves the view and comes back much later
+// (the aircraft's next pass) is seen again.
+std::vector<std::pair<int64_t, int64_t>> Sightings(const sim::TargetTruth& target, int max_gap) {
+  std::vector<std::pair<int64_t, int64_t>> sightings;
+  int64_t last_visible = -1;
+  for (size_t f = 0; f < target.samples.size(); ++f) {
+    if (!target.samples[f].visible) continue;
+    const int64_t frame = int64_t(f);
+    if (sightings.empty() || frame - last_visible > int64_t(max_gap) + 1) {
+      sightings.emplace_back(frame, frame + 1);
+    }
+    sightings.back().second = frame + 1;
+    last_visible = frame;
+  }
+  return sightings;
+}
+
 DetectionAccuracy EvaluateTargets(const FrontEndResult& result, const sim::Truth& truth,
                                   const EvaluationOptions& options, Classes classes) {
   DetectionAccuracy a;
@@ -91,9 +109,9 @@ DetectionAccuracy EvaluateTargets(const FrontEndResult& result, const sim::Truth
   }
   // Greedy pairing per frame, nearest first, against every considered truth target in view; a
   // pair with a non-mover still makes a detection correct (a car that has just stopped).
-  std::map<std::pair<size_t, size_t>, int> track_truth_pairs;  // (track, truth) -> frames
+  // (track, truth) -> the frames they were paired in, increasing.
+  std::map<std::pair<size_t, size_t>, std::vector<int64_t>> track_truth_pairs;
   std::vector<int> track_paired_frames(result.targets.size(), 0);
-  std::vector<int64_t> first_paired(considered.size() * result.targets.size(), -1);
   for (size_t f = 0; f < frames; ++f) {
     struct Candidate {
       double distance;
@@ -120,37 +138,39 @@ DetectionAccuracy EvaluateTargets(const FrontEndResult& result, const sim::Truth
       detection_used[c.detection] = truth_used[c.truth] = true;
       const size_t k = detections[f][c.detection].first;
       ++track_paired_frames[k];
-      ++track_truth_pairs[{k, c.truth}];
-      int64_t& first = first_paired[c.truth * result.targets.size() + k];
-      if (first < 0) first = int64_t(f);
+      track_truth_pairs[{k, c.truth}].push_back(int64_t(f));
       if (is_mover(*considered[c.truth], f)) ++a.paired;
     }
     a.detections += int64_t(detections[f].size());
     for (size_t t = 0; t < considered.size(); ++t)
       a.truth_mover_frames += is_mover(*considered[t], f);
   }
-  // Track-level figures.
+  // Track-level figures, per sighting.
   std::vector<double> latencies;
   const double fps = truth.fps > 0 ? truth.fps : 25;
   for (size_t t = 0; t < considered.size(); ++t) {
-    int mover_frames = 0;
-    int64_t first_mover = -1;
-    for (size_t f = 0; f < frames; ++f) {
-      if (is_mover(*considered[t], f)) {
-        ++mover_frames;
-        if (first_mover < 0) first_mover = int64_t(f);
+    for (const auto& [begin, end] : Sightings(*considered[t], options.max_sighting_gap_frames)) {
+      int mover_frames = 0;
+      int64_t first_mover = -1;
+      for (int64_t f = begin; f < end; ++f) {
+        if (is_mover(*considered[t], size_t(f))) {
+          ++mover_frames;
+          if (first_mover < 0) first_mover = f;
+        }
       }
-    }
-    if (mover_frames < options.min_mover_frames) continue;
-    ++a.truth_targets;
-    for (size_t k = 0; k < result.targets.size(); ++k) {
-      const auto it = track_truth_pairs.find({k, t});
-      if (it != track_truth_pairs.end() && 2 * it->second >= mover_frames) {
-        ++a.found_targets;
-        latencies.push_back(double(std::max<int64_t>(
-                                0, first_paired[t * result.targets.size() + k] - first_mover)) /
-                            fps);
-        break;
+      if (mover_frames < options.min_mover_frames) continue;
+      ++a.truth_targets;
+      for (size_t k = 0; k < result.targets.size(); ++k) {
+        const auto it = track_truth_pairs.find({k, t});
+        if (it == track_truth_pairs.end()) continue;
+        const std::vector<int64_t>& paired = it->second;
+        const auto first = std::lower_bound(paired.begin(), paired.end(), begin);
+        const auto last = std::lower_bound(paired.begin(), paired.end(), end);
+        if (2 * (last - first) >= mover_frames) {
+          ++a.found_targets;
+          latencies.push_back(double(std::max<int64_t>(0, *first - first_mover)) / fps);
+          break;
+        }
       }
     }
   }

@@ -7,15 +7,19 @@
 // where the estimate and the truth send the four image corners, in pixels.
 //
 // Targets: a truth target is a *mover* in a frame when it is visible and its ground speed is at
-// least `min_speed_mps`; targets that are movers for at least `min_mover_frames` frames are the
-// ones to find. In each frame, detections (target-track observations) and truth movers are paired
-// greedily by image distance within a gate: `gate_px`, or half the target's length in the image
-// plus 4 px when larger (corners on a car's bumper are a detection of the car). A truth target is
-// found when one detected track is paired with it in at least half of its mover frames ("follows it
-// for most of its visible life"); a detected track is correct when it is paired with some truth
-// target (mover or not) in at least half of its frames. Recall and precision of tracks follow, and
-// per-frame ones from the pairs. Latency: from a found target's first mover frame to the first
-// frame its track is paired.
+// least `min_speed_mps`. Each *sighting* of a target counts: the frames it is in view, joined
+// across absences of up to `max_sighting_gap_frames` (passing under a tree); a target that leaves
+// the view and comes back on the aircraft's next pass is a new sighting, since telling that it is
+// the same walker would take re-identification, which Saker does not attempt. Sightings with at
+// least `min_mover_frames` mover frames are the ones to find. In each frame, detections
+// (target-track observations) and truth movers are paired greedily by image distance within a gate:
+// `gate_px`, or half the target's length in the image plus 4 px when larger (corners on a car's
+// bumper are a detection of the car). A truth target is found when one detected track is paired
+// with it in at least half of the sighting's mover frames
+// ("follows it for most of its visible life"); a detected track is correct when it is paired with
+// some truth target (mover or not) in at least half of its frames. Recall and precision of tracks
+// follow, and per-frame ones from the pairs. Latency: from a found target's first mover frame to
+// the first frame its track is paired.
 
 #include "core/frontend/front_end.h"
 #include "core/sim/truth.h"
@@ -30,6 +34,7 @@ struct EvaluationOptions {
   double min_speed_mps = 1.0;
   int min_mover_frames = 25;
   double gate_px = 12;
+  int max_sighting_gap_frames = 50;  // out of view longer than this: a new sighting
 };
 
 struct HomographyAccuracy {
@@ -39,7 +44,7 @@ struct HomographyAccuracy {
 };
 
 struct DetectionAccuracy {
-  int64_t truth_targets = 0;  // movers long enough to count
+  int64_t truth_targets = 0;  // sightings of movers long enough to count
   int64_t found_targets = 0;
   int64_t detected_tracks = 0;  // confirmed target tracks
   int64_t correct_tracks = 0;

@@ -94,6 +94,25 @@ std::optional<Eigen::Vector3d> ParallaxEpipole(const std::vector<track::Correspo
   return f->epipole_target;
 }
 
+// The targets of the feature tracks, less those the image does not support, and those of change
+// detection; pieces of one object joined, and numbered 1, 2, ... in order of appearance.
+std::vector<track::TargetTrack> CombineTargets(std::vector<track::TargetTrack> by_features,
+                                               std::vector<track::TargetTrack> by_change,
+                                               const FrontEndOptions& options) {
+  std::vector<track::TargetTrack> all;
+  for (track::TargetTrack& t : by_features) {
+    if (track::SupportedByChange(t, options.min_change_support)) all.push_back(std::move(t));
+  }
+  for (track::TargetTrack& t : by_change) all.push_back(std::move(t));
+  std::stable_sort(all.begin(), all.end(), [](const auto& a, const auto& b) {
+    return a.observations.front().frame < b.observations.front().frame;
+  });
+  for (size_t i = 0; i < all.size(); ++i) all[i].id = track::TargetTrackId(int64_t(i) + 1);
+  all = track::LinkFragments(std::move(all), options.targets);
+  for (size_t i = 0; i < all.size(); ++i) all[i].id = track::TargetTrackId(int64_t(i) + 1);
+  return all;
+}
+
 }  // namespace
 
 Status FrontEndOptions::Validate() const {
@@ -102,6 +121,11 @@ Status FrontEndOptions::Validate() const {
   SAKER_RETURN_IF_ERROR(targets.Validate());
   SAKER_RETURN_IF_ERROR(frame_homography.Validate());
   SAKER_RETURN_IF_ERROR(key_frames.Validate());
+  SAKER_RETURN_IF_ERROR(change.Validate());
+  SAKER_RETURN_IF_ERROR(change_tracks.Validate());
+  if (!(min_change_support >= 0 && min_change_support <= 1)) {
+    return InvalidArgumentError("front end: the change support fraction must be in [0, 1]");
+  }
   if (queue_frames < 1 || queue_frames > 256) {
     return InvalidArgumentError("front end: the frame queue must hold 1..256 frames");
   }
@@ -170,6 +194,9 @@ StatusOr<FrontEndResult> RunFrontEnd(const std::string& path, const FrontEndOpti
   track::MotionSegmenter segmenter(options.segmentation);
   track::TargetTracker targets(options.targets);
   track::KeyFrameChain chain(options.key_frames);
+  track::ChangeDetector change(options.change);
+  track::BlobTracker change_tracks(options.change_tracks);
+  std::vector<track::TargetTrack> targets_by_change;
   FrontEndTiming& timing = result.timing;
   const auto wall_start = Clock::now();
   bool segment_open = false;
@@ -222,6 +249,29 @@ StatusOr<FrontEndResult> RunFrontEnd(const std::string& path, const FrontEndOpti
     for (track::TargetTrack& t : targets.TakeFinished()) result.targets.push_back(std::move(t));
     timing.segment_ms += MillisecondsSince(start);
 
+    // Change detection: small movers, and what the image shows under each target.
+    start = Clock::now();
+    if (options.change.enabled) {
+      std::optional<Eigen::Matrix3d> motion;
+      if (estimate) motion = estimate->target_from_source;
+      change.Process(frame->index, frame->grey, motion);
+      if (!estimate) change_tracks.FinishAll();
+      if (change.frame() >= 0) {
+        change_tracks.AddFrame(change.frame(), change.blobs(), change.frame_motion());
+        // Within the target's box, and a few pixels round a single point.
+        targets.RecordChange(change.frame(), [&](const track::TargetObservation& o) {
+          if (!change.Compared(o.position)) return track::ChangeEvidence::kNotLooked;
+          const double radius = std::max(3.0, 0.5 * (o.box_max - o.box_min).maxCoeff());
+          return change.ChangedNear(o.position, radius) ? track::ChangeEvidence::kChanged
+                                                        : track::ChangeEvidence::kNone;
+        });
+      }
+      for (track::TargetTrack& t : change_tracks.TakeFinished()) {
+        targets_by_change.push_back(std::move(t));
+      }
+    }
+    timing.change_ms += MillisecondsSince(start);
+
     // Key frames from the stationary points.
     start = Clock::now();
     std::vector<track::StationaryPoint> stationary;
@@ -261,14 +311,18 @@ StatusOr<FrontEndResult> RunFrontEnd(const std::string& path, const FrontEndOpti
       << result.frames.size();
   targets.FinishAll();
   for (track::TargetTrack& t : targets.TakeFinished()) result.targets.push_back(std::move(t));
-  result.targets = track::LinkFragments(std::move(result.targets), options.targets);
+  change_tracks.FinishAll();
+  for (track::TargetTrack& t : change_tracks.TakeFinished()) {
+    targets_by_change.push_back(std::move(t));
+  }
+  result.targets = CombineTargets(std::move(result.targets), std::move(targets_by_change), options);
   result.key_frames = chain.key_frames();
   result.links = chain.links();
   result.breaks = chain.breaks();
   timing.wall_s = MillisecondsSince(wall_start) / 1000.0;
   const double n = double(std::max<int64_t>(1, timing.frames));
   timing.decode_ms = decode_ms / n;
-  timing.track_ms /= n, timing.homography_ms /= n, timing.segment_ms /= n,
+  timing.track_ms /= n, timing.homography_ms /= n, timing.segment_ms /= n, timing.change_ms /= n,
       timing.key_frames_ms /= n;
   return result;
 }

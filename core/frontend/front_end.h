@@ -10,6 +10,7 @@
 // and the target tracks.
 
 #include "core/ingest/video_scan.h"
+#include "core/track/change_detector.h"
 #include "core/track/feature_tracker.h"
 #include "core/track/homography.h"
 #include "core/track/key_frames.h"
@@ -34,6 +35,11 @@ struct FrontEndOptions {
   track::TargetTrackOptions targets;
   track::HomographyOptions frame_homography;  // frame to frame, from stationary tracks
   track::KeyFrameOptions key_frames;
+  track::ChangeOptions change;  // change detection (enabled by default)
+  track::BlobTrackOptions change_tracks;
+  // A target track needs a change under at least this fraction of the observations where the
+  // change detector could look (a corner sliding along a road marking has none); 0 turns it off.
+  double min_change_support = 0.5;
   bool parallax_check = true;    // estimate the epipole (fundamental matrix) for the MTI test
   int min_parallax_points = 20;  // matches on F but off the ground plane needed to use F's epipole
   int queue_frames = 6;          // decoded frames waiting for the tracker, at most
@@ -67,6 +73,7 @@ struct FrontEndTiming {
   double track_ms = 0;
   double homography_ms = 0;  // frame to frame + fundamental
   double segment_ms = 0;     // motion segmentation and target tracks
+  double change_ms = 0;      // change detection and its tracks
   double key_frames_ms = 0;
   double wall_s = 0;
   int64_t frames = 0;

@@ -203,6 +203,7 @@ void TargetTracker::MergeAlike(int64_t frame) {
           m.box_max = m.box_max.cwiseMax(o.box_max);
           m.features.insert(m.features.end(), o.features.begin(), o.features.end());
           std::sort(m.features.begin(), m.features.end());
+          m.change = std::max(m.change, o.change);
         }
       }
       TargetTrack& kept = active_[keep];
@@ -214,6 +215,16 @@ void TargetTracker::MergeAlike(int64_t frame) {
       active_.erase(active_.begin() + long(drop));
       --b;  // the next candidate moved into slot b
       if (drop < a) --a;
+    }
+  }
+}
+
+void TargetTracker::RecordChange(
+    int64_t frame, const std::function<ChangeEvidence(const TargetObservation&)>& look) {
+  for (TargetTrack& target : active_) {
+    for (auto o = target.observations.rbegin(); o != target.observations.rend(); ++o) {
+      if (o->frame < frame) break;
+      if (o->frame == frame) o->change = look(*o);
     }
   }
 }
@@ -249,6 +260,7 @@ void FoldInto(TargetTrack& into, TargetTrack&& from) {
     m.box_max = m.box_max.cwiseMax(o.box_max);
     m.features.insert(m.features.end(), o.features.begin(), o.features.end());
     std::sort(m.features.begin(), m.features.end());
+    m.change = std::max(m.change, o.change);
   }
   into.observations.clear();
   for (auto& [f, o] : by_frame) into.observations.push_back(std::move(o));

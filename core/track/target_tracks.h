@@ -18,6 +18,7 @@
 #include <Eigen/Core>
 
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 namespace saker::track {
@@ -42,13 +43,21 @@ struct TargetTrackOptions {
   Status Validate() const;
 };
 
+// What the change detector (change_detector.h) saw at an observation.
+enum class ChangeEvidence : uint8_t {
+  kNotLooked,  // no comparison there (too early in a segment, at the frame's edge, turned off)
+  kNone,       // the image did not change there
+  kChanged,
+};
+
 struct TargetObservation {
   int64_t frame = 0;
   Eigen::Vector2d position{0, 0};  // mean of the supporting features, pixels
   Eigen::Vector2d box_min{0, 0};   // box around the supporting features (with margin)
   Eigen::Vector2d box_max{0, 0};
-  Eigen::Vector2d velocity{0, 0};  // ground-relative, pixels per frame
-  std::vector<FeatureTrackId> features;
+  Eigen::Vector2d velocity{0, 0};        // ground-relative, pixels per frame
+  std::vector<FeatureTrackId> features;  // none for a track found by change detection
+  ChangeEvidence change = ChangeEvidence::kNotLooked;
 };
 
 struct TargetTrack {
@@ -69,6 +78,10 @@ class TargetTracker {
 
   // Targets still being followed.
   const std::vector<TargetTrack>& active() const { return active_; }
+  // Records what the change detector saw at the active targets' observations of `frame` (a
+  // recent one: the change detector answers a few frames late).
+  void RecordChange(int64_t frame,
+                    const std::function<ChangeEvidence(const TargetObservation&)>& look);
   // Confirmed targets that ended since the last call (unconfirmed ones are dropped).
   std::vector<TargetTrack> TakeFinished();
   // Ends every active target (at the end of the video or at a chain break).

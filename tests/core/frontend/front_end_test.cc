@@ -90,6 +90,37 @@ TEST_F(FrontEndTest, MovingVehiclesAreFound) {
   EXPECT_GE(evaluation_->targets.frame_precision, 0.6);
 }
 
+// Walkers from 200 m at 0.2 m per pixel: change detection sees people in frames where the feature
+// tracks miss them, without adding false tracks.
+TEST(FrontEndRunTest, ChangeDetectionFindsWalkers) {
+  const std::filesystem::path dir = saker::testing::MakeTempDir("saker-frontend-walkers");
+  sim::SimulationOptions options = SmallOptions(dir / "walkers.ts", 16);
+  options.targets.cars = 10;
+  options.targets.people = 80;
+  ASSERT_TRUE(sim::Simulate(options).ok());
+  StatusOr<sim::Truth> truth = sim::ReadTruth(options.TruthPath());
+  ASSERT_TRUE(truth.ok());
+  const auto evaluate = [&](bool change) {
+    FrontEndOptions front;
+    front.change.enabled = change;
+    StatusOr<FrontEndResult> result = RunFrontEnd(options.output.string(), front);
+    EXPECT_TRUE(result.ok()) << result.status().ToString();
+    StatusOr<Evaluation> evaluation = Evaluate(*result, *truth);
+    EXPECT_TRUE(evaluation.ok());
+    std::cout << (change ? "with" : "without") << " change detection:\n"
+              << EvaluationToText(*evaluation);
+    return *evaluation;
+  };
+  const Evaluation without = evaluate(false);
+  const Evaluation with = evaluate(true);
+  ASSERT_GE(with.people.truth_targets, 5);
+  // Measured: people found 7 of 13 either way (the sightings are short), per-frame recall 0.49 ->
+  // 0.70, precision 0.92 -> 1.0.
+  EXPECT_GE(with.people.found_targets, without.people.found_targets);
+  EXPECT_GT(with.people.frame_recall, without.people.frame_recall + 0.1);
+  EXPECT_GE(with.targets.track_precision, without.targets.track_precision - 0.05);
+}
+
 TEST(FrontEndRunTest, ABlankIntervalBreaksTheChainAndItRecovers) {
   const std::filesystem::path dir = saker::testing::MakeTempDir("saker-frontend-blank");
   sim::SimulationOptions options = SmallOptions(dir / "blank.ts", 6);

@@ -1,0 +1,431 @@
+#include "core/track/change_detector.h"
+
+#include "core/track/homography.h"
+#include "core/util/check.h"
+
+#include <Eigen/Geometry>
+#include <Eigen/LU>
+#include <opencv2/imgproc.hpp>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+#include <tuple>
+
+namespace saker::track {
+namespace {
+
+// Full-resolution pixel homography to one between images scaled by 1/scale (pixel centres at
+// integer coordinates, as cv::resize places them).
+Eigen::Matrix3d ToSmallPixels(const Eigen::Matrix3d& full, double scale) {
+  Eigen::Matrix3d small_from_full;
+  const double s = 1.0 / scale, o = 0.5 * s - 0.5;
+  small_from_full << s, 0, o, 0, s, o, 0, 0, 1;
+  return small_from_full * full * small_from_full.inverse();
+}
+
+}  // namespace
+
+Status ChangeOptions::Validate() const {
+  if (baseline_frames < 1 || baseline_frames > 100 || long_baseline_frames < 0 ||
+      long_baseline_frames > 100) {
+    return InvalidArgumentError("change detection: the baselines must be 1..100 frames");
+  }
+  if (processing_width < 0) {
+    return InvalidArgumentError("change detection: the processing width must be >= 0");
+  }
+  if (!(noise_grey > 0 && threshold > 0 && registration_px >= 0 && min_contrast_grey >= 0)) {
+    return InvalidArgumentError(
+        "change detection: noise and threshold must be positive, the registration allowance and "
+        "contrast >= 0");
+  }
+  if (border_px < 0 || min_area_px < 1 || max_area_px < min_area_px) {
+    return InvalidArgumentError("change detection: need border >= 0 and 1 <= min area <= max area");
+  }
+  return Status::Ok();
+}
+
+ChangeDetector::ChangeDetector(const ChangeOptions& options) : options_(options) {
+  SAKER_CHECK(options_.Validate().ok()) << options_.Validate().message();
+}
+
+void ChangeDetector::Reset() {
+  history_.clear();
+  frame_ = -1;
+  blobs_.clear();
+  changed_.release();
+  valid_.release();
+}
+
+Eigen::Vector2d ChangeDetector::ToFull(double x, double y) const {
+  return {(x + 0.5) * scale_ - 0.5, (y + 0.5) * scale_ - 0.5};
+}
+
+Eigen::Vector2d ChangeDetector::ToSmall(const Eigen::Vector2d& p) const {
+  return {(p.x() + 0.5) / scale_ - 0.5, (p.y() + 0.5) / scale_ - 0.5};
+}
+
+const std::vector<ChangeBlob>& ChangeDetector::Process(
+    int64_t frame, const cv::Mat& grey,
+    const std::optional<Eigen::Matrix3d>& current_from_previous) {
+  SAKER_CHECK(grey.type() == CV_8UC1) << "change detection needs 8-bit grey frames";
+  blobs_.clear();
+  changed_.release();
+  valid_.release();
+  frame_ = -1;
+  if (!options_.enabled || grey.empty()) return blobs_;
+  if (grey.size() != full_size_) {
+    Reset();
+    full_size_ = grey.size();
+    const int width =
+        options_.processing_width > 0 ? std::min(options_.processing_width, grey.cols) : grey.cols;
+    small_size_ =
+        cv::Size(width, std::max(1, int(std::lround(double(grey.rows) * width / grey.cols))));
+    scale_ = double(grey.cols) / width;
+  }
+  if (!current_from_previous || !current_from_previous->allFinite()) history_.clear();
+  Entry entry;
+  entry.frame = frame;
+  if (small_size_ == full_size_) {
+    entry.grey = grey.clone();
+  } else {
+    // Area averaging: a walker is a pixel or two, bilinear sampling would skip half of it (it
+    // cost one person of the demo's 25 for 0.8 ms a frame).
+    cv::resize(grey, entry.grey, small_size_, 0, 0, cv::INTER_AREA);
+  }
+  if (current_from_previous) {
+    entry.motion = *current_from_previous;
+    entry.small_motion = ToSmallPixels(*current_from_previous, scale_);
+  }
+  history_.push_back(std::move(entry));
+  // The centre frame is the one `longest` back; each baseline compares it with the frames that
+  // many before and after it.
+  std::vector<size_t> baselines = {size_t(options_.baseline_frames)};
+  if (options_.long_baseline_frames > options_.baseline_frames) {
+    baselines.push_back(size_t(options_.long_baseline_frames));
+  }
+  const size_t longest = baselines.back();
+  while (history_.size() > 2 * longest + 1) history_.pop_front();
+  if (history_.size() < 2 * longest + 1) return blobs_;
+  const Entry& centre = history_[longest];
+  frame_ = centre.frame;
+  centre_motion_ = centre.motion;
+
+  // Each other frame warped onto the centre frame, its mean grey matched to the centre's (gain
+  // drift), and where it covers the centre frame (inside its border).
+  struct Other {
+    cv::Mat warped, cover;
+    float gain = 1;
+  };
+  const int b = options_.border_px;
+  const auto warp = [&](size_t index, Other* other) {
+    Eigen::Matrix3d centre_from_other = Eigen::Matrix3d::Identity();
+    if (index < longest) {
+      for (size_t i = index + 1; i <= longest; ++i) {
+        centre_from_other = history_[i].small_motion * centre_from_other;
+      }
+    } else {
+      Eigen::Matrix3d other_from_centre = Eigen::Matrix3d::Identity();
+      for (size_t i = longest + 1; i <= index; ++i) {
+        other_from_centre = history_[i].small_motion * other_from_centre;
+      }
+      centre_from_other = other_from_centre.inverse();
+    }
+    cv::Mat m(3, 3, CV_64F);
+    for (int r = 0; r < 3; ++r) {
+      for (int c = 0; c < 3; ++c) m.at<double>(r, c) = centre_from_other(r, c);
+    }
+    cv::warpPerspective(history_[index].grey, other->warped, m, small_size_, cv::INTER_LINEAR,
+                        cv::BORDER_CONSTANT);
+    const double w = small_size_.width - 1 - b, h = small_size_.height - 1 - b;
+    std::vector<cv::Point> outline;
+    for (const Eigen::Vector2d& corner : {Eigen::Vector2d(b, b), Eigen::Vector2d(w, b),
+                                          Eigen::Vector2d(w, h), Eigen::Vector2d(b, h)}) {
+      const Eigen::Vector3d p = centre_from_other * corner.homogeneous();
+      if (!(p.z() > 0) || !p.allFinite()) return false;
+      outline.emplace_back(int(std::lround(std::clamp(p.x() / p.z(), -1e6, 1e6))),
+                           int(std::lround(std::clamp(p.y() / p.z(), -1e6, 1e6))));
+    }
+    other->cover = cv::Mat::zeros(small_size_, CV_8U);
+    cv::fillConvexPoly(other->cover, outline, cv::Scalar(255));
+    if (b > 0) {
+      cv::rectangle(other->cover, cv::Rect(0, 0, small_size_.width, small_size_.height),
+                    cv::Scalar(0), 2 * b);
+    }
+    // Means over every fourth row and column of the overlap: plenty for a gain.
+    double sum_centre = 0, sum_other = 0;
+    for (int y = 0; y < small_size_.height; y += 4) {
+      const uint8_t* c = centre.grey.ptr<uint8_t>(y);
+      const uint8_t* o = other->warped.ptr<uint8_t>(y);
+      const uint8_t* v = other->cover.ptr<uint8_t>(y);
+      for (int x = 0; x < small_size_.width; x += 4) {
+        if (v[x] == 0) continue;
+        sum_centre += c[x];
+        sum_other += o[x];
+      }
+    }
+    if (sum_other > 0) other->gain = float(sum_centre / sum_other);
+    return true;
+  };
+  // Per baseline: the frames before and after, and where both cover the centre frame.
+  std::vector<std::array<Other, 2>> pairs(baselines.size());
+  std::vector<cv::Mat> covers(baselines.size());
+  valid_ = cv::Mat::zeros(small_size_, CV_8U);
+  for (size_t i = 0; i < baselines.size(); ++i) {
+    if (!warp(longest - baselines[i], &pairs[i][0]) ||
+        !warp(longest + baselines[i], &pairs[i][1])) {
+      return blobs_;
+    }
+    cv::bitwise_and(pairs[i][0].cover, pairs[i][1].cover, covers[i]);
+    cv::bitwise_or(valid_, covers[i], valid_);
+  }
+
+  // A pixel changed when both differences exceed their noise with the same sign. The noise of
+  // a difference adds the other frame's local gradient (the largest of its 3x3 neighbourhood)
+  // times the registration allowance: where the ground is misregistered by d, the difference is
+  // about d times that gradient. The other frame's, not the centre's: a walker is itself all
+  // edges in the centre frame, while the ground it walked onto is what the others show there.
+  // The gradient is computed only where the sensor noise alone is exceeded: a small part of the
+  // frame.
+  const cv::Mat& image = centre.grey;
+  const float noise = float(options_.noise_grey), allowance = float(options_.registration_px);
+  const float threshold = float(options_.threshold);
+  const float quick = threshold * noise;
+  const auto gradient_squared = [](const cv::Mat& other, int x, int y) {
+    float largest = 0;
+    for (int yy = std::max(1, y - 1); yy <= std::min(other.rows - 2, y + 1); ++yy) {
+      const uint8_t* above = other.ptr<uint8_t>(yy - 1);
+      const uint8_t* row = other.ptr<uint8_t>(yy);
+      const uint8_t* below = other.ptr<uint8_t>(yy + 1);
+      for (int xx = std::max(1, x - 1); xx <= std::min(other.cols - 2, x + 1); ++xx) {
+        const float gx = 0.5f * (float(row[xx + 1]) - float(row[xx - 1]));
+        const float gy = 0.5f * (float(below[xx]) - float(above[xx]));
+        largest = std::max(largest, gx * gx + gy * gy);
+      }
+    }
+    return largest;
+  };
+  const auto significant = [&](float d, const cv::Mat& other, int x, int y) {
+    return d * d > threshold * threshold *
+                       (noise * noise + allowance * allowance * gradient_squared(other, x, y));
+  };
+  changed_ = cv::Mat::zeros(small_size_, CV_8U);
+  strength_ = cv::Mat(small_size_, CV_32F, cv::Scalar(0));
+  for (size_t i = 0; i < pairs.size(); ++i) {
+    const Other& before = pairs[i][0];
+    const Other& after = pairs[i][1];
+    for (int y = 0; y < small_size_.height; ++y) {
+      const uint8_t* c = image.ptr<uint8_t>(y);
+      const uint8_t* w0 = before.warped.ptr<uint8_t>(y);
+      const uint8_t* w1 = after.warped.ptr<uint8_t>(y);
+      const uint8_t* v = covers[i].ptr<uint8_t>(y);
+      uint8_t* out = changed_.ptr<uint8_t>(y);
+      float* s = strength_.ptr<float>(y);
+      for (int x = 0; x < small_size_.width; ++x) {
+        if (v[x] == 0) continue;
+        const float d0 = float(c[x]) - before.gain * float(w0[x]);
+        const float d1 = float(c[x]) - after.gain * float(w1[x]);
+        if (d0 * d1 <= 0) continue;
+        const float a = std::min(std::abs(d0), std::abs(d1));
+        if (a <= quick || a <= std::abs(s[x]) || !significant(d0, before.warped, x, y) ||
+            !significant(d1, after.warped, x, y)) {
+          continue;
+        }
+        out[x] = 255;
+        s[x] = d0 > 0 ? a : -a;
+      }
+    }
+  }
+
+  cv::Mat labels, stats, centroids;
+  const int count = cv::connectedComponentsWithStats(changed_, labels, stats, centroids, 8, CV_32S);
+  for (int i = 1; i < count; ++i) {
+    const int area = stats.at<int>(i, cv::CC_STAT_AREA);
+    if (area < options_.min_area_px || area > options_.max_area_px) continue;
+    const int x0 = stats.at<int>(i, cv::CC_STAT_LEFT), y0 = stats.at<int>(i, cv::CC_STAT_TOP);
+    const int x1 = x0 + stats.at<int>(i, cv::CC_STAT_WIDTH),
+              y1 = y0 + stats.at<int>(i, cv::CC_STAT_HEIGHT);
+    double weight = 0, sx = 0, sy = 0, peak = 0;
+    for (int y = y0; y < y1; ++y) {
+      for (int x = x0; x < x1; ++x) {
+        if (labels.at<int>(y, x) != i) continue;
+        const double st = strength_.at<float>(y, x);
+        weight += std::abs(st);
+        sx += std::abs(st) * x;
+        sy += std::abs(st) * y;
+        if (std::abs(st) > std::abs(peak)) peak = st;
+      }
+    }
+    if (std::abs(peak) < options_.min_contrast_grey || weight <= 0) continue;
+    ChangeBlob blob;
+    blob.position = ToFull(sx / weight, sy / weight);
+    blob.box_min = ToFull(x0 - 0.5, y0 - 0.5);
+    blob.box_max = ToFull(x1 - 0.5, y1 - 0.5);
+    blob.area_px = area;
+    blob.contrast = peak;
+    blobs_.push_back(blob);
+  }
+  return blobs_;
+}
+
+bool ChangeDetector::Compared(const Eigen::Vector2d& p) const {
+  if (valid_.empty()) return false;
+  const Eigen::Vector2d q = ToSmall(p);
+  const int x = int(std::lround(q.x())), y = int(std::lround(q.y()));
+  return x >= 0 && y >= 0 && x < valid_.cols && y < valid_.rows && valid_.at<uint8_t>(y, x) != 0;
+}
+
+bool ChangeDetector::ChangedNear(const Eigen::Vector2d& p, double radius_px) const {
+  if (changed_.empty()) return false;
+  const Eigen::Vector2d q = ToSmall(p);
+  const double r = radius_px / scale_;
+  const int x0 = std::max(0, int(std::floor(q.x() - r))),
+            x1 = std::min(changed_.cols - 1, int(std::ceil(q.x() + r)));
+  const int y0 = std::max(0, int(std::floor(q.y() - r))),
+            y1 = std::min(changed_.rows - 1, int(std::ceil(q.y() + r)));
+  for (int y = y0; y <= y1; ++y) {
+    const uint8_t* row = changed_.ptr<uint8_t>(y);
+    for (int x = x0; x <= x1; ++x) {
+      if (row[x] != 0 && (Eigen::Vector2d(x, y) - q).squaredNorm() <= r * r) return true;
+    }
+  }
+  return false;
+}
+
+Status BlobTrackOptions::Validate() const {
+  if (!(gate_px > 0 && min_travel_px >= 0 && max_fit_rms_px > 0 && max_speed_px > 0 &&
+        box_margin_px >= 0)) {
+    return InvalidArgumentError(
+        "blob tracks: gate, fit RMS and speed must be positive, travel and margin >= 0");
+  }
+  if (max_gap_frames < 0 || min_frames < 2 || !(min_hit_fraction > 0 && min_hit_fraction <= 1)) {
+    return InvalidArgumentError(
+        "blob tracks: need max gap >= 0, min frames >= 2 and a hit fraction in (0, 1]");
+  }
+  return Status::Ok();
+}
+
+BlobTracker::BlobTracker(const BlobTrackOptions& options) : options_(options) {
+  SAKER_CHECK(options_.Validate().ok()) << options_.Validate().message();
+}
+
+void BlobTracker::Fit(Track* track, double* rms_px) {
+  // Least squares p(t) = a + v t over the anchored hits.
+  const auto& hits = track->anchored;
+  const double n = double(hits.size());
+  double mt = 0;
+  Eigen::Vector2d mp(0, 0);
+  for (const auto& [t, p] : hits) mt += double(t), mp += p;
+  mt /= n, mp /= n;
+  double stt = 0;
+  Eigen::Vector2d stp(0, 0);
+  for (const auto& [t, p] : hits) {
+    stt += (double(t) - mt) * (double(t) - mt);
+    stp += (double(t) - mt) * (p - mp);
+  }
+  track->velocity = stt > 0 ? Eigen::Vector2d(stp / stt) : Eigen::Vector2d(0, 0);
+  double sum = 0;
+  for (const auto& [t, p] : hits) {
+    sum += (p - (mp + track->velocity * (double(t) - mt))).squaredNorm();
+  }
+  *rms_px = std::sqrt(sum / n);
+}
+
+void BlobTracker::AddFrame(int64_t frame, const std::vector<ChangeBlob>& blobs,
+                           const Eigen::Matrix3d& current_from_previous) {
+  // Predict every track into this frame: its last hit moved by its velocity (in anchor
+  // coordinates), then through the ground motion to now.
+  std::vector<Eigen::Vector2d> predicted(active_.size());
+  for (size_t i = 0; i < active_.size(); ++i) {
+    Track& t = active_[i];
+    t.current_from_anchor = current_from_previous * t.current_from_anchor;
+    const auto& [last_frame, last] = t.anchored.back();
+    predicted[i] = Transfer(t.current_from_anchor, last + t.velocity * double(frame - last_frame));
+  }
+  // Greedy nearest pairs within the gate (wider the longer a track has gone unseen).
+  std::vector<std::tuple<double, size_t, size_t>> pairs;
+  for (size_t i = 0; i < active_.size(); ++i) {
+    const double gap = double(frame - active_[i].target.last_frame() - 1);
+    const double gate = options_.gate_px + 0.25 * gap;
+    for (size_t j = 0; j < blobs.size(); ++j) {
+      const double d = (blobs[j].position - predicted[i]).norm();
+      if (d <= gate) pairs.emplace_back(d, i, j);
+    }
+  }
+  std::sort(pairs.begin(), pairs.end());
+  std::vector<bool> track_used(active_.size(), false), blob_used(blobs.size(), false);
+  const auto observe = [&](Track* t, const ChangeBlob& blob) {
+    TargetObservation o;
+    o.frame = frame;
+    o.position = blob.position;
+    const Eigen::Vector2d margin = Eigen::Vector2d::Constant(options_.box_margin_px);
+    o.box_min = blob.box_min - margin;
+    o.box_max = blob.box_max + margin;
+    o.change = ChangeEvidence::kChanged;
+    t->anchored.emplace_back(frame, Transfer(t->current_from_anchor.inverse(), blob.position));
+    double rms = 0;
+    Fit(t, &rms);
+    o.velocity = t->velocity;  // anchor pixels: close to image pixels over a track's life
+    t->target.observations.push_back(std::move(o));
+    t->target.max_features = 0;
+    if (!t->confirmed && int(t->anchored.size()) >= options_.min_frames) {
+      const double span = double(frame - t->first_frame + 1);
+      const double travel = t->velocity.norm() * double(frame - t->anchored.front().first);
+      t->confirmed = double(t->anchored.size()) / span >= options_.min_hit_fraction &&
+                     travel >= options_.min_travel_px && rms <= options_.max_fit_rms_px &&
+                     t->velocity.norm() <= options_.max_speed_px;
+      t->target.confirmed = t->confirmed;
+    }
+  };
+  for (const auto& [d, i, j] : pairs) {
+    if (track_used[i] || blob_used[j]) continue;
+    track_used[i] = blob_used[j] = true;
+    observe(&active_[i], blobs[j]);
+  }
+
+  // Tracks unseen too long end; unpaired blobs start tracks.
+  std::vector<Track> still;
+  for (Track& t : active_) {
+    if (frame - t.target.last_frame() > options_.max_gap_frames) {
+      End(&t);
+    } else {
+      still.push_back(std::move(t));
+    }
+  }
+  active_ = std::move(still);
+  for (size_t j = 0; j < blobs.size(); ++j) {
+    if (blob_used[j]) continue;
+    Track t;
+    t.target.id = TargetTrackId(next_id_++);
+    t.first_frame = frame;
+    active_.push_back(std::move(t));
+    observe(&active_.back(), blobs[j]);
+  }
+}
+
+void BlobTracker::End(Track* track) {
+  if (track->confirmed) finished_.push_back(std::move(track->target));
+}
+
+std::vector<TargetTrack> BlobTracker::TakeFinished() {
+  std::vector<TargetTrack> out = std::move(finished_);
+  finished_.clear();
+  return out;
+}
+
+void BlobTracker::FinishAll() {
+  for (Track& t : active_) End(&t);
+  active_.clear();
+}
+
+bool SupportedByChange(const TargetTrack& track, double min_fraction) {
+  int looked = 0, changed = 0;
+  for (const TargetObservation& o : track.observations) {
+    looked += o.change != ChangeEvidence::kNotLooked;
+    changed += o.change == ChangeEvidence::kChanged;
+  }
+  return looked == 0 || double(changed) >= min_fraction * double(looked);
+}
+
+}  // namespace saker::track

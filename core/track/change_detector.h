@@ -1,0 +1,159 @@
+#pragma once
+
+// Change detection: the Visual MTI's second look, for movers too small for feature tracks.
+//
+// From 400 m a walker is two or three pixels across and moves a quarter of a pixel per frame. The
+// corners found on it are few, and the Lucas-Kanade window (eleven pixels) is dominated by the
+// ground around it, so the feature tracks (motion_segmentation.h) follow the footpath instead. Over
+// a longer baseline, though, the walker has moved its own size, and the image shows it: once an
+// earlier frame is warped onto the current one with the ground motion, the ground cancels and the
+// walker leaves a difference where it is now and one where it was.
+//
+// ChangeDetector compares a frame with the frames `baseline_frames` before and after it, both
+// warped onto it by the chained frame-to-frame ground homographies (so its answer comes that many
+// frames late). A pixel has *changed* when both differences are significant and have the same
+// sign: the mover is there in the middle frame and in neither of the others. Where it was before
+// or will be after, only one of the two differs, so it leaves no ghost, even when it is longer
+// than the distance it moves (comparing with two earlier frames would leave one behind a slow
+// car). "Significant" is relative to the noise and to the local gradient times an allowance
+// for misregistration (an edge off by a tenth of a pixel differs too), after matching the earlier
+// frames' mean grey level (gain drift). Changed pixels are grouped into blobs.
+//
+// Two uses: ChangedNear() lets a feature target be checked against the image (a corner sliding
+// along a road marking has no change under it; a car or a walker does), and BlobTracker follows
+// small blobs over time. Like the feature segmentation, one frame never makes a target: a blob
+// track is confirmed only after it has moved steadily, in a straight enough line, for long enough.
+
+#include "core/track/target_tracks.h"
+#include "core/util/status.h"
+
+#include <Eigen/Core>
+#include <opencv2/core.hpp>
+
+#include <deque>
+#include <optional>
+#include <vector>
+
+namespace saker::track {
+
+struct ChangeOptions {
+  bool enabled = true;
+  int baseline_frames = 12;      // a frame is compared with those this many before and after
+  int long_baseline_frames = 0;  // ... and also this many (0: no second baseline), for slower
+                                 // or longer movers (a walker and its shadow)
+  int processing_width = 960;    // on a copy this wide (never enlarged); 0 = full resolution
+  double noise_grey = 2.5;       // grey-level noise of one pixel's difference (sensor, compression)
+  double threshold = 4;          // a difference above this many times its noise is significant
+  double registration_px = 0.3;  // misregistration allowed: the local gradient times this is
+                                 // added to the noise
+  int border_px = 6;             // changes this close to the edge of the warped frames are ignored
+  int min_area_px = 1;           // blob size, processing pixels
+  int max_area_px = 80;          // larger blobs are vehicles, left to the feature tracks
+  double min_contrast_grey = 12;  // the strongest change in a blob, at least
+  Status Validate() const;
+};
+
+// A group of changed pixels in the latest frame.
+struct ChangeBlob {
+  Eigen::Vector2d position{0, 0};  // change-weighted centroid, full-resolution pixels
+  Eigen::Vector2d box_min{0, 0}, box_max{0, 0};
+  int area_px = 0;      // processing pixels
+  double contrast = 0;  // strongest change, grey levels (negative: darker than before)
+};
+
+class ChangeDetector {
+ public:
+  explicit ChangeDetector(const ChangeOptions& options);
+
+  // One frame (8-bit grey, full resolution; frame indices increase). `current_from_previous` is
+  // the ground motion since the previous frame in full-resolution pixels; nullopt when unknown
+  // (the first frame of a chain segment): the comparison then starts again. The comparison is
+  // centred: its result belongs to the frame the longest baseline back (frame()), compared with
+  // the frames each baseline before and after it. Returns that frame's blobs.
+  const std::vector<ChangeBlob>& Process(
+      int64_t frame, const cv::Mat& grey,
+      const std::optional<Eigen::Matrix3d>& current_from_previous);
+
+  // The frame the latest result belongs to; -1 when there is none (too early in a segment).
+  int64_t frame() const { return frame_; }
+  // The ground motion into frame() from the frame before it (full resolution).
+  const Eigen::Matrix3d& frame_motion() const { return centre_motion_; }
+  const std::vector<ChangeBlob>& blobs() const { return blobs_; }
+  // Whether a changed pixel of frame() lies within `radius_px` (full resolution) of `p`.
+  bool ChangedNear(const Eigen::Vector2d& p, double radius_px) const;
+  // Whether frame() could be compared at `p` (inside the overlap of the three frames).
+  bool Compared(const Eigen::Vector2d& p) const;
+  void Reset();
+
+ private:
+  struct Entry {
+    int64_t frame = 0;
+    cv::Mat grey;                                                // processing size
+    Eigen::Matrix3d motion = Eigen::Matrix3d::Identity();        // from the previous frame
+    Eigen::Matrix3d small_motion = Eigen::Matrix3d::Identity();  // the same, processing pixels
+  };
+  Eigen::Vector2d ToFull(double x, double y) const;
+  Eigen::Vector2d ToSmall(const Eigen::Vector2d& p) const;
+
+  ChangeOptions options_;
+  cv::Size full_size_, small_size_;
+  double scale_ = 1;           // full / processing
+  std::deque<Entry> history_;  // the last 2 x baseline_frames + 1 frames of the segment
+  int64_t frame_ = -1;
+  Eigen::Matrix3d centre_motion_ = Eigen::Matrix3d::Identity();
+  cv::Mat changed_;   // CV_8U mask of frame()
+  cv::Mat strength_;  // CV_32F signed change of the changed pixels
+  cv::Mat valid_;     // where frame() could be compared
+  std::vector<ChangeBlob> blobs_;
+};
+
+struct BlobTrackOptions {
+  double gate_px = 3;             // a blob continues a track within this of its predicted position
+  int max_gap_frames = 10;        // frames a track may go without a blob
+  int min_frames = 25;            // blobs seen before a track can be confirmed
+  double min_hit_fraction = 0.6;  // of the frames since the track began
+  double min_travel_px = 4;       // ground-relative displacement of the straight-line fit
+  double max_fit_rms_px = 1.2;    // positions about that line, at most (steady motion)
+  double max_speed_px = 2;        // per frame; faster things are the feature tracks' (cars)
+  double box_margin_px = 2;
+  Status Validate() const;
+};
+
+// Follows change blobs over time in ground-compensated coordinates; see the file comment.
+// Confirmed tracks come out as target tracks without supporting features.
+class BlobTracker {
+ public:
+  explicit BlobTracker(const BlobTrackOptions& options);
+
+  // The blobs of frame `frame` and the ground motion since the previous frame (full resolution).
+  void AddFrame(int64_t frame, const std::vector<ChangeBlob>& blobs,
+                const Eigen::Matrix3d& current_from_previous);
+  // Confirmed tracks that ended since the last call.
+  std::vector<TargetTrack> TakeFinished();
+  // Ends every track (end of the video or a chain break).
+  void FinishAll();
+
+ private:
+  struct Track {
+    TargetTrack target;
+    Eigen::Matrix3d current_from_anchor = Eigen::Matrix3d::Identity();  // anchor: first frame
+    std::vector<std::pair<int64_t, Eigen::Vector2d>> anchored;          // hits, anchor coords
+    Eigen::Vector2d velocity{0, 0};  // anchor pixels per frame, from the fit
+    int64_t first_frame = 0;
+    bool confirmed = false;
+  };
+  // The straight-line fit of a track's anchored hits: velocity, and the RMS about it.
+  static void Fit(Track* track, double* rms_px);
+  void End(Track* track);
+
+  BlobTrackOptions options_;
+  std::vector<Track> active_;
+  std::vector<TargetTrack> finished_;
+  int64_t next_id_ = 1;
+};
+
+// Keeps a target track only when the change detector saw a change under enough of its
+// observations (TargetObservation::change), among those where it could look.
+bool SupportedByChange(const TargetTrack& track, double min_fraction);
+
+}  // namespace saker::track
