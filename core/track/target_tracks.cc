@@ -36,6 +36,21 @@ bool Alike(const Eigen::Vector2d& pa, const Eigen::Vector2d& va, const Eigen::Ve
          (va - vb).squaredNorm() <= velocity * velocity;
 }
 
+// Two observations of one frame made one: position and velocity weighted by feature count (a
+// featureless one, from change detection, counts as one), boxes and features joined.
+void MergeObservation(const TargetObservation& o, TargetObservation* into) {
+  TargetObservation& m = *into;
+  const double na = double(std::max<size_t>(1, m.features.size()));
+  const double nb = double(std::max<size_t>(1, o.features.size()));
+  m.position = (m.position * na + o.position * nb) / (na + nb);
+  m.velocity = (m.velocity * na + o.velocity * nb) / (na + nb);
+  m.box_min = m.box_min.cwiseMin(o.box_min);
+  m.box_max = m.box_max.cwiseMax(o.box_max);
+  m.features.insert(m.features.end(), o.features.begin(), o.features.end());
+  std::sort(m.features.begin(), m.features.end());
+  m.change = std::max(m.change, o.change);
+}
+
 }  // namespace
 
 Status TargetTrackOptions::Validate() const {
@@ -195,15 +210,7 @@ void TargetTracker::MergeAlike(int64_t frame) {
       for (TargetObservation& o : active_[drop].observations) {
         auto [it, inserted] = by_frame.emplace(o.frame, o);
         if (!inserted) {
-          TargetObservation& m = it->second;
-          const double na = double(m.features.size()), nb = double(o.features.size());
-          m.position = (m.position * na + o.position * nb) / (na + nb);
-          m.velocity = (m.velocity * na + o.velocity * nb) / (na + nb);
-          m.box_min = m.box_min.cwiseMin(o.box_min);
-          m.box_max = m.box_max.cwiseMax(o.box_max);
-          m.features.insert(m.features.end(), o.features.begin(), o.features.end());
-          std::sort(m.features.begin(), m.features.end());
-          m.change = std::max(m.change, o.change);
+          MergeObservation(o, &it->second);
         }
       }
       TargetTrack& kept = active_[keep];
@@ -250,17 +257,7 @@ void FoldInto(TargetTrack& into, TargetTrack&& from) {
   for (TargetObservation& o : into.observations) by_frame.emplace(o.frame, std::move(o));
   for (TargetObservation& o : from.observations) {
     auto [it, inserted] = by_frame.emplace(o.frame, o);
-    if (inserted) continue;
-    TargetObservation& m = it->second;
-    const double na = double(std::max<size_t>(1, m.features.size()));
-    const double nb = double(std::max<size_t>(1, o.features.size()));
-    m.position = (m.position * na + o.position * nb) / (na + nb);
-    m.velocity = (m.velocity * na + o.velocity * nb) / (na + nb);
-    m.box_min = m.box_min.cwiseMin(o.box_min);
-    m.box_max = m.box_max.cwiseMax(o.box_max);
-    m.features.insert(m.features.end(), o.features.begin(), o.features.end());
-    std::sort(m.features.begin(), m.features.end());
-    m.change = std::max(m.change, o.change);
+    if (!inserted) MergeObservation(o, &it->second);
   }
   into.observations.clear();
   for (auto& [f, o] : by_frame) into.observations.push_back(std::move(o));
