@@ -54,8 +54,6 @@ void ChangeDetector::Reset() {
   history_.clear();
   frame_ = -1;
   blobs_.clear();
-  changed_.release();
-  valid_.release();
 }
 
 Eigen::Vector2d ChangeDetector::ToFull(double x, double y) const {
@@ -71,8 +69,6 @@ const std::vector<ChangeBlob>& ChangeDetector::Process(
     const std::optional<Eigen::Matrix3d>& current_from_previous) {
   SAKER_CHECK(grey.type() == CV_8UC1) << "change detection needs 8-bit grey frames";
   blobs_.clear();
-  changed_.release();
-  valid_.release();
   frame_ = -1;
   if (!options_.enabled || grey.empty()) return blobs_;
   if (grey.size() != full_size_) {
@@ -85,10 +81,23 @@ const std::vector<ChangeBlob>& ChangeDetector::Process(
     scale_ = double(grey.cols) / width;
   }
   if (!current_from_previous || !current_from_previous->allFinite()) history_.clear();
+
+  // The centre frame is the one `longest` back; each baseline compares it with the frames that
+  // many before and after it.
+  std::vector<size_t> baselines = {size_t(options_.baseline_frames)};
+  if (options_.long_baseline_frames > options_.baseline_frames) {
+    baselines.push_back(size_t(options_.long_baseline_frames));
+  }
+  const size_t longest = baselines.back();
+  // The new frame takes the oldest one's buffer when the history is full.
   Entry entry;
+  while (history_.size() >= 2 * longest + 1) {
+    entry.grey = std::move(history_.front().grey);
+    history_.pop_front();
+  }
   entry.frame = frame;
   if (small_size_ == full_size_) {
-    entry.grey = grey.clone();
+    grey.copyTo(entry.grey);
   } else {
     // Area averaging: a walker is a pixel or two, bilinear sampling would skip half of it (it
     // cost one person of the demo's 25 for 0.8 ms a frame).
@@ -99,25 +108,12 @@ const std::vector<ChangeBlob>& ChangeDetector::Process(
     entry.small_motion = ToSmallPixels(*current_from_previous, scale_);
   }
   history_.push_back(std::move(entry));
-  // The centre frame is the one `longest` back; each baseline compares it with the frames that
-  // many before and after it.
-  std::vector<size_t> baselines = {size_t(options_.baseline_frames)};
-  if (options_.long_baseline_frames > options_.baseline_frames) {
-    baselines.push_back(size_t(options_.long_baseline_frames));
-  }
-  const size_t longest = baselines.back();
-  while (history_.size() > 2 * longest + 1) history_.pop_front();
   if (history_.size() < 2 * longest + 1) return blobs_;
   const Entry& centre = history_[longest];
-  frame_ = centre.frame;
-  centre_motion_ = centre.motion;
 
   // Each other frame warped onto the centre frame, its mean grey matched to the centre's (gain
-  // drift), and where it covers the centre frame (inside its border).
-  struct Other {
-    cv::Mat warped, cover;
-    float gain = 1;
-  };
+  // drift), and where it covers the centre frame (inside its border). The buffers are members,
+  // reused from frame to frame.
   const int b = options_.border_px;
   const auto warp = [&](size_t index, Other* other) {
     Eigen::Matrix3d centre_from_other = Eigen::Matrix3d::Identity();
@@ -139,16 +135,18 @@ const std::vector<ChangeBlob>& ChangeDetector::Process(
     cv::warpPerspective(history_[index].grey, other->warped, m, small_size_, cv::INTER_LINEAR,
                         cv::BORDER_CONSTANT);
     const double w = small_size_.width - 1 - b, h = small_size_.height - 1 - b;
-    std::vector<cv::Point> outline;
-    for (const Eigen::Vector2d& corner : {Eigen::Vector2d(b, b), Eigen::Vector2d(w, b),
-                                          Eigen::Vector2d(w, h), Eigen::Vector2d(b, h)}) {
-      const Eigen::Vector3d p = centre_from_other * corner.homogeneous();
+    std::array<cv::Point, 4> outline;
+    const std::array<Eigen::Vector2d, 4> corners = {Eigen::Vector2d(b, b), Eigen::Vector2d(w, b),
+                                                    Eigen::Vector2d(w, h), Eigen::Vector2d(b, h)};
+    for (size_t k = 0; k < 4; ++k) {
+      const Eigen::Vector3d p = centre_from_other * corners[k].homogeneous();
       if (!(p.z() > 0) || !p.allFinite()) return false;
-      outline.emplace_back(int(std::lround(std::clamp(p.x() / p.z(), -1e6, 1e6))),
-                           int(std::lround(std::clamp(p.y() / p.z(), -1e6, 1e6))));
+      outline[k] = cv::Point(int(std::lround(std::clamp(p.x() / p.z(), -1e6, 1e6))),
+                             int(std::lround(std::clamp(p.y() / p.z(), -1e6, 1e6))));
     }
-    other->cover = cv::Mat::zeros(small_size_, CV_8U);
-    cv::fillConvexPoly(other->cover, outline, cv::Scalar(255));
+    other->cover.create(small_size_, CV_8U);
+    other->cover.setTo(0);
+    cv::fillConvexPoly(other->cover, outline.data(), 4, cv::Scalar(255));
     if (b > 0) {
       cv::rectangle(other->cover, cv::Rect(0, 0, small_size_.width, small_size_.height),
                     cv::Scalar(0), 2 * b);
@@ -165,20 +163,21 @@ const std::vector<ChangeBlob>& ChangeDetector::Process(
         sum_other += o[x];
       }
     }
-    if (sum_other > 0) other->gain = float(sum_centre / sum_other);
+    other->gain = sum_other > 0 ? float(sum_centre / sum_other) : 1.0f;
     return true;
   };
   // Per baseline: the frames before and after, and where both cover the centre frame.
-  std::vector<std::array<Other, 2>> pairs(baselines.size());
-  std::vector<cv::Mat> covers(baselines.size());
-  valid_ = cv::Mat::zeros(small_size_, CV_8U);
+  pairs_.resize(baselines.size());
+  covers_.resize(baselines.size());
+  valid_.create(small_size_, CV_8U);
+  valid_.setTo(0);
   for (size_t i = 0; i < baselines.size(); ++i) {
-    if (!warp(longest - baselines[i], &pairs[i][0]) ||
-        !warp(longest + baselines[i], &pairs[i][1])) {
-      return blobs_;
+    if (!warp(longest - baselines[i], &pairs_[i][0]) ||
+        !warp(longest + baselines[i], &pairs_[i][1])) {
+      return blobs_;  // a degenerate motion: no answer for this frame
     }
-    cv::bitwise_and(pairs[i][0].cover, pairs[i][1].cover, covers[i]);
-    cv::bitwise_or(valid_, covers[i], valid_);
+    cv::bitwise_and(pairs_[i][0].cover, pairs_[i][1].cover, covers_[i]);
+    cv::bitwise_or(valid_, covers_[i], valid_);
   }
 
   // A pixel changed when both differences exceed their noise with the same sign. The noise of
@@ -210,16 +209,18 @@ const std::vector<ChangeBlob>& ChangeDetector::Process(
     return d * d > threshold * threshold *
                        (noise * noise + allowance * allowance * gradient_squared(other, x, y));
   };
-  changed_ = cv::Mat::zeros(small_size_, CV_8U);
-  strength_ = cv::Mat(small_size_, CV_32F, cv::Scalar(0));
-  for (size_t i = 0; i < pairs.size(); ++i) {
-    const Other& before = pairs[i][0];
-    const Other& after = pairs[i][1];
+  changed_.create(small_size_, CV_8U);
+  changed_.setTo(0);
+  strength_.create(small_size_, CV_32F);
+  strength_.setTo(0);
+  for (size_t i = 0; i < pairs_.size(); ++i) {
+    const Other& before = pairs_[i][0];
+    const Other& after = pairs_[i][1];
     for (int y = 0; y < small_size_.height; ++y) {
       const uint8_t* c = image.ptr<uint8_t>(y);
       const uint8_t* w0 = before.warped.ptr<uint8_t>(y);
       const uint8_t* w1 = after.warped.ptr<uint8_t>(y);
-      const uint8_t* v = covers[i].ptr<uint8_t>(y);
+      const uint8_t* v = covers_[i].ptr<uint8_t>(y);
       uint8_t* out = changed_.ptr<uint8_t>(y);
       float* s = strength_.ptr<float>(y);
       for (int x = 0; x < small_size_.width; ++x) {
@@ -238,18 +239,18 @@ const std::vector<ChangeBlob>& ChangeDetector::Process(
     }
   }
 
-  cv::Mat labels, stats, centroids;
-  const int count = cv::connectedComponentsWithStats(changed_, labels, stats, centroids, 8, CV_32S);
+  const int count =
+      cv::connectedComponentsWithStats(changed_, labels_, stats_, centroids_, 8, CV_32S);
   for (int i = 1; i < count; ++i) {
-    const int area = stats.at<int>(i, cv::CC_STAT_AREA);
+    const int area = stats_.at<int>(i, cv::CC_STAT_AREA);
     if (area < options_.min_area_px || area > options_.max_area_px) continue;
-    const int x0 = stats.at<int>(i, cv::CC_STAT_LEFT), y0 = stats.at<int>(i, cv::CC_STAT_TOP);
-    const int x1 = x0 + stats.at<int>(i, cv::CC_STAT_WIDTH),
-              y1 = y0 + stats.at<int>(i, cv::CC_STAT_HEIGHT);
+    const int x0 = stats_.at<int>(i, cv::CC_STAT_LEFT), y0 = stats_.at<int>(i, cv::CC_STAT_TOP);
+    const int x1 = x0 + stats_.at<int>(i, cv::CC_STAT_WIDTH),
+              y1 = y0 + stats_.at<int>(i, cv::CC_STAT_HEIGHT);
     double weight = 0, sx = 0, sy = 0, peak = 0;
     for (int y = y0; y < y1; ++y) {
       for (int x = x0; x < x1; ++x) {
-        if (labels.at<int>(y, x) != i) continue;
+        if (labels_.at<int>(y, x) != i) continue;
         const double st = strength_.at<float>(y, x);
         weight += std::abs(st);
         sx += std::abs(st) * x;
@@ -266,18 +267,20 @@ const std::vector<ChangeBlob>& ChangeDetector::Process(
     blob.contrast = peak;
     blobs_.push_back(blob);
   }
+  frame_ = centre.frame;
+  centre_motion_ = centre.motion;
   return blobs_;
 }
 
 bool ChangeDetector::Compared(const Eigen::Vector2d& p) const {
-  if (valid_.empty()) return false;
+  if (frame_ < 0) return false;
   const Eigen::Vector2d q = ToSmall(p);
   const int x = int(std::lround(q.x())), y = int(std::lround(q.y()));
   return x >= 0 && y >= 0 && x < valid_.cols && y < valid_.rows && valid_.at<uint8_t>(y, x) != 0;
 }
 
 bool ChangeDetector::ChangedNear(const Eigen::Vector2d& p, double radius_px) const {
-  if (changed_.empty()) return false;
+  if (frame_ < 0) return false;
   const Eigen::Vector2d q = ToSmall(p);
   const double r = radius_px / scale_;
   const int x0 = std::max(0, int(std::floor(q.x() - r))),
@@ -310,26 +313,26 @@ BlobTracker::BlobTracker(const BlobTrackOptions& options) : options_(options) {
   SAKER_CHECK(options_.Validate().ok()) << options_.Validate().message();
 }
 
-void BlobTracker::Fit(Track* track, double* rms_px) {
-  // Least squares p(t) = a + v t over the anchored hits.
-  const auto& hits = track->anchored;
-  const double n = double(hits.size());
-  double mt = 0;
-  Eigen::Vector2d mp(0, 0);
-  for (const auto& [t, p] : hits) mt += double(t), mp += p;
-  mt /= n, mp /= n;
-  double stt = 0;
-  Eigen::Vector2d stp(0, 0);
-  for (const auto& [t, p] : hits) {
-    stt += (double(t) - mt) * (double(t) - mt);
-    stp += (double(t) - mt) * (p - mp);
-  }
-  track->velocity = stt > 0 ? Eigen::Vector2d(stp / stt) : Eigen::Vector2d(0, 0);
-  double sum = 0;
-  for (const auto& [t, p] : hits) {
-    sum += (p - (mp + track->velocity * (double(t) - mt))).squaredNorm();
-  }
-  *rms_px = std::sqrt(sum / n);
+void BlobTracker::LineFit::Add(double t, const Eigen::Vector2d& p) {
+  n += 1;
+  st += t;
+  stt += t * t;
+  sp += p;
+  stp += t * p;
+  spp += p.squaredNorm();
+}
+
+Eigen::Vector2d BlobTracker::LineFit::Velocity() const {
+  const double centred_tt = stt - st * st / n;
+  return centred_tt > 0 ? Eigen::Vector2d((stp - st * sp / n) / centred_tt) : Eigen::Vector2d(0, 0);
+}
+
+double BlobTracker::LineFit::Rms() const {
+  // The residual sum of squares of a least-squares line: the spread of p less what the line
+  // explains, |v|^2 times the spread of t.
+  const double centred_tt = stt - st * st / n;
+  const double centred_pp = spp - sp.squaredNorm() / n;
+  return std::sqrt(std::max(0.0, centred_pp - Velocity().squaredNorm() * centred_tt) / n);
 }
 
 void BlobTracker::AddFrame(int64_t frame, const std::vector<ChangeBlob>& blobs,
@@ -340,8 +343,8 @@ void BlobTracker::AddFrame(int64_t frame, const std::vector<ChangeBlob>& blobs,
   for (size_t i = 0; i < active_.size(); ++i) {
     Track& t = active_[i];
     t.current_from_anchor = current_from_previous * t.current_from_anchor;
-    const auto& [last_frame, last] = t.anchored.back();
-    predicted[i] = Transfer(t.current_from_anchor, last + t.velocity * double(frame - last_frame));
+    predicted[i] = Transfer(t.current_from_anchor,
+                            t.last_anchored + t.velocity * double(frame - t.target.last_frame()));
   }
   // Greedy nearest pairs within the gate (wider the longer a track has gone unseen).
   std::vector<std::tuple<double, size_t, size_t>> pairs;
@@ -363,17 +366,17 @@ void BlobTracker::AddFrame(int64_t frame, const std::vector<ChangeBlob>& blobs,
     o.box_min = blob.box_min - margin;
     o.box_max = blob.box_max + margin;
     o.change = ChangeEvidence::kChanged;
-    t->anchored.emplace_back(frame, Transfer(t->current_from_anchor.inverse(), blob.position));
-    double rms = 0;
-    Fit(t, &rms);
+    t->last_anchored = Transfer(t->current_from_anchor.inverse(), blob.position);
+    t->fit.Add(double(frame - t->first_frame), t->last_anchored);
+    ++t->hits;
+    t->velocity = t->fit.Velocity();
     o.velocity = t->velocity;  // anchor pixels: close to image pixels over a track's life
     t->target.observations.push_back(std::move(o));
-    t->target.max_features = 0;
-    if (!t->confirmed && int(t->anchored.size()) >= options_.min_frames) {
+    if (!t->confirmed && t->hits >= options_.min_frames) {
       const double span = double(frame - t->first_frame + 1);
-      const double travel = t->velocity.norm() * double(frame - t->anchored.front().first);
-      t->confirmed = double(t->anchored.size()) / span >= options_.min_hit_fraction &&
-                     travel >= options_.min_travel_px && rms <= options_.max_fit_rms_px &&
+      const double travel = t->velocity.norm() * double(frame - t->first_frame);
+      t->confirmed = double(t->hits) / span >= options_.min_hit_fraction &&
+                     travel >= options_.min_travel_px && t->fit.Rms() <= options_.max_fit_rms_px &&
                      t->velocity.norm() <= options_.max_speed_px;
       t->target.confirmed = t->confirmed;
     }

@@ -30,6 +30,7 @@
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
 
+#include <array>
 #include <deque>
 #include <optional>
 #include <vector>
@@ -92,6 +93,10 @@ class ChangeDetector {
     Eigen::Matrix3d motion = Eigen::Matrix3d::Identity();        // from the previous frame
     Eigen::Matrix3d small_motion = Eigen::Matrix3d::Identity();  // the same, processing pixels
   };
+  struct Other {  // a frame before or after the centre, warped onto it
+    cv::Mat warped, cover;
+    float gain = 1;
+  };
   Eigen::Vector2d ToFull(double x, double y) const;
   Eigen::Vector2d ToSmall(const Eigen::Vector2d& p) const;
 
@@ -101,9 +106,12 @@ class ChangeDetector {
   std::deque<Entry> history_;  // the last 2 x baseline_frames + 1 frames of the segment
   int64_t frame_ = -1;
   Eigen::Matrix3d centre_motion_ = Eigen::Matrix3d::Identity();
-  cv::Mat changed_;   // CV_8U mask of frame()
-  cv::Mat strength_;  // CV_32F signed change of the changed pixels
-  cv::Mat valid_;     // where frame() could be compared
+  std::vector<std::array<Other, 2>> pairs_;  // per baseline: before and after
+  std::vector<cv::Mat> covers_;              // per baseline: where both cover the centre frame
+  cv::Mat labels_, stats_, centroids_;       // connected components of changed_
+  cv::Mat changed_;                          // CV_8U mask of frame()
+  cv::Mat strength_;                         // CV_32F signed change of the changed pixels
+  cv::Mat valid_;                            // where frame() could be compared
   std::vector<ChangeBlob> blobs_;
 };
 
@@ -134,16 +142,25 @@ class BlobTracker {
   void FinishAll();
 
  private:
+  // The least-squares line p(t) = a + v t through a track's hits, in the coordinates of its first
+  // frame (t counted from that frame), kept as running sums: constant work per hit.
+  struct LineFit {
+    double n = 0, st = 0, stt = 0, spp = 0;
+    Eigen::Vector2d sp{0, 0}, stp{0, 0};
+    void Add(double t, const Eigen::Vector2d& p);
+    Eigen::Vector2d Velocity() const;
+    double Rms() const;  // of the hits about the line
+  };
   struct Track {
     TargetTrack target;
     Eigen::Matrix3d current_from_anchor = Eigen::Matrix3d::Identity();  // anchor: first frame
-    std::vector<std::pair<int64_t, Eigen::Vector2d>> anchored;          // hits, anchor coords
+    Eigen::Vector2d last_anchored{0, 0};  // the latest hit, anchor coordinates
+    LineFit fit;
     Eigen::Vector2d velocity{0, 0};  // anchor pixels per frame, from the fit
     int64_t first_frame = 0;
+    int hits = 0;
     bool confirmed = false;
   };
-  // The straight-line fit of a track's anchored hits: velocity, and the RMS about it.
-  static void Fit(Track* track, double* rms_px);
   void End(Track* track);
 
   BlobTrackOptions options_;
