@@ -17,6 +17,8 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <optional>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -132,6 +134,23 @@ std::array<Eigen::Vector2d, 4> NoisyMetadata(const Eigen::Matrix3d& map_from_fra
                   sigma * Eigen::Vector2d(noise->Gaussian(), noise->Gaussian());
   }
   return metadata;
+}
+
+// Adjusts copies of `graph` without and with its metadata (at `sigma_m`); the second must be
+// usable.
+void AdjustWithAndWithoutMetadata(const LinkGraph& graph, double sigma_m, LinkGraph* without,
+                                  LinkGraph* with, std::optional<AdjustmentSummary>* summary) {
+  AdjustmentOptions options;
+  options.metadata_sigma_m = sigma_m;
+  options.use_metadata = false;
+  *without = graph;
+  ASSERT_TRUE(Adjust(without, options).ok());
+  options.use_metadata = true;
+  *with = graph;
+  StatusOr<AdjustmentSummary> adjusted = Adjust(with, options);
+  ASSERT_TRUE(adjusted.ok()) << adjusted.status().ToString();
+  EXPECT_TRUE(adjusted->usable) << adjusted->ToString();
+  *summary = *adjusted;
 }
 
 LinkGraph EmptyGraph(int n, bool geo_referenced) {
@@ -354,16 +373,10 @@ TEST(AdjustmentTest, MetadataBoundsAWrongStart) {
         NoisyMetadata(truth[size_t(k)], corners, kMetadataSigmaM, &noise);
   }
 
-  AdjustmentOptions options;
-  options.metadata_sigma_m = kMetadataSigmaM;
-  options.use_metadata = false;
-  LinkGraph without = graph;
-  ASSERT_TRUE(Adjust(&without, options).ok());
-  options.use_metadata = true;
-  LinkGraph with = graph;
-  const StatusOr<AdjustmentSummary> summary = Adjust(&with, options);
-  ASSERT_TRUE(summary.ok());
-  EXPECT_TRUE(summary->usable) << summary->ToString();
+  LinkGraph without, with;
+  std::optional<AdjustmentSummary> summary;
+  ASSERT_NO_FATAL_FAILURE(
+      AdjustWithAndWithoutMetadata(graph, kMetadataSigmaM, &without, &with, &summary));
   EXPECT_EQ(summary->fixed_nodes, 0);
   EXPECT_EQ(summary->residual_blocks, kNodes - 1 + 8);
 
@@ -417,16 +430,9 @@ TEST(AdjustmentTest, MetadataBoundsAProjectivelyWrongStartOnALongFlight) {
     graph.nodes[k].metadata_corners = NoisyMetadata(truth[k], corners, sigma, &noise);
   }
 
-  AdjustmentOptions options;
-  options.metadata_sigma_m = sigma;
-  options.use_metadata = false;
-  LinkGraph without = graph;
-  ASSERT_TRUE(Adjust(&without, options).ok());
-  options.use_metadata = true;
-  LinkGraph with = graph;
-  const StatusOr<AdjustmentSummary> summary = Adjust(&with, options);
-  ASSERT_TRUE(summary.ok());
-  EXPECT_TRUE(summary->usable) << summary->ToString();
+  LinkGraph without, with;
+  std::optional<AdjustmentSummary> summary;
+  ASSERT_NO_FATAL_FAILURE(AdjustWithAndWithoutMetadata(graph, sigma, &without, &with, &summary));
 
   const double start_max = MaxCornerError(graph, truth);
   const double rms_without = RmsCornerError(without, truth);
