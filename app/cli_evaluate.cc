@@ -18,6 +18,8 @@ struct EvaluateCommand::State {
   bool json = false;
   bool no_metadata = false;
   bool no_change = false;
+  std::string adjust = "decomposed";
+  mosaic::DecompositionOptions decomposition;
   frontend::EvaluationOptions evaluation;
 };
 
@@ -29,8 +31,10 @@ EvaluateCommand::EvaluateCommand(CLI::App& app) : state_(std::make_unique<State>
       "frame-to-frame homography error (image-corner transfer, pixels) and moving-target "
       "detection\n"
       "(recall and precision of target tracks and per frame, detection latency); the mosaic's\n"
-      "loop closures and the key frames' corner error before and after bundle adjustment. See\n"
-      "docs/front-end.md and docs/mosaic.md for the definitions.");
+      "loop closures and the key frames' corner error before and after bundle adjustment; the\n"
+      "adjustment's nodes, arcs and time; the in-between frames' corner error; and two of the\n"
+      "paper's experiments (metadata, graph decomposition). See docs/front-end.md and\n"
+      "docs/mosaic.md for the definitions.");
   s.command->add_option("VIDEO", s.video, "Simulated video (saker-cli simulate)")->required();
   s.command->add_option("--truth", s.truth, "Its truth file (default: VIDEO with .truth.json)");
   s.command->add_flag("--json", s.json, "Print the figures as JSON");
@@ -46,6 +50,23 @@ EvaluateCommand::EvaluateCommand(CLI::App& app) : state_(std::make_unique<State>
       ->add_option("--sighting-gap", s.evaluation.max_sighting_gap_frames,
                    "Frames a target may be out of view within one sighting; longer, and it is "
                    "counted again when it comes back")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
+  s.command
+      ->add_option("--adjust", s.adjust,
+                   "Bundle adjustment of every key frame (full) or of the nodes of the node/arc "
+                   "decomposition, the other key frames then placed along the arcs (decomposed)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"full", "decomposed"}));
+  s.command
+      ->add_option("--max-arc-links", s.decomposition.max_arc_links,
+                   "Decomposed: longest arc, in sequential links")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
+  s.command
+      ->add_option("--cross-link-spacing", s.decomposition.cross_link_spacing,
+                   "Decomposed: keep one cross-link per loop closure, leaving out those within "
+                   "this many key frames of a stronger one at both ends (0: keep all)")
       ->capture_default_str()
       ->check(CLI::NonNegativeNumber);
   s.command->add_flag("--no-change-detection", s.no_change,
@@ -79,6 +100,8 @@ int EvaluateCommand::Run() const {
   }
   mosaic::MosaicOptions mosaic_options;
   mosaic_options.use_metadata = !s.no_metadata;
+  mosaic_options.adjust_mode = *mosaic::ParseAdjustmentMode(s.adjust);
+  mosaic_options.decomposition = s.decomposition;
   StatusOr<mosaic::MosaicResult> built = mosaic::BuildMosaic(*result, mosaic_options);
   if (!built.ok()) {
     std::cerr << "saker-cli: " << s.video << ": " << built.status().message() << "\n";
@@ -90,6 +113,8 @@ int EvaluateCommand::Run() const {
     return 1;
   }
   StatusOr<mosaic::MetadataExperiment> experiment = mosaic::RunMetadataExperiment(*built, *truth);
+  StatusOr<mosaic::DecompositionExperiment> decomposition = mosaic::RunDecompositionExperiment(
+      *built, *truth, s.decomposition, mosaic_options.adjustment);
   if (s.json) {
     nlohmann::json j = frontend::EvaluationToJson(*evaluation);
     j["mosaic"] = mosaic::MosaicAccuracyToJson(*mosaic_accuracy);
@@ -102,11 +127,15 @@ int EvaluateCommand::Run() const {
                                   {"with_metadata_rms_m", experiment->with_metadata.rms_m},
                                   {"with_metadata_max_m", experiment->with_metadata.max_m}};
     }
+    if (decomposition.ok()) {
+      j["decomposition_experiment"] = mosaic::DecompositionExperimentToJson(*decomposition);
+    }
     std::cout << j.dump(2) << "\n";
   } else {
     std::cout << frontend::EvaluationToText(*evaluation);
     std::cout << mosaic::MosaicAccuracyToText(*mosaic_accuracy);
     if (experiment.ok()) std::cout << mosaic::MetadataExperimentToText(*experiment);
+    if (decomposition.ok()) std::cout << mosaic::DecompositionExperimentToText(*decomposition);
   }
   return 0;
 }

@@ -24,6 +24,7 @@ struct MosaicCommand::State {
   bool no_metadata = false;
   bool outlines = false;
   bool unadjusted = false;
+  std::string adjust = "decomposed";
   mosaic::MosaicOptions mosaic;
   mosaic::RenderOptions render;
 };
@@ -88,6 +89,12 @@ MosaicCommand::MosaicCommand(CLI::App& app) : state_(std::make_unique<State>()) 
                    "Stated accuracy of the metadata corners, metres (1 sigma)")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
+  s.command
+      ->add_option("--adjust", s.adjust,
+                   "Bundle adjustment of every key frame (full) or of the nodes of the node/arc "
+                   "decomposition, the other key frames then placed along the arcs (decomposed)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"full", "decomposed"}));
   s.command->add_flag("--outlines", s.outlines,
                       "Draw key frame outlines (by chain segment) and links (cross-links in red)");
   s.command->add_flag("--unadjusted", s.unadjusted,
@@ -125,6 +132,7 @@ int MosaicCommand::RunOn(const std::string& video, const std::string& output) co
   if (!front.ok()) return fail(front.status());
   mosaic::MosaicOptions options = s.mosaic;
   options.use_metadata = !s.no_metadata;
+  options.adjust_mode = *mosaic::ParseAdjustmentMode(s.adjust);
   StatusOr<mosaic::MosaicResult> result = mosaic::BuildMosaic(*front, options, &job);
   if (!result.ok())
     return fail(Status(result.status().code(), video + ": " + result.status().message()));
@@ -159,22 +167,28 @@ int MosaicCommand::RunOn(const std::string& video, const std::string& output) co
     nlohmann::json adjustments = nlohmann::json::array();
     for (const mosaic::AdjustmentSummary& a : result->adjustments)
       adjustments.push_back(a.ToString());
-    nlohmann::json j = {{"video", video},
-                        {"output", output},
-                        {"frames", front->frames.size()},
-                        {"key_frames", graph.nodes.size()},
-                        {"segments", segments},
-                        {"chain_breaks", front->breaks.size()},
-                        {"key_frames_with_metadata", result->key_frames_with_metadata},
-                        {"geo_referenced", graph.geo_referenced},
-                        {"links", links},
-                        {"loop_closures", closures},
-                        {"adjustments", adjustments},
-                        {"picture_width", picture->bgr.cols},
-                        {"picture_height", picture->bgr.rows},
-                        {"map_units_per_pixel", picture->map_units_per_px},
-                        {"front_end_s", front->timing.wall_s},
-                        {"mosaic_s", result->timing.total_s}};
+    nlohmann::json j = {
+        {"video", video},
+        {"output", output},
+        {"frames", front->frames.size()},
+        {"key_frames", graph.nodes.size()},
+        {"segments", segments},
+        {"chain_breaks", front->breaks.size()},
+        {"key_frames_with_metadata", result->key_frames_with_metadata},
+        {"geo_referenced", graph.geo_referenced},
+        {"links", links},
+        {"loop_closures", closures},
+        {"adjustments", adjustments},
+        {"adjust_mode", s.adjust},
+        {"nodes", result->decomposition ? result->decomposition->nodes : int(graph.nodes.size())},
+        {"arcs", result->decomposition ? result->decomposition->arcs : 0},
+        {"frames_placed",
+         result->in_between.key_frames + result->in_between.solved + result->in_between.chained},
+        {"picture_width", picture->bgr.cols},
+        {"picture_height", picture->bgr.rows},
+        {"map_units_per_pixel", picture->map_units_per_px},
+        {"front_end_s", front->timing.wall_s},
+        {"mosaic_s", result->timing.total_s}};
     std::cout << j.dump(2) << "\n";
     return 0;
   }
@@ -198,6 +212,8 @@ int MosaicCommand::RunOn(const std::string& video, const std::string& output) co
   std::cout << "  adjustments: " << result->adjustments.size();
   if (!result->adjustments.empty())
     std::cout << ", last: " << result->adjustments.back().ToString();
+  if (result->decomposition) std::cout << "\n  " << result->decomposition->ToString();
+  std::cout << "\n  " << result->in_between.ToString();
   std::cout << "\n  time: front end " << front->timing.wall_s << " s, mosaic "
             << result->timing.total_s << " s\n";
   std::cout << "  wrote " << output << " (" << picture->bgr.cols << "x" << picture->bgr.rows << ", "

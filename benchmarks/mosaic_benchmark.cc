@@ -5,13 +5,30 @@
 // blocks, iterations, the median adjustment time, the NodeCovariances time and the RMS corner
 // error before / after. Target: 1000 key frames adjust in <= 1 s on 2 cores.
 //
+// Then the loop-closure candidate query time against the number of indexed key frames, and the
+// in-between frames chain solver (SolveChain) against the number of frames: a synthetic video
+// flying circuits, frame-to-frame homographies with corner noise and their covariance, both ends
+// fixed at the truth; solve time without and with covariances, frames per second, microseconds
+// per frame and its ratio to the smallest size (linear time: about 1), iterations, and the RMS
+// corner error of the chained product and of the solution. Target: >= 100 000 in-between frames
+// per second on 2 cores.
+//
+// Last, full against decomposed (node/arc) adjustment on graphs of loops (MakeLoops: circles of 60
+// key frames crossing the two before them, closures and crossings as the only cross-links) of 75
+// to 10 000 key frames: nodes, arcs, times, speed-up, both final costs and errors. Target: 10 000
+// key frames adjust decomposed in <= 10 s on 2 cores.
+//
 //   saker-bench-mosaic [--sizes 100,1000] [--threads 2] [--repeats 3] [--covariance-max N]
 //                      [--seed S] [--max-iterations N] [--function-tolerance T]
+//                      [--chain-sizes 1000,10000,100000,1000000]
+//                      [--decomposition-sizes 75,300,1000,10000] [--full-max N]
 //
-// Each part is its own function called from main (BenchmarkAdjustment; loop-closure query
-// timing can be added beside it).
+// Each part is its own function called from main (BenchmarkAdjustment, BenchmarkQuery,
+// BenchmarkChain, BenchmarkDecomposition).
 
 #include "core/mosaic/adjustment.h"
+#include "core/mosaic/chain_solver.h"
+#include "core/mosaic/decomposition.h"
 #include "core/mosaic/link_graph.h"
 #include "core/mosaic/loop_closure.h"
 #include "core/mosaic/mosaic_builder.h"
@@ -24,11 +41,13 @@
 
 #include <algorithm>
 #include <array>
+#include <charconv>
 #include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <random>
+#include <string>
 #include <vector>
 
 namespace {
@@ -113,6 +132,18 @@ struct Scene {
   LinkGraph graph;  // drifted start
 };
 
+// The drifted start: key frame 0 at the truth, every other chained through the sequential links.
+void ChainStart(Scene* scene) {
+  LinkGraph& graph = scene->graph;
+  graph.nodes[0].map_from_frame = scene->truth[0];
+  for (const Link& link : graph.links) {
+    if (int(link.to) == int(link.from) + 1) {
+      graph.nodes[size_t(link.to)].map_from_frame =
+          Normalised(graph.nodes[size_t(link.from)].map_from_frame * link.to_from_from.inverse());
+    }
+  }
+}
+
 // About n key frames in rows of `columns`, flown back and forth (boustrophedon).
 Scene MakeRaster(int n, uint64_t seed) {
   const int columns = std::max(2, int(std::lround(std::sqrt(1.6 * n))));
@@ -157,13 +188,7 @@ Scene MakeRaster(int n, uint64_t seed) {
       graph.links.push_back(MeasureLink(scene.truth, below, int(k), noise));
     }
   }
-  graph.nodes[0].map_from_frame = scene.truth[0];
-  for (const Link& link : graph.links) {
-    if (int(link.to) == int(link.from) + 1) {
-      graph.nodes[size_t(link.to)].map_from_frame =
-          Normalised(graph.nodes[size_t(link.from)].map_from_frame * link.to_from_from.inverse());
-    }
-  }
+  ChainStart(&scene);
   return scene;
 }
 
@@ -338,6 +363,255 @@ void BenchmarkQuery(const std::vector<int>& sizes, uint64_t seed) {
       "query/matching: the query's cost in pairwise matchings; O(n) matching would be n.\n");
 }
 
+// A video flying circuits of a 1500 m radius circle at 1.6 m per frame (40 m/s at 25 frames per
+// second, about 10 px at 0.156 m/px), pitching and rolling a little: the truth of frame k.
+Eigen::Matrix3d CircuitFrame(int64_t k) {
+  constexpr double kRadiusM = 1500, kFrameStepM = 1.6;
+  const double t = double(k) * kFrameStepM / kRadiusM;
+  return GroundFromImage(kRadiusM * std::cos(t), kRadiusM * std::sin(t), t + M_PI / 2,
+                         0.03 * std::sin(0.05 * double(k)), 0.02 * std::cos(0.031 * double(k)));
+}
+
+// Where `estimate` puts each frame's image corners against the truth, metres: the RMS over all
+// frames and corners, and the median over the frames of their corners' RMS.
+struct ChainError {
+  double rms_m = 0, median_m = 0;
+};
+ChainError ChainErrorM(const std::vector<Eigen::Matrix3d>& estimate) {
+  const auto corners = ImageCorners(kWidth, kHeight);
+  double sum = 0;
+  std::vector<double> per_frame;
+  per_frame.reserve(estimate.size());
+  for (size_t k = 0; k < estimate.size(); ++k) {
+    const Eigen::Matrix3d truth = CircuitFrame(int64_t(k));
+    double frame = 0;
+    for (const Eigen::Vector2d& c : corners) {
+      const Eigen::Vector3d p = estimate[k] * c.homogeneous(), q = truth * c.homogeneous();
+      frame += (p.head<2>() / p.z() - q.head<2>() / q.z()).squaredNorm();
+    }
+    sum += frame;
+    per_frame.push_back(std::sqrt(frame / 4));
+  }
+  return {std::sqrt(sum / double(4 * estimate.size())), Median(std::move(per_frame))};
+}
+
+// In-between frames: SolveChain time against the chain length, both ends fixed at the truth. The
+// per-step noise is the solver's floor (min_link_sigma_px): a consecutive-frame homography from
+// many tracks. A single chain of 10^6 such steps is 1600 km long: the projective drift of a
+// homography chain then throws a few frames towards the horizon, whatever the solver (the rms
+// columns; the median shows the typical frame), and with 0.1 px per step it drifts so far that
+// Gauss-Newton does not converge within its iterations at 10^6 (docs/mosaic.md).
+void BenchmarkChain(const std::vector<int>& sizes, uint64_t seed) {
+  constexpr double kChainSigmaPx = 0.05;
+  std::printf(
+      "\nIn-between frames (SolveChain): circuits of a 1500 m circle, 1.6 m per frame, corner "
+      "noise %.2f px per step, both ends fixed at the truth, 1 thread\n",
+      kChainSigmaPx);
+  std::printf("%8s %5s %9s %10s %9s %6s %6s %9s %9s %11s %10s %11s %10s\n", "frames", "runs",
+              "solve_s", "frames/s", "us/frame", "ratio", "iters", "cov_s", "cov_us/f",
+              "rms_chained", "rms_solved", "med_chained", "med_solved");
+  const auto corners = ImageCorners(kWidth, kHeight);
+  double first_us = 0;
+  for (int n : sizes) {
+    // The measured steps: the truth's corners moved by isotropic noise, fitted exactly, with the
+    // covariance that noise implies.
+    Noise noise(seed + uint64_t(n));
+    std::vector<saker::mosaic::ChainStep> steps(static_cast<size_t>(n));
+    Eigen::Matrix3d previous = CircuitFrame(0);
+    const Eigen::Matrix3d first = previous;
+    for (int k = 0; k < n; ++k) {
+      const Eigen::Matrix3d next = CircuitFrame(k + 1);
+      const Eigen::Matrix3d exact = Normalised(next.inverse() * previous);
+      std::array<Eigen::Vector2d, 4> measured;
+      for (size_t i = 0; i < 4; ++i) {
+        measured[i] = saker::track::Transfer(exact, corners[i]) +
+                      kChainSigmaPx * Eigen::Vector2d(noise.Gaussian(), noise.Gaussian());
+      }
+      const auto h = saker::mosaic::HomographyFromCorners(corners, measured, kChainSigmaPx);
+      SAKER_CHECK(h.ok()) << h.status().ToString();
+      steps[size_t(k)].next_from_previous = h->target_from_source;
+      steps[size_t(k)].covariance = h->covariance;
+      previous = next;
+    }
+    const Eigen::Matrix3d last = previous;
+
+    // Repeated up to about 10^6 frames' worth (at least once, at most 9 times), the median
+    // reported.
+    const int runs = std::clamp(1000000 / n, 1, 9);
+    saker::mosaic::ChainOptions options;
+    std::vector<double> times;
+    saker::mosaic::ChainSolution solution;
+    for (int r = 0; r < runs; ++r) {
+      solution = {};  // freed before the next run, so memory stays that of one
+      const auto start = Clock::now();
+      auto result = saker::mosaic::SolveChain(first, last, steps, kWidth, kHeight, options);
+      times.push_back(Seconds(start));
+      if (!result.ok()) {
+        std::fprintf(stderr, "chain solve failed: %s\n", result.status().ToString().c_str());
+        return;
+      }
+      solution = std::move(result).value();
+    }
+    const int iterations = solution.iterations;
+    const ChainError solved = ChainErrorM(solution.map_from_frame);
+    solution = {};
+    options.covariances = true;
+    const auto cov_start = Clock::now();
+    const auto with_covariances =
+        saker::mosaic::SolveChain(first, last, steps, kWidth, kHeight, options);
+    const double cov_s = Seconds(cov_start);
+    if (!with_covariances.ok()) {
+      std::fprintf(stderr, "chain solve failed: %s\n",
+                   with_covariances.status().ToString().c_str());
+      return;
+    }
+    std::vector<Eigen::Matrix3d> chained = {first};
+    chained.reserve(size_t(n) + 1);
+    for (const saker::mosaic::ChainStep& step : steps) {
+      chained.push_back(Normalised(chained.back() * step.next_from_previous.inverse()));
+    }
+    const double t = Median(times);
+    const double us = t * 1e6 / n;
+    if (first_us == 0) first_us = us;
+    const ChainError before = ChainErrorM(chained);
+    std::printf("%8d %5d %9.4f %10.0f %9.3f %6.2f %6d %9.4f %9.3f %11.4g %10.4g %11.4g %10.4g\n", n,
+                runs, t, n / t, us, us / first_us, iterations, cov_s, cov_s * 1e6 / n, before.rms_m,
+                solved.rms_m, before.median_m, solved.median_m);
+  }
+  std::printf(
+      "solve_s: median over `runs` of SolveChain without covariances (checks, whitening, start, "
+      "Gauss-Newton); ratio: us/frame against the\nfirst size (linear time: ~1); cov_s: one "
+      "SolveChain with covariances; rms_*: RMS corner error against the truth in metres of the\n"
+      "chained product (first end only) and of the solution; med_*: the median over frames.\n");
+}
+
+// About n key frames flying loops: circles of 60 key frames (radius ~570 m) whose centres are
+// 400 m apart, joined by straight transits, so each circle crosses the two before it twice each.
+// Cross-links: each loop's closure (its last key frame with its first) and, at each crossing with
+// the two previous loops, the nearest pair of key frames: "several loops", and few cross-links, as
+// a long surveillance flight has them.
+Scene MakeLoops(int n, uint64_t seed) {
+  constexpr int kLoop = 60;
+  const double radius = kLoop * kStepM / (2 * M_PI);
+  constexpr double kSpacingM = 400;
+  Noise noise(seed);
+  Scene scene;
+  std::vector<Eigen::Vector2d> centre;
+  std::vector<int> loop_of;  // per key frame: its loop, or -1 on a transit
+  for (int loop = 0; int(scene.truth.size()) < n; ++loop) {
+    const Eigen::Vector2d c(kSpacingM * loop, 0);
+    for (int j = 0; j < kLoop && int(scene.truth.size()) < n; ++j) {
+      const double angle = M_PI + 2 * M_PI * j / kLoop;  // from the west point, anticlockwise
+      const size_t k = scene.truth.size();
+      const Eigen::Vector2d p = c + radius * Eigen::Vector2d(std::cos(angle), std::sin(angle));
+      scene.truth.push_back(GroundFromImage(p.x(), p.y(), angle + M_PI / 2,
+                                            0.02 * std::sin(0.37 * double(k)),
+                                            0.02 * std::cos(0.23 * double(k))));
+      centre.push_back(p);
+      loop_of.push_back(loop);
+    }
+    // Transit from this west point to the next circle's, heading east.
+    const double from = c.x() - radius, to = from + kSpacingM;
+    for (double x = from + kStepM; x < to - 0.5 * kStepM && int(scene.truth.size()) < n;
+         x += kStepM) {
+      const size_t k = scene.truth.size();
+      scene.truth.push_back(GroundFromImage(x, 0, 0, 0.02 * std::sin(0.37 * double(k)),
+                                            0.02 * std::cos(0.23 * double(k))));
+      centre.emplace_back(x, 0);
+      loop_of.push_back(-1);
+    }
+  }
+  LinkGraph& graph = scene.graph;
+  graph.image_width = kWidth;
+  graph.image_height = kHeight;
+  graph.geo_referenced = true;  // ENU metres, no metadata: node 0 holds the gauge
+  for (size_t k = 0; k < scene.truth.size(); ++k) {
+    saker::mosaic::Node node;
+    node.id = KeyFrameId(int(k));
+    node.frame_index = int64_t(k) * 25;
+    graph.nodes.push_back(node);
+  }
+  for (size_t k = 0; k + 1 < scene.truth.size(); ++k) {
+    graph.links.push_back(MeasureLink(scene.truth, int(k), int(k) + 1, noise));
+  }
+  // Per loop: its key frames.
+  std::vector<std::vector<int>> members;
+  for (size_t k = 0; k < loop_of.size(); ++k) {
+    if (loop_of[k] < 0) continue;
+    if (size_t(loop_of[k]) >= members.size()) members.resize(size_t(loop_of[k]) + 1);
+    members[size_t(loop_of[k])].push_back(int(k));
+  }
+  for (size_t loop = 0; loop < members.size(); ++loop) {
+    const std::vector<int>& m = members[loop];
+    if (int(m.size()) == kLoop)
+      graph.links.push_back(MeasureLink(scene.truth, m.back(), m.front(), noise));
+    // The crossings with the two previous loops: the closest pair in each half (north, south).
+    for (size_t back = 1; back <= std::min<size_t>(2, loop); ++back) {
+      for (const double side : {1.0, -1.0}) {
+        double best = 40;  // metres: overlapping footprints
+        std::pair<int, int> pair{-1, -1};
+        for (int a : members[loop - back]) {
+          if (side * centre[size_t(a)].y() <= 0) continue;
+          for (int b : m) {
+            const double d = (centre[size_t(a)] - centre[size_t(b)]).norm();
+            if (d < best) best = d, pair = {a, b};
+          }
+        }
+        if (pair.first >= 0) {
+          graph.links.push_back(MeasureLink(scene.truth, pair.second, pair.first, noise));
+        }
+      }
+    }
+  }
+  ChainStart(&scene);
+  return scene;
+}
+
+// Full against decomposed adjustment on MakeLoops graphs: nodes and arcs, times, the speed-up,
+// both final costs (the same problem solved: they should be close) and both solutions' RMS corner
+// error against the truth. The full adjustment is skipped above `full_max` key frames (0: never).
+void BenchmarkDecomposition(const std::vector<int>& sizes,
+                            const saker::mosaic::AdjustmentOptions& options, int full_max,
+                            uint64_t seed) {
+  std::printf(
+      "\nFull versus decomposed adjustment (loops of 60 key frames, closures and crossings):\n");
+  std::printf("%7s %6s %5s %5s %8s %8s %8s %8s %8s %10s %10s %9s %9s\n", "keyfr", "links", "nodes",
+              "arcs", "full_s", "decomp_s", "nodes_s", "place_s", "speedup", "full_cost",
+              "dec_cost", "full_rms", "dec_rms");
+  for (const int n : sizes) {
+    const Scene scene = MakeLoops(n, seed + uint64_t(n));
+    char full_s[16] = "-", speedup[16] = "-", full_cost[16] = "-", full_rms[16] = "-";
+    double full_seconds = 0;
+    if (full_max <= 0 || n <= full_max) {
+      LinkGraph full = scene.graph;
+      const auto start = Clock::now();
+      const auto summary = saker::mosaic::Adjust(&full, options);
+      full_seconds = Seconds(start);
+      SAKER_CHECK(summary.ok()) << summary.status().ToString();
+      std::snprintf(full_s, sizeof(full_s), "%.3f", full_seconds);
+      std::snprintf(full_cost, sizeof(full_cost), "%.1f", summary->final_cost);
+      std::snprintf(full_rms, sizeof(full_rms), "%.2f", RmsCornerError(full, scene.truth));
+    }
+    LinkGraph decomposed = scene.graph;
+    const auto start = Clock::now();
+    const auto summary = saker::mosaic::AdjustDecomposed(&decomposed, options, {});
+    const double decomposed_s = Seconds(start);
+    SAKER_CHECK(summary.ok()) << summary.status().ToString();
+    if (full_seconds > 0) {
+      std::snprintf(speedup, sizeof(speedup), "%.1fx", full_seconds / decomposed_s);
+    }
+    std::printf("%7d %6zu %5d %5d %8s %8.3f %8.3f %8.3f %8s %10s %10.1f %9s %9.2f\n", n,
+                scene.graph.links.size(), summary->nodes, summary->arcs, full_s, decomposed_s,
+                summary->adjust_s, summary->place_s, speedup, full_cost,
+                summary->adjustment.final_cost, full_rms, RmsCornerError(decomposed, scene.truth));
+    std::fflush(stdout);
+  }
+  std::printf(
+      "cost: the adjustment's final cost (half the sum of squared whitened residuals; for the\n"
+      "decomposed one over the reduced graph); rms: key frame corners against the truth, "
+      "metres.\n");
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -346,13 +620,19 @@ int main(int argc, char** argv) {
       "raster link graphs with loops (sequential links plus cross-links between adjacent rows, "
       "noisy measurements, drifted start). Target: 1000 key frames in <= 1 s on 2 cores. Then the\n"
       "loop-closure candidate query of the appearance index against the number of key frames,\n"
-      "next to one pairwise appearance matching measured in the same run."};
+      "next to one pairwise appearance matching measured in the same run. Then the in-between\n"
+      "frames chain solver against the number of frames (target: >= 100 000 frames per second).\n"
+      "Then full against decomposed (node/arc) adjustment on link graphs of loops (target: 10 000\n"
+      "key frames decomposed in <= 10 s on 2 cores)."};
   std::vector<int> sizes = {100, 1000};
   saker::mosaic::AdjustmentOptions options;
   int& threads = options.num_threads;
   int repeats = 3;
   uint64_t seed = 1234;
   int covariance_max = 1000;
+  std::string chain_sizes_text = "1000,10000,100000,1000000";
+  std::vector<int> decomposition_sizes = {75, 300, 1000, 10000};
+  int full_max = 0;
   app.add_option("--sizes", sizes, "Numbers of key frames")->delimiter(',')->capture_default_str();
   app.add_option("--threads", threads, "Ceres threads")
       ->check(CLI::PositiveNumber)
@@ -371,7 +651,37 @@ int main(int argc, char** argv) {
                  "Covariances of all nodes up to this many; of this many spread nodes beyond")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
+  app.add_option("--chain-sizes", chain_sizes_text,
+                 "Frames of the in-between chain solver benchmark, comma separated (\"\": skip it)")
+      ->capture_default_str();
+  app.add_option("--decomposition-sizes", decomposition_sizes,
+                 "Key frames of the full-versus-decomposed benchmark (empty: skip it)")
+      ->delimiter(',')
+      ->expected(0, -1)
+      ->capture_default_str();
+  app.add_option("--full-max", full_max,
+                 "Skip the full adjustment above this many key frames (0: never)")
+      ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
+  for (int n : decomposition_sizes) {
+    if (n < 2) {
+      std::fprintf(stderr, "--decomposition-sizes: each size must be at least 2\n");
+      return 2;
+    }
+  }
+  std::vector<int> chain_sizes;
+  for (size_t begin = 0; begin < chain_sizes_text.size();) {
+    const size_t end = std::min(chain_sizes_text.find(',', begin), chain_sizes_text.size());
+    const std::string item = chain_sizes_text.substr(begin, end - begin);
+    int n = 0;
+    const auto [rest, error] = std::from_chars(item.data(), item.data() + item.size(), n);
+    if (error != std::errc() || rest != item.data() + item.size() || n < 2) {
+      std::fprintf(stderr, "--chain-sizes: \"%s\" is not a size of at least 2\n", item.c_str());
+      return 2;
+    }
+    chain_sizes.push_back(n);
+    begin = end + 1;
+  }
   for (int n : sizes) {
     if (n < 2) {
       std::fprintf(stderr, "--sizes: each size must be at least 2\n");
@@ -384,5 +694,9 @@ int main(int argc, char** argv) {
   }
   if (BenchmarkAdjustment(sizes, options, repeats, covariance_max, seed).empty()) return 1;
   BenchmarkQuery(sizes, seed);
+  if (!chain_sizes.empty()) BenchmarkChain(chain_sizes, seed);
+  if (!decomposition_sizes.empty()) {
+    BenchmarkDecomposition(decomposition_sizes, options, full_max, seed);
+  }
   return 0;
 }

@@ -1,5 +1,6 @@
 #include "core/mosaic/adjustment.h"
 
+#include "core/mosaic/residuals.h"
 #include "core/track/homography.h"
 #include "core/util/check.h"
 
@@ -27,113 +28,14 @@
 namespace saker::mosaic {
 namespace {
 
-constexpr int kParameters = 8;  // per node: types.h order, H(2,2) = 1
-constexpr int kResiduals = 8;   // per block: 4 corners x 2 coordinates
-
-template <typename T>
-using Matrix3 = Eigen::Matrix<T, 3, 3>;
-
-template <typename T>
-Matrix3<T> HomographyFrom(const T* p) {
-  Matrix3<T> h;
-  h << p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], T(1);
-  return h;
-}
-
-// The adjugate: the inverse times the determinant. Homogeneous use only needs the inverse up to
-// scale, so there is no division (autodiff friendly, no sign or size assumption).
-template <typename T>
-Matrix3<T> Adjugate(const Matrix3<T>& m) {
-  Matrix3<T> a;
-  a(0, 0) = m(1, 1) * m(2, 2) - m(1, 2) * m(2, 1);
-  a(0, 1) = m(0, 2) * m(2, 1) - m(0, 1) * m(2, 2);
-  a(0, 2) = m(0, 1) * m(1, 2) - m(0, 2) * m(1, 1);
-  a(1, 0) = m(1, 2) * m(2, 0) - m(1, 0) * m(2, 2);
-  a(1, 1) = m(0, 0) * m(2, 2) - m(0, 2) * m(2, 0);
-  a(1, 2) = m(0, 2) * m(1, 0) - m(0, 0) * m(1, 2);
-  a(2, 0) = m(1, 0) * m(2, 1) - m(1, 1) * m(2, 0);
-  a(2, 1) = m(0, 1) * m(2, 0) - m(0, 0) * m(2, 1);
-  a(2, 2) = m(0, 0) * m(1, 1) - m(0, 1) * m(1, 0);
-  return a;
-}
-
-// h c dehomogenised into out; false when c maps to infinity.
-template <typename T>
-bool Project(const Matrix3<T>& h, const Eigen::Vector2d& c, T* out) {
-  const T w = h(2, 0) * c.x() + h(2, 1) * c.y() + h(2, 2);
-  if (w == T(0)) return false;
-  out[0] = (h(0, 0) * c.x() + h(0, 1) * c.y() + h(0, 2)) / w;
-  out[1] = (h(1, 0) * c.x() + h(1, 1) * c.y() + h(1, 2)) / w;
-  return true;
-}
-
-// The step of a node: M (+) d = M N^-1 (I + D(d)) N, normalised, with N taking the frame's pixels
-// to [-1, 1] around the image centre. A step of 1 moves the image corners by about the image
-// size whatever the map frame is (metres thousands of metres from the origin, or pixels), which
-// keeps the normal equations and the covariance well conditioned.
-struct HomographyStep {
-  double f = 1, cx = 0, cy = 0;  // normalised = (pixel - c) / f
-
-  template <typename T>
-  Matrix3<T> NormalisedFromPixel() const {
-    Matrix3<T> n;
-    n << T(1 / f), T(0), T(-cx / f), T(0), T(1 / f), T(-cy / f), T(0), T(0), T(1);
-    return n;
-  }
-  template <typename T>
-  Matrix3<T> PixelFromNormalised() const {
-    Matrix3<T> n;
-    n << T(f), T(0), T(cx), T(0), T(f), T(cy), T(0), T(0), T(1);
-    return n;
-  }
-
-  template <typename T>
-  bool Plus(const T* x, const T* delta, T* x_plus_delta) const {
-    Matrix3<T> d;
-    d << T(1) + delta[0], delta[1], delta[2], delta[3], T(1) + delta[4], delta[5], delta[6],
-        delta[7], T(1);
-    const Matrix3<T> m =
-        HomographyFrom(x) * PixelFromNormalised<T>() * d * NormalisedFromPixel<T>();
-    if (m(2, 2) == T(0)) return false;
-    for (int i = 0; i < kParameters; ++i) x_plus_delta[i] = m(i / 3, i % 3) / m(2, 2);
-    return true;
-  }
-
-  template <typename T>
-  bool Minus(const T* y, const T* x, T* y_minus_x) const {
-    const Matrix3<T> k = NormalisedFromPixel<T>() * Adjugate(HomographyFrom(x)) *
-                         HomographyFrom(y) * PixelFromNormalised<T>();
-    if (k(2, 2) == T(0)) return false;
-    for (int i = 0; i < kParameters; ++i) y_minus_x[i] = k(i / 3, i % 3) / k(2, 2);
-    y_minus_x[0] -= T(1);
-    y_minus_x[4] -= T(1);
-    return true;
-  }
-};
-
-// whitening * (M_to^-1 M_from c - to_from_from c) over the 4 corners c of the `from` image.
-struct LinkResidual {
-  std::array<Eigen::Vector2d, 4> corners;
-  Eigen::Matrix<double, kResiduals, 1> measured;
-  Eigen::Matrix<double, kResiduals, kResiduals> whitening;
-
-  template <typename T>
-  bool operator()(const T* from, const T* to, T* residual) const {
-    const Matrix3<T> to_from_from = Adjugate(HomographyFrom(to)) * HomographyFrom(from);
-    Eigen::Matrix<T, kResiduals, 1> error;
-    for (int i = 0; i < 4; ++i) {
-      if (!Project(to_from_from, corners[size_t(i)], error.data() + 2 * i)) return false;
-    }
-    for (int i = 0; i < kResiduals; ++i) error(i) -= measured(i);
-    // Double times Jet (cheaper than a Jet matrix product).
-    for (int r = 0; r < kResiduals; ++r) {
-      T sum = whitening(r, 0) * error(0);
-      for (int c = 1; c < kResiduals; ++c) sum += whitening(r, c) * error(c);
-      residual[r] = sum;
-    }
-    return true;
-  }
-};
+using internal::HomographyFrom;
+using internal::HomographyStep;
+using internal::kParameters;
+using internal::kResiduals;
+using internal::LinkResidual;
+using internal::MakeLinkResidual;
+using internal::Matrix3;
+using internal::Project;
 
 // (M c - metadata) / sigma over the 4 image corners c.
 struct MetadataResidual {
@@ -153,28 +55,6 @@ struct MetadataResidual {
     return true;
   }
 };
-
-// W with W^T W = (J C J^T + floor^2 I)^-1: L^-1 of the Cholesky factor, or from the eigen
-// decomposition with negative eigenvalues clamped when C is not positive semi-definite.
-Eigen::Matrix<double, kResiduals, kResiduals> LinkWhitening(
-    const Link& link, const std::array<Eigen::Vector2d, 4>& corners, double floor_px) {
-  using Matrix8 = Eigen::Matrix<double, kResiduals, kResiduals>;
-  Eigen::Matrix<double, kResiduals, kParameters> j;
-  for (int i = 0; i < 4; ++i) {
-    j.middleRows<2>(2 * i) = track::TransferJacobian(link.to_from_from, corners[size_t(i)]);
-  }
-  Matrix8 cov = j * link.covariance * j.transpose();
-  cov = 0.5 * (cov + cov.transpose()).eval();
-  const Matrix8 floored = cov + floor_px * floor_px * Matrix8::Identity();
-  const Eigen::LLT<Matrix8> llt(floored);
-  if (llt.info() == Eigen::Success) {
-    return llt.matrixL().solve(Matrix8::Identity());
-  }
-  const Eigen::SelfAdjointEigenSolver<Matrix8> eigen(cov);
-  const Eigen::Matrix<double, kResiduals, 1> inv_sd =
-      (eigen.eigenvalues().cwiseMax(0).array() + floor_px * floor_px).rsqrt();
-  return inv_sd.asDiagonal() * eigen.eigenvectors().transpose();
-}
 
 ceres::SparseLinearAlgebraLibraryType SparseLibrary() {
   if (ceres::IsSparseLinearAlgebraLibraryTypeAvailable(ceres::SUITE_SPARSE)) {
@@ -347,9 +227,8 @@ class AdjustmentProblem {
     in_problem_.assign(n, false);
     fixed_.assign(n, false);
 
-    const double w = graph.image_width - 1, h = graph.image_height - 1;
     manifold_ = std::make_unique<ceres::AutoDiffManifold<HomographyStep, kParameters, kParameters>>(
-        new HomographyStep{std::max(1.0, 0.5 * std::max(w, h)), 0.5 * w, 0.5 * h});
+        new HomographyStep(HomographyStep::ForImage(graph.image_width, graph.image_height)));
     if (options.loss_scale > 0) {
       loss_ = std::make_unique<ceres::HuberLoss>(options.loss_scale * std::sqrt(kResiduals));
     }
@@ -361,12 +240,8 @@ class AdjustmentProblem {
     const std::array<Eigen::Vector2d, 4> corners =
         ImageCorners(graph.image_width, graph.image_height);
     for (const Link& link : graph.links) {
-      auto* residual =
-          new LinkResidual{corners, {}, LinkWhitening(link, corners, options.min_link_sigma_px)};
-      for (int i = 0; i < 4; ++i) {
-        residual->measured.segment<2>(2 * i) =
-            track::Transfer(link.to_from_from, corners[size_t(i)]);
-      }
+      auto* residual = new LinkResidual(
+          MakeLinkResidual(link.to_from_from, link.covariance, corners, options.min_link_sigma_px));
       problem_->AddResidualBlock(
           new ceres::AutoDiffCostFunction<LinkResidual, kResiduals, kParameters, kParameters>(
               residual),

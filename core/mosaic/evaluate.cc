@@ -7,7 +7,10 @@
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core/eigen.hpp>
 
+#include <algorithm>
+#include <chrono>
 #include <cmath>
+#include <cstdint>
 #include <random>
 #include <sstream>
 
@@ -76,6 +79,104 @@ Eigen::Matrix3d GaugeFit(const std::vector<Eigen::Matrix3d>& map_from_frame,
   return FitCorners(estimated, truth_ground);
 }
 
+// The truth of every key frame: its ground-to-image homography and its corners on the ground.
+struct KeyFrameTruth {
+  std::vector<Eigen::Matrix3d> frame_from_ground;
+  std::vector<std::array<Eigen::Vector2d, 4>> ground;
+};
+StatusOr<KeyFrameTruth> TruthOfKeyFrames(const LinkGraph& graph, const sim::Truth& truth,
+                                         const std::string& what) {
+  const auto corners = ImageCorners(graph.image_width, graph.image_height);
+  KeyFrameTruth t;
+  for (size_t k = 0; k < graph.nodes.size(); ++k) {
+    const int64_t f = graph.nodes[k].frame_index;
+    if (f < 0 || size_t(f) >= truth.frames.size()) {
+      return InvalidArgumentError(what + ": the truth does not cover key frame " +
+                                  std::to_string(k));
+    }
+    t.frame_from_ground.push_back(truth.frames[size_t(f)].frame_from_ground);
+    const Eigen::Matrix3d ground_from_frame = t.frame_from_ground.back().inverse();
+    std::array<Eigen::Vector2d, 4> ground;
+    for (int c = 0; c < 4; ++c) {
+      ground[size_t(c)] = track::Transfer(ground_from_frame, corners[size_t(c)]);
+    }
+    t.ground.push_back(ground);
+  }
+  return t;
+}
+
+// Every placed frame that is not a key frame against the truth, through the key frames' gauge
+// fit; the excess over the neighbouring key frames' error for frames between two of them.
+StatusOr<InBetweenAccuracy> EvaluateInBetween(const MosaicResult& mosaic, const sim::Truth& truth,
+                                              const Eigen::Matrix3d& truth_from_map,
+                                              const CornerErrors& key_frames_error) {
+  const LinkGraph& graph = mosaic.graph;
+  const std::vector<std::optional<Eigen::Matrix3d>>& placed = mosaic.in_between.map_from_frame;
+  if (placed.size() > truth.frames.size()) {
+    return InvalidArgumentError("evaluate: the mosaic placed " + std::to_string(placed.size()) +
+                                " frames but the truth has " + std::to_string(truth.frames.size()));
+  }
+  const int w = graph.image_width, h = graph.image_height;
+  const auto corners = ImageCorners(w, h);
+  // Per frame: truth ground corners and each frame's own RMS error in pixels.
+  const auto frame_errors = [&](size_t f, const Eigen::Matrix3d& map_from_frame) {
+    const Eigen::Matrix3d& frame_from_ground = truth.frames[f].frame_from_ground;
+    const Eigen::Matrix3d ground_from_frame = frame_from_ground.inverse();
+    std::array<Eigen::Vector2d, 4> ground;
+    for (int c = 0; c < 4; ++c) {
+      ground[size_t(c)] = track::Transfer(ground_from_frame, corners[size_t(c)]);
+    }
+    return Errors({map_from_frame}, {ground}, {frame_from_ground}, truth_from_map, w, h);
+  };
+  std::vector<double> key_error_px(placed.size(), -1);
+  std::vector<bool> is_key(placed.size(), false);
+  for (const Node& node : graph.nodes) {
+    const size_t f = size_t(node.frame_index);
+    if (f >= placed.size()) continue;
+    is_key[f] = true;
+    key_error_px[f] = frame_errors(f, node.map_from_frame).rms_px;
+  }
+  // The nearest key frame before each frame (its error), and after.
+  std::vector<double> before(placed.size(), -1), after(placed.size(), -1);
+  for (size_t f = 0, last = SIZE_MAX; f < placed.size(); ++f) {
+    if (is_key[f]) last = f;
+    if (last != SIZE_MAX) before[f] = key_error_px[last];
+  }
+  for (size_t f = placed.size(), next = SIZE_MAX; f-- > 0;) {
+    if (is_key[f]) next = f;
+    if (next != SIZE_MAX) after[f] = key_error_px[next];
+  }
+
+  InBetweenAccuracy a;
+  a.key_frames_error = key_frames_error;
+  double sum_px = 0, sum_m = 0;
+  int corners_counted = 0;
+  std::vector<double> excess;
+  for (size_t f = 0; f < placed.size(); ++f) {
+    if (!placed[f] || is_key[f]) continue;
+    const CornerErrors e = frame_errors(f, *placed[f]);
+    ++a.frames;
+    sum_px += 4 * e.rms_px * e.rms_px;
+    sum_m += 4 * e.rms_m * e.rms_m;
+    corners_counted += 4;
+    a.frames_error.max_m = std::max(a.frames_error.max_m, e.max_m);
+    if (before[f] >= 0 && after[f] >= 0) {
+      excess.push_back(std::max(0.0, e.rms_px - std::max(before[f], after[f])));
+    }
+  }
+  if (corners_counted > 0) {
+    a.frames_error.rms_px = std::sqrt(sum_px / corners_counted);
+    a.frames_error.rms_m = std::sqrt(sum_m / corners_counted);
+  }
+  a.between = int(excess.size());
+  if (!excess.empty()) {
+    std::sort(excess.begin(), excess.end());
+    a.median_excess_px = excess[excess.size() / 2];
+    a.max_excess_px = excess.back();
+  }
+  return a;
+}
+
 }  // namespace
 
 StatusOr<MosaicAccuracy> EvaluateMosaic(const MosaicResult& mosaic, const sim::Truth& truth) {
@@ -127,8 +228,17 @@ StatusOr<MosaicAccuracy> EvaluateMosaic(const MosaicResult& mosaic, const sim::T
                                                 : graph.nodes[k].map_from_frame);
   }
   const int w = graph.image_width, h = graph.image_height;
+  const Eigen::Matrix3d truth_from_adjusted = GaugeFit(adjusted, ground, w, h);
   a.before = Errors(chained, ground, frame_from_ground, GaugeFit(chained, ground, w, h), w, h);
-  a.after = Errors(adjusted, ground, frame_from_ground, GaugeFit(adjusted, ground, w, h), w, h);
+  a.after = Errors(adjusted, ground, frame_from_ground, truth_from_adjusted, w, h);
+  a.adjust_mode = mosaic.decomposition ? "decomposed" : "full";
+  a.nodes = mosaic.decomposition ? mosaic.decomposition->nodes : a.key_frames;
+  a.arcs = mosaic.decomposition ? mosaic.decomposition->arcs : 0;
+  a.adjust_s = mosaic.timing.adjust_s;
+  if (!mosaic.in_between.map_from_frame.empty()) {
+    SAKER_ASSIGN_OR_RETURN(a.in_between,
+                           EvaluateInBetween(mosaic, truth, truth_from_adjusted, a.after));
+  }
   if (truth_plane) {
     // The map frame and the truth ground are related by geodesy alone (two tangent planes): fit
     // it on the truth corners expressed in both, no estimate involved.
@@ -153,19 +263,10 @@ StatusOr<MetadataExperiment> RunMetadataExperiment(const MosaicResult& mosaic,
   const int w = graph.image_width, h = graph.image_height;
   const auto corners = ImageCorners(w, h);
   const size_t n = graph.nodes.size();
-  std::vector<Eigen::Matrix3d> frame_from_ground(n);
-  std::vector<std::array<Eigen::Vector2d, 4>> ground(n);
-  for (size_t k = 0; k < n; ++k) {
-    const int64_t f = graph.nodes[k].frame_index;
-    if (f < 0 || size_t(f) >= truth.frames.size()) {
-      return InvalidArgumentError("metadata experiment: the truth does not cover key frame " +
-                                  std::to_string(k));
-    }
-    frame_from_ground[k] = truth.frames[size_t(f)].frame_from_ground;
-    for (int c = 0; c < 4; ++c) {
-      ground[k][size_t(c)] = track::Transfer(frame_from_ground[k].inverse(), corners[size_t(c)]);
-    }
-  }
+  SAKER_ASSIGN_OR_RETURN(const KeyFrameTruth key_truth,
+                         TruthOfKeyFrames(graph, truth, "metadata experiment"));
+  const std::vector<Eigen::Matrix3d>& frame_from_ground = key_truth.frame_from_ground;
+  const std::vector<std::array<Eigen::Vector2d, 4>>& ground = key_truth.ground;
   // The wrong start: the true map_from_frame of key frame 0 (truth ground as the map) after a
   // keystone distortion of the image: the top corners moved inwards by the stated fraction of the
   // width. A perspective error like this is what a poor initialisation gives; far from the start
@@ -247,6 +348,101 @@ std::string MetadataExperimentToText(const MetadataExperiment& e) {
   return out.str();
 }
 
+StatusOr<DecompositionExperiment> RunDecompositionExperiment(
+    const MosaicResult& mosaic, const sim::Truth& truth, const DecompositionOptions& decomposition,
+    const AdjustmentOptions& adjustment) {
+  const LinkGraph& graph = mosaic.graph;
+  const size_t n = graph.nodes.size();
+  if (mosaic.chained.size() != n) {
+    return InvalidArgumentError("decomposition experiment: the mosaic has no chained start");
+  }
+  const int w = graph.image_width, h = graph.image_height;
+  const auto corners = ImageCorners(w, h);
+  SAKER_ASSIGN_OR_RETURN(const KeyFrameTruth key_truth,
+                         TruthOfKeyFrames(graph, truth, "decomposition experiment"));
+  const std::vector<Eigen::Matrix3d>& frame_from_ground = key_truth.frame_from_ground;
+  const std::vector<std::array<Eigen::Vector2d, 4>>& ground = key_truth.ground;
+  LinkGraph start = graph;
+  for (size_t k = 0; k < n; ++k) start.nodes[k].map_from_frame = mosaic.chained[k];
+  const auto solution = [](const LinkGraph& g) {
+    std::vector<Eigen::Matrix3d> m;
+    for (const Node& node : g.nodes) m.push_back(node.map_from_frame);
+    return m;
+  };
+
+  DecompositionExperiment e;
+  e.key_frames = int(n);
+  LinkGraph full = start;
+  auto t0 = std::chrono::steady_clock::now();
+  SAKER_ASSIGN_OR_RETURN(AdjustmentSummary full_summary, Adjust(&full, adjustment));
+  e.full_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  (void)full_summary;
+
+  LinkGraph decomposed = start;
+  t0 = std::chrono::steady_clock::now();
+  SAKER_ASSIGN_OR_RETURN(DecomposedSummary summary,
+                         AdjustDecomposed(&decomposed, adjustment, decomposition));
+  e.decomposed_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  e.node_adjust_s = summary.adjust_s;
+  e.nodes = summary.nodes;
+  e.arcs = summary.arcs;
+  e.cross_links = summary.cross_links;
+  e.left_out_cross_links = summary.left_out_cross_links;
+  e.inserted_nodes = summary.inserted_nodes;
+
+  double sum = 0;
+  for (size_t k = 0; k < n; ++k) {
+    // Compared in key frame k's pixels: both solutions' corners taken back through the full one.
+    const Eigen::Matrix3d k_from_map = full.nodes[k].map_from_frame.inverse();
+    for (const Eigen::Vector2d& c : corners) {
+      const double d =
+          (track::Transfer(k_from_map * decomposed.nodes[k].map_from_frame, c) - c).norm();
+      sum += d * d;
+      e.difference_max_px = std::max(e.difference_max_px, d);
+    }
+  }
+  e.difference_rms_px = std::sqrt(sum / double(4 * std::max<size_t>(1, n)));
+  const std::vector<Eigen::Matrix3d> full_m = solution(full), decomposed_m = solution(decomposed);
+  e.full = Errors(full_m, ground, frame_from_ground, GaugeFit(full_m, ground, w, h), w, h);
+  e.decomposed =
+      Errors(decomposed_m, ground, frame_from_ground, GaugeFit(decomposed_m, ground, w, h), w, h);
+  return e;
+}
+
+std::string DecompositionExperimentToText(const DecompositionExperiment& e) {
+  std::ostringstream out;
+  out.setf(std::ios::fixed);
+  out.precision(2);
+  out << "Decomposition experiment: " << e.key_frames << " key frames -> " << e.nodes << " nodes, "
+      << e.arcs << " arcs, " << e.cross_links << " cross-links (" << e.left_out_cross_links
+      << " left out), " << e.inserted_nodes << " nodes inserted\n"
+      << "  full adjustment " << 1000 * e.full_s << " ms, decomposed " << 1000 * e.decomposed_s
+      << " ms (nodes " << 1000 * e.node_adjust_s
+      << " ms): " << (e.decomposed_s > 0 ? e.full_s / e.decomposed_s : 0.0) << "x faster\n"
+      << "  decomposed against full: key frame corners RMS " << e.difference_rms_px << " px, max "
+      << e.difference_max_px << " px\n"
+      << "  against the truth, gauge removed: full RMS " << e.full.rms_px << " px / "
+      << e.full.rms_m << " m, decomposed RMS " << e.decomposed.rms_px << " px / "
+      << e.decomposed.rms_m << " m\n";
+  return out.str();
+}
+
+nlohmann::json DecompositionExperimentToJson(const DecompositionExperiment& e) {
+  return {{"key_frames", e.key_frames},
+          {"nodes", e.nodes},
+          {"arcs", e.arcs},
+          {"cross_links", e.cross_links},
+          {"left_out_cross_links", e.left_out_cross_links},
+          {"inserted_nodes", e.inserted_nodes},
+          {"full_s", e.full_s},
+          {"decomposed_s", e.decomposed_s},
+          {"node_adjust_s", e.node_adjust_s},
+          {"difference_rms_px", e.difference_rms_px},
+          {"difference_max_px", e.difference_max_px},
+          {"full_rms_px", e.full.rms_px},
+          {"decomposed_rms_px", e.decomposed.rms_px}};
+}
+
 nlohmann::json MosaicAccuracyToJson(const MosaicAccuracy& a) {
   const auto errors = [](const CornerErrors& e) {
     return nlohmann::json{{"rms_px", e.rms_px}, {"rms_m", e.rms_m}, {"max_m", e.max_m}};
@@ -265,6 +461,16 @@ nlohmann::json MosaicAccuracyToJson(const MosaicAccuracy& a) {
                       {"loop_closures", closures}};
   if (a.before_absolute) j["before_absolute"] = errors(*a.before_absolute);
   if (a.after_absolute) j["after_absolute"] = errors(*a.after_absolute);
+  j["adjustment"] = {
+      {"mode", a.adjust_mode}, {"nodes", a.nodes}, {"arcs", a.arcs}, {"time_s", a.adjust_s}};
+  if (a.in_between) {
+    j["in_between"] = {{"frames", a.in_between->frames},
+                       {"error", errors(a.in_between->frames_error)},
+                       {"key_frames_error", errors(a.in_between->key_frames_error)},
+                       {"between_key_frames", a.in_between->between},
+                       {"median_excess_px", a.in_between->median_excess_px},
+                       {"max_excess_px", a.in_between->max_excess_px}};
+  }
   return j;
 }
 
@@ -278,6 +484,16 @@ std::string MosaicAccuracyToText(const MosaicAccuracy& a) {
       << " m before adjustment, " << a.after.rms_px << " px / " << a.after.rms_m << " m after";
   if (a.after.rms_m > 0) out << " (" << a.before.rms_m / a.after.rms_m << "x smaller)";
   out << "\n";
+  out << "  adjustment: " << a.adjust_mode;
+  if (a.adjust_mode == "decomposed") out << ", " << a.nodes << " nodes, " << a.arcs << " arcs";
+  out << ", " << 1000 * a.adjust_s << " ms in all\n";
+  if (a.in_between) {
+    const InBetweenAccuracy& b = *a.in_between;
+    out << "  in-between frames: " << b.frames << " placed, corners RMS " << b.frames_error.rms_px
+        << " px / " << b.frames_error.rms_m << " m (key frames " << b.key_frames_error.rms_px
+        << " px); worse than both neighbouring key frames by median " << b.median_excess_px
+        << " px, max " << b.max_excess_px << " px\n";
+  }
   if (a.before_absolute && a.after_absolute) {
     out << "  key frame corners in map coordinates: RMS " << a.before_absolute->rms_m
         << " m before, " << a.after_absolute->rms_m << " m after (max " << a.after_absolute->max_m

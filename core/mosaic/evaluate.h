@@ -20,9 +20,28 @@ struct CornerErrors {
   double max_m = 0;
 };
 
+// The in-between frames (every video frame that is not a key frame, MosaicResult::in_between)
+// against the truth, after the same gauge fit as the key frames' `after` figures.
+struct InBetweenAccuracy {
+  int frames = 0;                 // placed frames that are not key frames
+  CornerErrors frames_error;      // theirs
+  CornerErrors key_frames_error;  // the key frames' (== MosaicAccuracy::after)
+  // Frames solved between two key frames: how far a frame's RMS corner error (its own pixels)
+  // exceeds the larger of its two key frames' (0 when it does not), median and largest.
+  int between = 0;
+  double median_excess_px = 0;
+  double max_excess_px = 0;
+};
+
 struct MosaicAccuracy {
   int key_frames = 0;
   bool geo_referenced = false;
+  // How the key frames were adjusted: "full" or "decomposed", and in the latter case the last
+  // adjustment's nodes and arcs; the time of all adjustments (MosaicTiming::adjust_s).
+  std::string adjust_mode;
+  int nodes = 0;
+  int arcs = 0;
+  double adjust_s = 0;
   // After removing the gauge: the estimated map is first mapped onto the truth ground by the one
   // homography that fits all key frame corners best (least squares), since without metadata the
   // map frame is arbitrary (the first key frame's pixels).
@@ -31,6 +50,7 @@ struct MosaicAccuracy {
   // worth to a user.
   std::optional<CornerErrors> before_absolute, after_absolute;
   std::vector<LoopClosure> closures;
+  std::optional<InBetweenAccuracy> in_between;  // when the mosaic placed them
 };
 
 // InvalidArgument when the truth does not describe the video (key frame indices out of range or
@@ -62,6 +82,26 @@ StatusOr<MetadataExperiment> RunMetadataExperiment(const MosaicResult& mosaic,
                                                    const sim::Truth& truth,
                                                    const MetadataExperimentOptions& options = {});
 std::string MetadataExperimentToText(const MetadataExperiment& experiment);
+
+// The paper's graph decomposition experiment (its figures 9 and 10) on a mosaic's link graph:
+// from the sequential chain's start (MosaicResult::chained), the full adjustment and the
+// decomposed one, timed, compared with each other and with the truth. `decomposition` says how
+// few nodes to use (cross_link_spacing keeps one cross-link per loop closure, as the paper did).
+struct DecompositionExperiment {
+  int key_frames = 0;
+  int nodes = 0, arcs = 0, cross_links = 0, left_out_cross_links = 0, inserted_nodes = 0;
+  double full_s = 0;         // the full adjustment
+  double decomposed_s = 0;   // the node adjustment(s) and the arcs' placement
+  double node_adjust_s = 0;  // the node adjustment(s) alone
+  // Key frame corners, decomposed against full, in the key frames' own pixels.
+  double difference_rms_px = 0, difference_max_px = 0;
+  CornerErrors full, decomposed;  // against the truth, gauge removed
+};
+StatusOr<DecompositionExperiment> RunDecompositionExperiment(
+    const MosaicResult& mosaic, const sim::Truth& truth, const DecompositionOptions& decomposition,
+    const AdjustmentOptions& adjustment = {});
+std::string DecompositionExperimentToText(const DecompositionExperiment& experiment);
+nlohmann::json DecompositionExperimentToJson(const DecompositionExperiment& experiment);
 
 nlohmann::json MosaicAccuracyToJson(const MosaicAccuracy& accuracy);
 std::string MosaicAccuracyToText(const MosaicAccuracy& accuracy);

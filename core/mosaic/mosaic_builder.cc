@@ -193,17 +193,27 @@ struct Builder {
 
   Status Adjust() {
     const auto start = Clock::now();
-    SAKER_ASSIGN_OR_RETURN(AdjustmentSummary summary,
-                           mosaic::Adjust(&result.graph, options.adjustment, job));
+    AdjustmentSummary summary;
+    std::optional<DecomposedSummary> decomposed;
+    if (options.adjust_mode == AdjustmentMode::kDecomposed) {
+      SAKER_ASSIGN_OR_RETURN(decomposed, AdjustDecomposed(&result.graph, options.adjustment,
+                                                          options.decomposition, job));
+      summary = decomposed->adjustment;
+    } else {
+      SAKER_ASSIGN_OR_RETURN(summary, mosaic::Adjust(&result.graph, options.adjustment, job));
+    }
     result.timing.adjust_s += SecondsSince(start);
     result.adjustments.push_back(summary);
     if (summary.cancelled) return CancelledError("mosaic: cancelled during bundle adjustment");
     const auto covariance_start = Clock::now();
     StatusOr<std::vector<HomographyCovariance>> covariances =
-        NodeCovariances(result.graph, options.adjustment);
+        decomposed ? DecomposedCovariances(result.graph, decomposed->decomposition,
+                                           options.adjustment, options.decomposition.placement)
+                   : NodeCovariances(result.graph, options.adjustment);
     result.timing.covariance_s += SecondsSince(covariance_start);
     // A rank-deficient problem keeps the chain's covariances; the solution itself stands.
     if (covariances.ok()) result.covariances = std::move(covariances).value();
+    if (decomposed) result.decomposition = std::move(decomposed);
     metadata_since_adjustment = 0;
     dirty = false;
     return Status::Ok();
@@ -360,6 +370,13 @@ struct Builder {
     // A last adjustment for what arrived since (metadata residuals; cross-links always adjust at
     // once), and so that the covariances describe the final graph.
     if (dirty || result.adjustments.empty()) SAKER_RETURN_IF_ERROR(Adjust());
+    if (options.place_in_between) {
+      const auto place_start = Clock::now();
+      SAKER_ASSIGN_OR_RETURN(
+          result.in_between,
+          PlaceInBetweenFrames(front.frames, graph, options.decomposition.placement, job));
+      result.timing.in_between_s = SecondsSince(place_start);
+    }
     result.timing.total_s = SecondsSince(start);
     return std::move(result);
   }
@@ -372,6 +389,7 @@ Status MosaicOptions::Validate() const {
   SAKER_RETURN_IF_ERROR(describe.Validate());
   SAKER_RETURN_IF_ERROR(match.Validate());
   SAKER_RETURN_IF_ERROR(index.Validate());
+  SAKER_RETURN_IF_ERROR(decomposition.Validate());
   if (!(lost_fraction > 0)) return InvalidArgumentError("mosaic: lost_fraction must be positive");
   if (!(prediction_floor_px >= 0)) {
     return InvalidArgumentError("mosaic: the prediction floor must be >= 0 pixels");

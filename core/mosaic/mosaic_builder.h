@@ -20,10 +20,14 @@
 //     geometric candidates existed but none matched (the prediction was over-confident).
 //  3. Any cross-link found triggers a bundle adjustment of all key frames so far, warm started,
 //     and the covariances are recomputed from it. With metadata, the graph is also adjusted every
-//     `adjust_every_metadata` key frames with metadata corners, and once at the end.
+//     `adjust_every_metadata` key frames with metadata corners, and once at the end. The
+//     adjustment is full or decomposed into nodes and arcs (decomposition.h, `adjust_mode`).
+// At the end every video frame is placed on the map (in_between.h).
 #include "core/frontend/front_end.h"
 #include "core/geo/local_tangent_plane.h"
 #include "core/mosaic/adjustment.h"
+#include "core/mosaic/decomposition.h"
+#include "core/mosaic/in_between.h"
 #include "core/mosaic/link_graph.h"
 #include "core/mosaic/loop_closure.h"
 #include "core/util/job_context.h"
@@ -38,6 +42,10 @@ namespace saker::mosaic {
 
 struct MosaicOptions {
   AdjustmentOptions adjustment;
+  // Full bundle adjustment of every key frame, or of the nodes of the node/arc decomposition.
+  AdjustmentMode adjust_mode = AdjustmentMode::kDecomposed;
+  DecompositionOptions decomposition;  // its placement options also place the in-between frames
+  bool place_in_between = true;        // solve every frame's map_from_frame at the end
   DescribeOptions describe;
   MatchOptions match;
   AppearanceIndexOptions index;
@@ -69,6 +77,7 @@ struct MosaicTiming {
   double match_s = 0;
   double adjust_s = 0;
   double covariance_s = 0;
+  double in_between_s = 0;
   double total_s = 0;
 };
 
@@ -82,6 +91,10 @@ struct MosaicResult {
   std::vector<track::HomographyCovariance> covariances;
   std::vector<LoopClosure> closures;
   std::vector<AdjustmentSummary> adjustments;
+  // The last decomposed adjustment's nodes, arcs and times (adjust_mode kDecomposed).
+  std::optional<DecomposedSummary> decomposition;
+  // Every video frame's map_from_frame (place_in_between).
+  InBetweenFrames in_between;
   std::optional<geo::Wgs84> origin;  // of the map frame, when geo_referenced
   int key_frames_with_metadata = 0;
   MosaicTiming timing;
