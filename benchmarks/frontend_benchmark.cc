@@ -3,19 +3,32 @@
 // memory.
 //
 //   saker-bench-frontend [--seconds S] [--json]
+//   saker-bench-frontend --memory-minutes M
+//
+// --memory-minutes measures memory instead: it simulates M minutes of 1280x720 video once (the
+// figure-of-eight scenario, in a temporary directory it removes afterwards), runs the front end
+// over it, and prints the resident memory after 1, 2, 5, 10, ... minutes of video and the peak,
+// with what the result keeps, so that growth per minute is visible.
 
 #include "core/frontend/front_end.h"
 #include "core/sim/simulator.h"
 #include "core/video/video_reader.h"
 
 #include <CLI/CLI.hpp>
+#include <malloc.h>
 #include <nlohmann/json.hpp>
 #include <sys/resource.h>
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
+#include <fstream>
 #include <iostream>
+#include <string>
+#include <vector>
 
 namespace {
 
@@ -26,6 +39,148 @@ double PeakRssMb() {
   rusage usage{};
   getrusage(RUSAGE_SELF, &usage);
   return double(usage.ru_maxrss) / 1024.0;
+}
+
+// A "VmRSS:"-style field of /proc/self/status, megabytes; -1 when absent.
+double ProcStatusMb(const std::string& field) {
+  std::ifstream status("/proc/self/status");
+  std::string line;
+  while (std::getline(status, line)) {
+    if (line.rfind(field + ":", 0) == 0)
+      return std::strtod(line.c_str() + field.size() + 1, nullptr) / 1024.0;
+  }
+  return -1;
+}
+
+// Memory on a long video: see the file comment.
+int MeasureMemory(double minutes) {
+  std::string pattern = (fs::temp_directory_path() / "saker-bench-memory-XXXXXX").string();
+  if (mkdtemp(pattern.data()) == nullptr) {
+    std::cerr << "cannot make a temporary directory\n";
+    return 1;
+  }
+  const fs::path dir = pattern;
+  struct Remover {
+    fs::path dir;
+    ~Remover() {
+      std::error_code ignored;
+      fs::remove_all(dir, ignored);
+    }
+  } remover{dir};
+
+  saker::sim::SimulationOptions sim;
+  sim.output = dir / "long.ts";
+  sim.camera.width = 1280;
+  sim.camera.height = 720;
+  sim.duration_s = minutes * 60;
+  // The paper's figure of eight over the town (504 s with its 75 key frames), sized to last a
+  // little longer than asked for.
+  sim.scenario = saker::sim::Scenario::kFigureEight;
+  sim.flight.figure_eight_key_frames =
+      std::max(8, int(std::ceil(75 * sim.duration_s / 504 * 1.05)));
+  std::printf("simulating %g minutes of 1280x720 video (figure of eight)...\n", minutes);
+  std::fflush(stdout);
+  auto start = Clock::now();
+  if (auto simulated = saker::sim::Simulate(sim); !simulated.ok()) {
+    std::cerr << simulated.status().message() << "\n";
+    return 1;
+  }
+  std::printf("  done in %.0f s, %.0f MB\n",
+              std::chrono::duration<double>(Clock::now() - start).count(),
+              double(fs::file_size(sim.output)) / 1e6);
+  // What the simulator freed goes back to the system, and the peak starts again from here
+  // ("5" resets VmHWM, Linux 4.0 and later), so the figures below are the front end's.
+  malloc_trim(0);
+  std::ofstream clear_refs("/proc/self/clear_refs");
+  clear_refs << "5" << std::flush;
+  const bool peak_reset = bool(clear_refs);
+  const double rss_start = ProcStatusMb("VmRSS");
+  std::printf("before the front end: RSS %.0f MB%s\n", rss_start,
+              peak_reset ? "" : " (the peak could not be reset: it includes the simulation)");
+
+  std::vector<double> checkpoints;
+  for (double m : {1.0, 2.0, 5.0, 10.0, 20.0, 30.0, 60.0, 120.0}) {
+    if (m < minutes) checkpoints.push_back(m);
+  }
+  checkpoints.push_back(minutes);
+  // Progress comes once per frame, as the fraction of the video done.
+  size_t next = 0;
+  double previous_minutes = 0, previous_rss = rss_start;
+  start = Clock::now();
+  saker::JobContext job([&](const std::string&, double fraction) {
+    while (next < checkpoints.size() && fraction * minutes >= checkpoints[next] - 1e-9) {
+      const double rss = ProcStatusMb("VmRSS");
+      std::printf(
+          "  after %3g min of video (%4.0f s): RSS %4.0f MB (+%3.0f MB; %+5.1f MB per minute "
+          "since the last checkpoint), peak %4.0f MB\n",
+          checkpoints[next], std::chrono::duration<double>(Clock::now() - start).count(), rss,
+          rss - rss_start, (rss - previous_rss) / (checkpoints[next] - previous_minutes),
+          ProcStatusMb("VmHWM"));
+      std::fflush(stdout);
+      previous_minutes = checkpoints[next], previous_rss = rss;
+      ++next;
+    }
+  });
+  auto result = saker::frontend::RunFrontEnd(sim.output.string(), {}, &job);
+  if (!result.ok()) {
+    std::cerr << result.status().message() << "\n";
+    return 1;
+  }
+  const double rss_end = ProcStatusMb("VmRSS"), peak = ProcStatusMb("VmHWM");
+  std::printf(
+      "front end done: %lld frames in %.0f s (%.1f fps); with its result: RSS %.0f MB (+%.0f MB), "
+      "peak %.0f MB (+%.0f MB)\n",
+      static_cast<long long>(result->timing.frames), result->timing.wall_s,
+      double(result->timing.frames) / result->timing.wall_s, rss_end, rss_end - rss_start, peak,
+      peak - rss_start);
+
+  // What the result keeps, by design (frames are not kept).
+  const auto mb = [](double bytes) { return bytes / 1e6; };
+  double key_image_bytes = 0, key_point_bytes = 0, link_bytes = 0, observation_bytes = 0;
+  for (const auto& k : result->key_frame_images) key_image_bytes += double(k.grey.total());
+  for (const auto& k : result->key_frames) {
+    key_point_bytes += double(k.points.size() * sizeof(k.points[0]));
+  }
+  for (const auto& l : result->links) {
+    link_bytes += double(sizeof(l) + l.correspondences.size() * sizeof(l.correspondences[0]));
+  }
+  int64_t observations = 0;
+  for (const auto& t : result->targets) {
+    for (const auto& o : t.observations) {
+      ++observations;
+      observation_bytes += double(sizeof(o) + o.features.size() * sizeof(o.features[0]));
+    }
+  }
+  std::printf(
+      "kept: %zu per-frame results (%.1f MB), %zu scan frame records (%.1f MB) and %zu KLV "
+      "packets (%.1f MB before their decoded items), %zu key frames (grey images %.1f MB, "
+      "points %.1f MB), %zu links (%.1f MB), %zu target tracks with %lld observations (%.1f MB)\n",
+      result->frames.size(), mb(double(result->frames.size() * sizeof(result->frames[0]))),
+      result->scan.frames.size(),
+      mb(double(result->scan.frames.size() * sizeof(result->scan.frames[0]))),
+      result->scan.packets.size(),
+      mb(double(result->scan.packets.size() * sizeof(result->scan.packets[0]))),
+      result->key_frames.size(), mb(key_image_bytes), mb(key_point_bytes), result->links.size(),
+      mb(link_bytes), result->targets.size(), static_cast<long long>(observations),
+      mb(observation_bytes));
+  // What each part really occupies (heap included): the memory returned by freeing it, once what
+  // the finished threads freed has gone back to the system.
+  malloc_trim(0);
+  std::printf("  RSS once the front end's threads and buffers are gone: %.0f MB\n",
+              ProcStatusMb("VmRSS"));
+  const auto released = [&](const char* what, auto&& free_it) {
+    const double before = ProcStatusMb("VmRSS");
+    free_it();
+    malloc_trim(0);
+    std::printf("  freeing %s returns %.1f MB\n", what, before - ProcStatusMb("VmRSS"));
+  };
+  released("the KLV packets (decoded sets and items)",
+           [&] { decltype(result->scan.packets)().swap(result->scan.packets); });
+  released("the key frame images",
+           [&] { decltype(result->key_frame_images)().swap(result->key_frame_images); });
+  released("the per-frame results", [&] { decltype(result->frames)().swap(result->frames); });
+  released("everything else in the result", [&] { *result = saker::frontend::FrontEndResult(); });
+  return 0;
 }
 
 double DecodeOnlyFps(const std::string& path) {
@@ -52,10 +207,16 @@ int main(int argc, char** argv) {
   CLI::App app{"saker-bench-frontend: front end speed against decoding alone"};
   double seconds = 20;
   bool json = false;
+  double memory_minutes = 0;
   app.add_option("--seconds", seconds, "Seconds of simulated video per resolution")
       ->capture_default_str();
   app.add_flag("--json", json, "Print JSON");
+  app.add_option("--memory-minutes", memory_minutes,
+                 "Instead: memory of the front end on a video this many minutes long (1280x720), "
+                 "at checkpoints")
+      ->check(CLI::NonNegativeNumber);
   CLI11_PARSE(app, argc, argv);
+  if (memory_minutes > 0) return MeasureMemory(memory_minutes);
 
   const fs::path dir = fs::temp_directory_path() / "saker-bench-frontend";
   fs::create_directories(dir);
@@ -92,6 +253,8 @@ int main(int argc, char** argv) {
                      {"homography_ms", t.homography_ms},
                      {"segment_ms", t.segment_ms},
                      {"change_ms", t.change_ms},
+                     {"change_tracks_ms", t.change_tracks_ms},
+                     {"change_wait_ms", t.change_wait_ms},
                      {"key_frames_ms", t.key_frames_ms},
                      {"peak_rss_mb", PeakRssMb()},
                      {"peak_rss_before_mb", rss_before}});
@@ -100,10 +263,11 @@ int main(int argc, char** argv) {
           "%dx%d, %lld frames: front end %.1f fps, decode alone %.1f fps, front end time = %.2fx "
           "decode "
           "time; per frame: decode %.1f ms (own thread), track %.1f, homography %.1f, segment "
-          "%.1f, change %.1f, key frames %.2f ms; peak RSS %.0f MB\n",
+          "%.1f, change %.1f (own thread), blob tracks %.2f, waiting for change %.2f, key frames "
+          "%.2f ms; peak RSS %.0f MB\n",
           w, h, static_cast<long long>(t.frames), front_fps, decode_fps, decode_fps / front_fps,
-          t.decode_ms, t.track_ms, t.homography_ms, t.segment_ms, t.change_ms, t.key_frames_ms,
-          PeakRssMb());
+          t.decode_ms, t.track_ms, t.homography_ms, t.segment_ms, t.change_ms, t.change_tracks_ms,
+          t.change_wait_ms, t.key_frames_ms, PeakRssMb());
     }
   }
   if (json) std::cout << out.dump(2) << "\n";

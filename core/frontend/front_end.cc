@@ -7,6 +7,8 @@
 #include <chrono>
 #include <condition_variable>
 #include <deque>
+#include <exception>
+#include <limits>
 #include <mutex>
 #include <optional>
 #include <thread>
@@ -17,46 +19,59 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
+// Change detection answers are applied this many frames after their frame was submitted (see
+// RunFrontEnd): the change thread may fall this far behind before the calling thread waits for it.
+// An answer belongs to the frame the longest baseline before the one submitted, so the change
+// evidence of frame m reaches the targets after frame m + longest baseline + this lag (20 frames
+// with the default baseline of 12: still within the 25 frames a target lives on unseen).
+constexpr int64_t kChangeLagFrames = 8;
+
 double MillisecondsSince(Clock::time_point start) {
   return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
 }
 
-// A bounded queue of decoded frames between the decode thread and the tracker.
-class FrameQueue {
+// A bounded queue between two threads. The producer pushes (blocking while the queue is full)
+// and closes it with a status when done; the consumer pops (blocking while it is empty) until it
+// is closed and empty. Either side may cancel: blocked calls return at once, what is queued is
+// dropped, and later pushes and pops fail.
+template <typename T>
+class BoundedQueue {
  public:
-  explicit FrameQueue(size_t capacity) : capacity_(capacity) {}
+  explicit BoundedQueue(size_t capacity) : capacity_(capacity) {}
 
-  // Blocks while full; false when the consumer has stopped.
-  bool Push(video::Frame frame) {
+  // Blocks while full; false once cancelled.
+  bool Push(T item) {
     std::unique_lock<std::mutex> lock(mutex_);
-    not_full_.wait(lock, [&] { return frames_.size() < capacity_ || stopped_; });
-    if (stopped_) return false;
-    frames_.push_back(std::move(frame));
+    not_full_.wait(lock, [&] { return items_.size() < capacity_ || cancelled_; });
+    if (cancelled_) return false;
+    items_.push_back(std::move(item));
     not_empty_.notify_one();
     return true;
   }
-  // The producer is done (end of video or an error).
-  void Close(Status status) {
+  // The producer is done (end of the input, or an error).
+  void Close(Status status = Status::Ok()) {
     std::lock_guard<std::mutex> lock(mutex_);
     closed_ = true;
     status_ = std::move(status);
     not_empty_.notify_all();
   }
-  // Blocks while empty; nullopt at the end.
-  std::optional<video::Frame> Pop() {
+  // Blocks while empty; nullopt at the end (closed and empty) or once cancelled.
+  std::optional<T> Pop() {
     std::unique_lock<std::mutex> lock(mutex_);
-    not_empty_.wait(lock, [&] { return !frames_.empty() || closed_; });
-    if (frames_.empty()) return std::nullopt;
-    video::Frame frame = std::move(frames_.front());
-    frames_.pop_front();
+    not_empty_.wait(lock, [&] { return !items_.empty() || closed_ || cancelled_; });
+    if (cancelled_ || items_.empty()) return std::nullopt;
+    T item = std::move(items_.front());
+    items_.pop_front();
     not_full_.notify_one();
-    return frame;
+    return item;
   }
-  // The consumer gives up (cancel or error): unblocks the producer.
-  void Stop() {
+  // Either side gives up (cancel, error): unblocks the other.
+  void Cancel() {
     std::lock_guard<std::mutex> lock(mutex_);
-    stopped_ = true;
+    cancelled_ = true;
+    items_.clear();
     not_full_.notify_all();
+    not_empty_.notify_all();
   }
   Status status() {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -67,10 +82,101 @@ class FrameQueue {
   size_t capacity_;
   std::mutex mutex_;
   std::condition_variable not_full_, not_empty_;
-  std::deque<video::Frame> frames_;
+  std::deque<T> items_;
   bool closed_ = false;
-  bool stopped_ = false;
+  bool cancelled_ = false;
   Status status_;
+};
+
+// Change detection on a thread of its own. The calling thread submits every frame and takes the
+// answers back, one per frame submitted, in the same order. A frame's grey image is shared, not
+// copied: the decode thread made it for this frame alone, and nobody writes to it afterwards.
+// An exception on the change thread (a failed check) is rethrown on the calling thread.
+// The caller takes answers at a fixed lag (RunFrontEnd), so at most `lag_frames` + 1 frames are
+// ever outstanding and the answer queue, that long, never holds the change thread up.
+class ChangeThread {
+ public:
+  struct Answer {
+    int64_t submitted = 0;      // the frame submitted
+    bool restart = false;       // it came without ground motion: the comparison started again
+    track::ChangeFrame change;  // the answer (for the frame the longest baseline earlier)
+    double ms = 0;              // time the change thread spent on it
+  };
+
+  ChangeThread(const track::ChangeOptions& options, size_t queue_frames, size_t lag_frames)
+      : inputs_(queue_frames), answers_(lag_frames + 1) {
+    thread_ = std::thread([this, options] { Run(options); });
+  }
+  // Stops the thread (it finishes the frame in hand) and joins it.
+  ~ChangeThread() {
+    inputs_.Cancel();
+    answers_.Cancel();
+    thread_.join();
+  }
+  ChangeThread(const ChangeThread&) = delete;
+  ChangeThread& operator=(const ChangeThread&) = delete;
+
+  // Frames must increase. Blocks while the queue is full.
+  void Submit(int64_t frame, cv::Mat grey, std::optional<Eigen::Matrix3d> motion) {
+    SAKER_CHECK(outstanding_.empty() || frame > outstanding_.back());
+    const auto start = Clock::now();
+    const bool pushed = inputs_.Push({frame, std::move(grey), std::move(motion)});
+    wait_ms_ += MillisecondsSince(start);
+    if (!pushed) RethrowOrFail();
+    outstanding_.push_back(frame);
+  }
+  // The answer to the oldest frame submitted and not yet taken, when that frame is at most
+  // `frame` (blocking until the answer is ready); otherwise nullopt, at once.
+  std::optional<Answer> NextThrough(int64_t frame) {
+    if (outstanding_.empty() || outstanding_.front() > frame) return std::nullopt;
+    const auto start = Clock::now();
+    std::optional<Answer> answer = answers_.Pop();
+    wait_ms_ += MillisecondsSince(start);
+    if (!answer) RethrowOrFail();
+    SAKER_CHECK(answer->submitted == outstanding_.front());
+    outstanding_.pop_front();
+    return answer;
+  }
+  // Time the calling thread spent waiting in Submit and NextThrough, milliseconds.
+  double wait_ms() const { return wait_ms_; }
+
+ private:
+  struct Input {
+    int64_t frame = 0;
+    cv::Mat grey;
+    std::optional<Eigen::Matrix3d> motion;
+  };
+
+  void Run(const track::ChangeOptions& options) {
+    try {
+      track::ChangeDetector detector(options);
+      while (std::optional<Input> input = inputs_.Pop()) {
+        const auto start = Clock::now();
+        Answer answer;
+        answer.submitted = input->frame;
+        answer.restart = !input->motion;
+        answer.change = detector.Process(input->frame, input->grey, input->motion);
+        input.reset();  // the frame is no longer needed here
+        answer.ms = MillisecondsSince(start);
+        if (!answers_.Push(std::move(answer))) return;
+      }
+    } catch (...) {
+      error_ = std::current_exception();  // published by the queues' locks below
+      inputs_.Cancel();
+    }
+    answers_.Close();
+  }
+  [[noreturn]] void RethrowOrFail() {
+    if (error_) std::rethrow_exception(error_);
+    throw CheckError("front end: the change detection thread stopped early");
+  }
+
+  BoundedQueue<Input> inputs_;
+  BoundedQueue<Answer> answers_;
+  std::exception_ptr error_;         // set by the change thread before it closes answers_
+  std::deque<int64_t> outstanding_;  // frames submitted whose answers are not taken yet
+  double wait_ms_ = 0;
+  std::thread thread_;  // last: started once everything above exists
 };
 
 // The epipole for the parallax test, only when the scene shows parallax. Over flat ground the
@@ -129,6 +235,9 @@ Status FrontEndOptions::Validate() const {
   if (queue_frames < 1 || queue_frames > 256) {
     return InvalidArgumentError("front end: the frame queue must hold 1..256 frames");
   }
+  if (change_queue_frames < 1 || change_queue_frames > 256) {
+    return InvalidArgumentError("front end: the change detection queue must hold 1..256 frames");
+  }
   if (key_frame_image_width < 0) {
     return InvalidArgumentError("front end: the key frame image width must be >= 0");
   }
@@ -142,6 +251,8 @@ StatusOr<FrontEndResult> RunFrontEnd(const std::string& path, const FrontEndOpti
   // The front end needs live tracks only, and of each only its latest positions.
   options.tracker.keep_finished = false;
   options.tracker.max_history = 2;
+  // A target that ends waits for the change evidence of its last frames (it comes late).
+  options.targets.wait_for_change = options.change.enabled;
 
   // The scan decodes every frame and every KLV packet in one pass on the decode thread; the
   // frames go through the queue, the metadata is tied to the frames when the scan ends.
@@ -161,7 +272,7 @@ StatusOr<FrontEndResult> RunFrontEnd(const std::string& path, const FrontEndOpti
   if (expected_frames <= 0) expected_frames = result.video.duration_s * result.video.fps;
   expected_frames = std::max(1.0, expected_frames);
 
-  FrameQueue queue(size_t(options.queue_frames));
+  BoundedQueue<video::Frame> queue(size_t(options.queue_frames));
   double decode_ms = 0;
   JobContext decode_job;  // cancelled when the consumer stops early
   StatusOr<ingest::VideoScan> scan = CancelledError("front end: the scan did not run");
@@ -178,14 +289,12 @@ StatusOr<FrontEndResult> RunFrontEnd(const std::string& path, const FrontEndOpti
   });
   // Whatever happens below, the decode thread is stopped and joined.
   struct Joiner {
-    FrameQueue& queue;
+    BoundedQueue<video::Frame>& queue;
     JobContext& job;
     std::thread& thread;
     ~Joiner() {
       job.RequestCancel();
-      queue.Stop();
-      while (queue.Pop()) {
-      }
+      queue.Cancel();
       if (thread.joinable()) thread.join();
     }
   } joiner{queue, decode_job, decoder};
@@ -194,12 +303,49 @@ StatusOr<FrontEndResult> RunFrontEnd(const std::string& path, const FrontEndOpti
   track::MotionSegmenter segmenter(options.segmentation);
   track::TargetTracker targets(options.targets);
   track::KeyFrameChain chain(options.key_frames);
-  track::ChangeDetector change(options.change);
   track::BlobTracker change_tracks(options.change_tracks);
   std::vector<track::TargetTrack> targets_by_change;
   FrontEndTiming& timing = result.timing;
   const auto wall_start = Clock::now();
   bool segment_open = false;
+
+  // Change detection runs on its own thread (its destructor stops and joins it, whatever happens
+  // below). Its answers are applied at a fixed lag, so that the result never depends on how the
+  // threads ran: once frame n is through segmentation, the answers for every frame up to
+  // n - kChangeLagFrames are applied, waiting for them if need be; at a chain break every answer
+  // up to the frame before it, at the end all of them. Applying an answer is what the
+  // single-threaded front end did right after its frame: the blob tracks (ended first when the
+  // frame had no ground motion), the change evidence of the targets, the finished blob tracks.
+  std::optional<ChangeThread> change;
+  if (options.change.enabled) {
+    change.emplace(options.change, size_t(options.change_queue_frames), size_t(kChangeLagFrames));
+  }
+  double change_side_ms = 0;  // the calling thread's time for change detection (waits included)
+  const auto apply_change_through = [&](int64_t frame) {
+    if (!change) return;
+    const auto start = Clock::now();
+    while (std::optional<ChangeThread::Answer> answer = change->NextThrough(frame)) {
+      const auto apply_start = Clock::now();
+      if (answer->restart) change_tracks.FinishAll();
+      const track::ChangeFrame& c = answer->change;
+      if (c.answered()) {
+        change_tracks.AddFrame(c.frame, c.blobs, c.frame_motion);
+        // Within the target's box, and a few pixels round a single point.
+        targets.RecordChange(c.frame, [&](const track::TargetObservation& o) {
+          if (!c.Compared(o.position)) return track::ChangeEvidence::kNotLooked;
+          const double radius = std::max(3.0, 0.5 * (o.box_max - o.box_min).maxCoeff());
+          return c.ChangedNear(o.position, radius) ? track::ChangeEvidence::kChanged
+                                                   : track::ChangeEvidence::kNone;
+        });
+      }
+      for (track::TargetTrack& t : change_tracks.TakeFinished()) {
+        targets_by_change.push_back(std::move(t));
+      }
+      timing.change_ms += answer->ms;
+      timing.change_tracks_ms += MillisecondsSince(apply_start);
+    }
+    change_side_ms += MillisecondsSince(start);
+  };
 
   while (std::optional<video::Frame> frame = queue.Pop()) {
     if (job != nullptr && job->IsCancelled()) return CancelledError("front end: cancelled");
@@ -229,7 +375,18 @@ StatusOr<FrontEndResult> RunFrontEnd(const std::string& path, const FrontEndOpti
     if (estimate && options.parallax_check) epipole = ParallaxEpipole(ground, *estimate, options);
     timing.homography_ms += MillisecondsSince(start);
 
+    // Change detection (small movers, and what the image shows under each target) starts on the
+    // frame as soon as its ground motion is known.
+    if (change) {
+      start = Clock::now();
+      std::optional<Eigen::Matrix3d> motion;
+      if (estimate) motion = estimate->target_from_source;
+      change->Submit(frame->index, frame->grey, motion);
+      change_side_ms += MillisecondsSince(start);
+    }
+
     start = Clock::now();
+    const double change_side_before = change_side_ms;
     if (estimate) {
       fr.homography_ok = true;
       fr.current_from_previous = estimate->target_from_source;
@@ -240,37 +397,18 @@ StatusOr<FrontEndResult> RunFrontEnd(const std::string& path, const FrontEndOpti
       fr.moving = int(segmenter.moving().size());
     } else if (segment_open) {
       // No reliable ground motion (blank, featureless, a cut): the chain breaks here; the next
-      // frame starts afresh.
+      // frame starts afresh. The targets first take the change evidence of the segment's frames.
+      apply_change_through(frame->index - 1);
       segmenter.Reset();
       targets.FinishAll();
+      targets.EndChangeEvidence();  // the change detector starts again too
       tracker.Reset();
       tracker.Process(frame->index, frame->grey);
     }
     for (track::TargetTrack& t : targets.TakeFinished()) result.targets.push_back(std::move(t));
-    timing.segment_ms += MillisecondsSince(start);
+    timing.segment_ms += MillisecondsSince(start) - (change_side_ms - change_side_before);
 
-    // Change detection: small movers, and what the image shows under each target.
-    start = Clock::now();
-    if (options.change.enabled) {
-      std::optional<Eigen::Matrix3d> motion;
-      if (estimate) motion = estimate->target_from_source;
-      change.Process(frame->index, frame->grey, motion);
-      if (!estimate) change_tracks.FinishAll();
-      if (change.frame() >= 0) {
-        change_tracks.AddFrame(change.frame(), change.blobs(), change.frame_motion());
-        // Within the target's box, and a few pixels round a single point.
-        targets.RecordChange(change.frame(), [&](const track::TargetObservation& o) {
-          if (!change.Compared(o.position)) return track::ChangeEvidence::kNotLooked;
-          const double radius = std::max(3.0, 0.5 * (o.box_max - o.box_min).maxCoeff());
-          return change.ChangedNear(o.position, radius) ? track::ChangeEvidence::kChanged
-                                                        : track::ChangeEvidence::kNone;
-        });
-      }
-      for (track::TargetTrack& t : change_tracks.TakeFinished()) {
-        targets_by_change.push_back(std::move(t));
-      }
-    }
-    timing.change_ms += MillisecondsSince(start);
+    apply_change_through(frame->index - kChangeLagFrames);
 
     // Key frames from the stationary points.
     start = Clock::now();
@@ -309,7 +447,9 @@ StatusOr<FrontEndResult> RunFrontEnd(const std::string& path, const FrontEndOpti
   SAKER_CHECK(result.scan.frames.size() == result.frames.size())
       << "the scan saw " << result.scan.frames.size() << " frames, the tracker "
       << result.frames.size();
+  apply_change_through(std::numeric_limits<int64_t>::max());
   targets.FinishAll();
+  targets.EndChangeEvidence();
   for (track::TargetTrack& t : targets.TakeFinished()) result.targets.push_back(std::move(t));
   change_tracks.FinishAll();
   for (track::TargetTrack& t : change_tracks.TakeFinished()) {
@@ -320,10 +460,11 @@ StatusOr<FrontEndResult> RunFrontEnd(const std::string& path, const FrontEndOpti
   result.links = chain.links();
   result.breaks = chain.breaks();
   timing.wall_s = MillisecondsSince(wall_start) / 1000.0;
+  if (change) timing.change_wait_ms = change->wait_ms();
   const double n = double(std::max<int64_t>(1, timing.frames));
   timing.decode_ms = decode_ms / n;
   timing.track_ms /= n, timing.homography_ms /= n, timing.segment_ms /= n, timing.change_ms /= n,
-      timing.key_frames_ms /= n;
+      timing.change_tracks_ms /= n, timing.change_wait_ms /= n, timing.key_frames_ms /= n;
   return result;
 }
 

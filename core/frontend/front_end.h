@@ -4,10 +4,12 @@
 // frame with its covariance; moving-target tracks; key frames and the sequential links between
 // them. decode -> track -> segment -> homography -> key frames / targets.
 //
-// Decoding runs on its own thread and feeds a bounded queue; everything else runs on the calling
-// thread. Frames are not kept: memory holds the live feature tracks, the key frames (their
-// stationary points and a downscaled grey image for later matching), the per-frame homographies
-// and the target tracks.
+// Three threads: decoding feeds a bounded queue; the calling thread tracks, estimates the ground
+// motion, segments and keeps the key frames; change detection runs on a third thread fed by a
+// second bounded queue, and its answers are applied on the calling thread at a fixed lag, so the
+// result is the same however the threads run (docs/front-end.md). Frames are not kept: memory
+// holds the live feature tracks, the key frames (their stationary points and a downscaled grey
+// image for later matching), the per-frame homographies and the target tracks.
 
 #include "core/ingest/video_scan.h"
 #include "core/track/change_detector.h"
@@ -43,6 +45,8 @@ struct FrontEndOptions {
   bool parallax_check = true;    // estimate the epipole (fundamental matrix) for the MTI test
   int min_parallax_points = 20;  // matches on F but off the ground plane needed to use F's epipole
   int queue_frames = 6;          // decoded frames waiting for the tracker, at most
+  int change_queue_frames = 8;   // frames waiting for the change detection thread, at most (its
+                                 // answers are taken 8 frames late: more than 8 changes nothing)
   int key_frame_image_width = 640;  // width of the grey copy kept per key frame (0: none)
   int decoder_threads = 0;          // 0 = automatic
   Status Validate() const;
@@ -71,9 +75,11 @@ struct KeyFrameImage {
 struct FrontEndTiming {
   double decode_ms = 0;  // on the decode thread (overlaps the rest)
   double track_ms = 0;
-  double homography_ms = 0;  // frame to frame + fundamental
-  double segment_ms = 0;     // motion segmentation and target tracks
-  double change_ms = 0;      // change detection and its tracks
+  double homography_ms = 0;     // frame to frame + fundamental
+  double segment_ms = 0;        // motion segmentation and target tracks
+  double change_ms = 0;         // change detection, on its own thread (overlaps the rest)
+  double change_tracks_ms = 0;  // blob tracks and the targets' change evidence
+  double change_wait_ms = 0;    // the calling thread waiting for the change detection thread
   double key_frames_ms = 0;
   double wall_s = 0;
   int64_t frames = 0;

@@ -25,6 +25,11 @@ Eigen::Matrix3d ToSmallPixels(const Eigen::Matrix3d& full, double scale) {
   return small_from_full * full * small_from_full.inverse();
 }
 
+// A full-resolution point in the pixels of the copy scaled by 1/scale.
+Eigen::Vector2d ToProcessing(const Eigen::Vector2d& p, double scale) {
+  return {(p.x() + 0.5) / scale - 0.5, (p.y() + 0.5) / scale - 0.5};
+}
+
 }  // namespace
 
 Status ChangeOptions::Validate() const {
@@ -50,27 +55,17 @@ ChangeDetector::ChangeDetector(const ChangeOptions& options) : options_(options)
   SAKER_CHECK(options_.Validate().ok()) << options_.Validate().message();
 }
 
-void ChangeDetector::Reset() {
-  history_.clear();
-  frame_ = -1;
-  blobs_.clear();
-}
+void ChangeDetector::Reset() { history_.clear(); }
 
 Eigen::Vector2d ChangeDetector::ToFull(double x, double y) const {
   return {(x + 0.5) * scale_ - 0.5, (y + 0.5) * scale_ - 0.5};
 }
 
-Eigen::Vector2d ChangeDetector::ToSmall(const Eigen::Vector2d& p) const {
-  return {(p.x() + 0.5) / scale_ - 0.5, (p.y() + 0.5) / scale_ - 0.5};
-}
-
-const std::vector<ChangeBlob>& ChangeDetector::Process(
-    int64_t frame, const cv::Mat& grey,
-    const std::optional<Eigen::Matrix3d>& current_from_previous) {
+ChangeFrame ChangeDetector::Process(int64_t frame, const cv::Mat& grey,
+                                    const std::optional<Eigen::Matrix3d>& current_from_previous) {
   SAKER_CHECK(grey.type() == CV_8UC1) << "change detection needs 8-bit grey frames";
-  blobs_.clear();
-  frame_ = -1;
-  if (!options_.enabled || grey.empty()) return blobs_;
+  ChangeFrame result;
+  if (!options_.enabled || grey.empty()) return result;
   if (grey.size() != full_size_) {
     Reset();
     full_size_ = grey.size();
@@ -108,7 +103,7 @@ const std::vector<ChangeBlob>& ChangeDetector::Process(
     entry.small_motion = ToSmallPixels(*current_from_previous, scale_);
   }
   history_.push_back(std::move(entry));
-  if (history_.size() < 2 * longest + 1) return blobs_;
+  if (history_.size() < 2 * longest + 1) return result;
   const Entry& centre = history_[longest];
 
   // Each other frame warped onto the centre frame, its mean grey matched to the centre's (gain
@@ -169,15 +164,15 @@ const std::vector<ChangeBlob>& ChangeDetector::Process(
   // Per baseline: the frames before and after, and where both cover the centre frame.
   pairs_.resize(baselines.size());
   covers_.resize(baselines.size());
-  valid_.create(small_size_, CV_8U);
-  valid_.setTo(0);
+  // The answer's masks are its own (allocated here, never reused by the detector).
+  cv::Mat valid(small_size_, CV_8U, cv::Scalar(0));
   for (size_t i = 0; i < baselines.size(); ++i) {
     if (!warp(longest - baselines[i], &pairs_[i][0]) ||
         !warp(longest + baselines[i], &pairs_[i][1])) {
-      return blobs_;  // a degenerate motion: no answer for this frame
+      return result;  // a degenerate motion: no answer for this frame
     }
     cv::bitwise_and(pairs_[i][0].cover, pairs_[i][1].cover, covers_[i]);
-    cv::bitwise_or(valid_, covers_[i], valid_);
+    cv::bitwise_or(valid, covers_[i], valid);
   }
 
   // A pixel changed when both differences exceed their noise with the same sign. The noise of
@@ -209,8 +204,7 @@ const std::vector<ChangeBlob>& ChangeDetector::Process(
     return d * d > threshold * threshold *
                        (noise * noise + allowance * allowance * gradient_squared(other, x, y));
   };
-  changed_.create(small_size_, CV_8U);
-  changed_.setTo(0);
+  cv::Mat changed(small_size_, CV_8U, cv::Scalar(0));
   strength_.create(small_size_, CV_32F);
   strength_.setTo(0);
   for (size_t i = 0; i < pairs_.size(); ++i) {
@@ -221,7 +215,7 @@ const std::vector<ChangeBlob>& ChangeDetector::Process(
       const uint8_t* w0 = before.warped.ptr<uint8_t>(y);
       const uint8_t* w1 = after.warped.ptr<uint8_t>(y);
       const uint8_t* v = covers_[i].ptr<uint8_t>(y);
-      uint8_t* out = changed_.ptr<uint8_t>(y);
+      uint8_t* out = changed.ptr<uint8_t>(y);
       float* s = strength_.ptr<float>(y);
       for (int x = 0; x < small_size_.width; ++x) {
         if (v[x] == 0) continue;
@@ -240,7 +234,7 @@ const std::vector<ChangeBlob>& ChangeDetector::Process(
   }
 
   const int count =
-      cv::connectedComponentsWithStats(changed_, labels_, stats_, centroids_, 8, CV_32S);
+      cv::connectedComponentsWithStats(changed, labels_, stats_, centroids_, 8, CV_32S);
   for (int i = 1; i < count; ++i) {
     const int area = stats_.at<int>(i, cv::CC_STAT_AREA);
     if (area < options_.min_area_px || area > options_.max_area_px) continue;
@@ -265,30 +259,33 @@ const std::vector<ChangeBlob>& ChangeDetector::Process(
     blob.box_max = ToFull(x1 - 0.5, y1 - 0.5);
     blob.area_px = area;
     blob.contrast = peak;
-    blobs_.push_back(blob);
+    result.blobs.push_back(blob);
   }
-  frame_ = centre.frame;
-  centre_motion_ = centre.motion;
-  return blobs_;
+  result.frame = centre.frame;
+  result.frame_motion = centre.motion;
+  result.changed = std::move(changed);
+  result.valid = std::move(valid);
+  result.scale = scale_;
+  return result;
 }
 
-bool ChangeDetector::Compared(const Eigen::Vector2d& p) const {
-  if (frame_ < 0) return false;
-  const Eigen::Vector2d q = ToSmall(p);
+bool ChangeFrame::Compared(const Eigen::Vector2d& p) const {
+  if (frame < 0) return false;
+  const Eigen::Vector2d q = ToProcessing(p, scale);
   const int x = int(std::lround(q.x())), y = int(std::lround(q.y()));
-  return x >= 0 && y >= 0 && x < valid_.cols && y < valid_.rows && valid_.at<uint8_t>(y, x) != 0;
+  return x >= 0 && y >= 0 && x < valid.cols && y < valid.rows && valid.at<uint8_t>(y, x) != 0;
 }
 
-bool ChangeDetector::ChangedNear(const Eigen::Vector2d& p, double radius_px) const {
-  if (frame_ < 0) return false;
-  const Eigen::Vector2d q = ToSmall(p);
-  const double r = radius_px / scale_;
+bool ChangeFrame::ChangedNear(const Eigen::Vector2d& p, double radius_px) const {
+  if (frame < 0) return false;
+  const Eigen::Vector2d q = ToProcessing(p, scale);
+  const double r = radius_px / scale;
   const int x0 = std::max(0, int(std::floor(q.x() - r))),
-            x1 = std::min(changed_.cols - 1, int(std::ceil(q.x() + r)));
+            x1 = std::min(changed.cols - 1, int(std::ceil(q.x() + r)));
   const int y0 = std::max(0, int(std::floor(q.y() - r))),
-            y1 = std::min(changed_.rows - 1, int(std::ceil(q.y() + r)));
+            y1 = std::min(changed.rows - 1, int(std::ceil(q.y() + r)));
   for (int y = y0; y <= y1; ++y) {
-    const uint8_t* row = changed_.ptr<uint8_t>(y);
+    const uint8_t* row = changed.ptr<uint8_t>(y);
     for (int x = x0; x <= x1; ++x) {
       if (row[x] != 0 && (Eigen::Vector2d(x, y) - q).squaredNorm() <= r * r) return true;
     }

@@ -19,10 +19,11 @@
 // for misregistration (an edge off by a tenth of a pixel differs too), after matching the earlier
 // frames' mean grey level (gain drift). Changed pixels are grouped into blobs.
 //
-// Two uses: ChangedNear() lets a feature target be checked against the image (a corner sliding
-// along a road marking has no change under it; a car or a walker does), and BlobTracker follows
-// small blobs over time. Like the feature segmentation, one frame never makes a target: a blob
-// track is confirmed only after it has moved steadily, in a straight enough line, for long enough.
+// Two uses: ChangeFrame::ChangedNear() lets a feature target be checked against the image (a corner
+// sliding along a road marking has no change under it; a car or a walker does), and BlobTracker
+// follows small blobs over time. Like the feature segmentation, one frame never makes a target: a
+// blob track is confirmed only after it has moved steadily, in a straight enough line, for long
+// enough.
 
 #include "core/track/target_tracks.h"
 #include "core/util/status.h"
@@ -62,6 +63,25 @@ struct ChangeBlob {
   double contrast = 0;  // strongest change, grey levels (negative: darker than before)
 };
 
+// What the change detector found for one frame. Self-contained: it holds its own copies of the
+// small masks, so it stays valid after the detector moves on and can be handed to another thread
+// (the front end runs the detector on a thread of its own and applies its answers later).
+struct ChangeFrame {
+  int64_t frame = -1;  // the frame compared (the centre frame); -1: no answer (too early in a
+                       // segment, a degenerate motion, turned off)
+  std::vector<ChangeBlob> blobs;
+  Eigen::Matrix3d frame_motion = Eigen::Matrix3d::Identity();  // ground motion into `frame` from
+                                                               // the frame before (full resolution)
+  cv::Mat changed;   // CV_8U, processing size: non-zero where `frame` changed
+  cv::Mat valid;     // CV_8U, processing size: non-zero where it could be compared
+  double scale = 1;  // full-resolution pixels per processing pixel
+  bool answered() const { return frame >= 0; }
+  // Whether a changed pixel lies within `radius_px` (full resolution) of `p`.
+  bool ChangedNear(const Eigen::Vector2d& p, double radius_px) const;
+  // Whether `frame` could be compared at `p` (inside the overlap of the three frames).
+  bool Compared(const Eigen::Vector2d& p) const;
+};
+
 class ChangeDetector {
  public:
   explicit ChangeDetector(const ChangeOptions& options);
@@ -69,21 +89,11 @@ class ChangeDetector {
   // One frame (8-bit grey, full resolution; frame indices increase). `current_from_previous` is
   // the ground motion since the previous frame in full-resolution pixels; nullopt when unknown
   // (the first frame of a chain segment): the comparison then starts again. The comparison is
-  // centred: its result belongs to the frame the longest baseline back (frame()), compared with
-  // the frames each baseline before and after it. Returns that frame's blobs.
-  const std::vector<ChangeBlob>& Process(
-      int64_t frame, const cv::Mat& grey,
-      const std::optional<Eigen::Matrix3d>& current_from_previous);
-
-  // The frame the latest result belongs to; -1 when there is none (too early in a segment).
-  int64_t frame() const { return frame_; }
-  // The ground motion into frame() from the frame before it (full resolution).
-  const Eigen::Matrix3d& frame_motion() const { return centre_motion_; }
-  const std::vector<ChangeBlob>& blobs() const { return blobs_; }
-  // Whether a changed pixel of frame() lies within `radius_px` (full resolution) of `p`.
-  bool ChangedNear(const Eigen::Vector2d& p, double radius_px) const;
-  // Whether frame() could be compared at `p` (inside the overlap of the three frames).
-  bool Compared(const Eigen::Vector2d& p) const;
+  // centred: the answer belongs to the frame the longest baseline back (ChangeFrame::frame),
+  // compared with the frames each baseline before and after it; no answer (frame -1) while the
+  // segment is shorter than twice the longest baseline.
+  ChangeFrame Process(int64_t frame, const cv::Mat& grey,
+                      const std::optional<Eigen::Matrix3d>& current_from_previous);
   void Reset();
 
  private:
@@ -98,21 +108,16 @@ class ChangeDetector {
     float gain = 1;
   };
   Eigen::Vector2d ToFull(double x, double y) const;
-  Eigen::Vector2d ToSmall(const Eigen::Vector2d& p) const;
 
   ChangeOptions options_;
   cv::Size full_size_, small_size_;
   double scale_ = 1;           // full / processing
   std::deque<Entry> history_;  // the last 2 x baseline_frames + 1 frames of the segment
-  int64_t frame_ = -1;
-  Eigen::Matrix3d centre_motion_ = Eigen::Matrix3d::Identity();
+  // Buffers reused from frame to frame (the masks handed out are allocated per answer).
   std::vector<std::array<Other, 2>> pairs_;  // per baseline: before and after
   std::vector<cv::Mat> covers_;              // per baseline: where both cover the centre frame
-  cv::Mat labels_, stats_, centroids_;       // connected components of changed_
-  cv::Mat changed_;                          // CV_8U mask of frame()
+  cv::Mat labels_, stats_, centroids_;       // connected components of the changed mask
   cv::Mat strength_;                         // CV_32F signed change of the changed pixels
-  cv::Mat valid_;                            // where frame() could be compared
-  std::vector<ChangeBlob> blobs_;
 };
 
 struct BlobTrackOptions {

@@ -181,7 +181,7 @@ void TargetTracker::AddFrame(int64_t frame, const std::vector<MovingPoint>& movi
   std::vector<TargetTrack> still;
   for (TargetTrack& target : active_) {
     if (frame - target.last_frame() > options_.max_gap_frames) {
-      if (target.confirmed) finished_.push_back(std::move(target));
+      if (target.confirmed) End(std::move(target));
     } else {
       still.push_back(std::move(target));
     }
@@ -228,11 +228,36 @@ void TargetTracker::MergeAlike(int64_t frame) {
 
 void TargetTracker::RecordChange(
     int64_t frame, const std::function<ChangeEvidence(const TargetObservation&)>& look) {
-  for (TargetTrack& target : active_) {
+  const auto record = [&](TargetTrack& target) {
     for (auto o = target.observations.rbegin(); o != target.observations.rend(); ++o) {
       if (o->frame < frame) break;
       if (o->frame == frame) o->change = look(*o);
     }
+  };
+  for (TargetTrack& target : active_) record(target);
+  for (TargetTrack& target : waiting_) record(target);
+  change_through_ = std::max(change_through_, frame);
+  std::vector<TargetTrack> still;
+  for (TargetTrack& target : waiting_) {
+    if (target.last_frame() <= change_through_) {
+      finished_.push_back(std::move(target));
+    } else {
+      still.push_back(std::move(target));
+    }
+  }
+  waiting_ = std::move(still);
+}
+
+void TargetTracker::EndChangeEvidence() {
+  for (TargetTrack& target : waiting_) finished_.push_back(std::move(target));
+  waiting_.clear();
+}
+
+void TargetTracker::End(TargetTrack&& target) {
+  if (options_.wait_for_change && target.last_frame() > change_through_) {
+    waiting_.push_back(std::move(target));
+  } else {
+    finished_.push_back(std::move(target));
   }
 }
 
@@ -244,7 +269,7 @@ std::vector<TargetTrack> TargetTracker::TakeFinished() {
 
 void TargetTracker::FinishAll() {
   for (TargetTrack& target : active_) {
-    if (target.confirmed) finished_.push_back(std::move(target));
+    if (target.confirmed) End(std::move(target));
   }
   active_.clear();
 }

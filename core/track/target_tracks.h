@@ -40,6 +40,10 @@ struct TargetTrackOptions {
   // that one was heading, continues it; tracks side by side for this many frames are one.
   int link_gap_frames = 60;
   int duplicate_overlap_frames = 5;
+  // Change evidence (RecordChange) comes some frames late. When set, a target that ends waits
+  // until RecordChange has reached its last frame, or EndChangeEvidence() says that no more will
+  // come, before it is finished: it leaves with the evidence of every frame that gets one.
+  bool wait_for_change = false;
   Status Validate() const;
 };
 
@@ -78,21 +82,32 @@ class TargetTracker {
 
   // Targets still being followed.
   const std::vector<TargetTrack>& active() const { return active_; }
-  // Records what the change detector saw at the active targets' observations of `frame` (a
-  // recent one: the change detector answers a few frames late).
+  // Confirmed targets that ended but wait for change evidence (wait_for_change).
+  const std::vector<TargetTrack>& waiting() const { return waiting_; }
+  // Records what the change detector saw at the observations of `frame` (a recent one: the change
+  // detector answers some frames late) of the active and the waiting targets; frames increase
+  // from call to call. Waiting targets whose last frame is now answered are finished.
   void RecordChange(int64_t frame,
                     const std::function<ChangeEvidence(const TargetObservation&)>& look);
-  // Confirmed targets that ended since the last call (unconfirmed ones are dropped).
+  // No more change evidence will come for the frames seen so far (a chain break, the end of the
+  // video): the waiting targets are finished.
+  void EndChangeEvidence();
+  // Confirmed targets that ended since the last call, in the order they were finished
+  // (unconfirmed ones are dropped).
   std::vector<TargetTrack> TakeFinished();
   // Ends every active target (at the end of the video or at a chain break).
   void FinishAll();
 
  private:
   void MergeAlike(int64_t frame);
+  // A confirmed target that ended: finished, or waiting for its change evidence.
+  void End(TargetTrack&& target);
 
   TargetTrackOptions options_;
   std::vector<TargetTrack> active_;
+  std::vector<TargetTrack> waiting_;  // ended, waiting for change evidence (in order of ending)
   std::vector<TargetTrack> finished_;
+  int64_t change_through_ = -1;  // the latest frame RecordChange was given
   int64_t next_id_ = 1;
 };
 

@@ -86,11 +86,11 @@ TEST(ChangeDetectorTest, StaticGroundWithGainDriftChangesNowhere) {
   int compared = 0;
   for (int n = 0; n < 60; ++n) {
     const double gain = 1.0 + 0.004 * n;  // 24 % brighter by the end
-    const auto& blobs =
+    const ChangeFrame result =
         detector.Process(n, Frame(ground, n, {}, gain, &random),
                          n == 0 ? std::nullopt : std::optional<Eigen::Matrix3d>(CameraMotion()));
-    compared += detector.frame() >= 0;
-    EXPECT_TRUE(blobs.empty()) << "frame " << n << ": " << blobs.size() << " blobs";
+    compared += result.answered();
+    EXPECT_TRUE(result.blobs.empty()) << "frame " << n << ": " << result.blobs.size() << " blobs";
   }
   EXPECT_EQ(compared, 60 - 2 * 12);
 }
@@ -105,23 +105,40 @@ TEST(ChangeDetectorTest, AWalkerIsFoundWhereItIsAndNowhereElse) {
                  Eigen::Vector2d(1.0, 1.5)};
   };
   int found = 0, frames = 0;
+  std::vector<ChangeFrame> kept;
   for (int n = 0; n < 80; ++n) {
-    const auto& blobs =
+    ChangeFrame result =
         detector.Process(n, Frame(ground, n, {walker(n)}, 1.0, &random),
                          n == 0 ? std::nullopt : std::optional<Eigen::Matrix3d>(CameraMotion()));
-    if (detector.frame() < 0) continue;
+    if (!result.answered()) continue;
     ++frames;
-    const int64_t f = detector.frame();
+    const int64_t f = result.frame;
+    EXPECT_EQ(f, n - 12);
+    EXPECT_TRUE(result.frame_motion.isApprox(CameraMotion()));
     const Eigen::Vector2d truth = walker(int(f)).centre - kCameraStep * double(f);
-    for (const ChangeBlob& blob : blobs) {
+    for (const ChangeBlob& blob : result.blobs) {
       EXPECT_LT((blob.position - truth).norm(), 1.5) << "frame " << f;
       EXPECT_LT(blob.contrast, 0) << "darker than the ground";
       found += (blob.position - truth).norm() < 1.5;
     }
-    EXPECT_TRUE(detector.ChangedNear(truth, 2.0)) << "frame " << f;
-    EXPECT_FALSE(detector.ChangedNear(truth + Eigen::Vector2d(20, 0), 5.0));
+    EXPECT_TRUE(result.ChangedNear(truth, 2.0)) << "frame " << f;
+    EXPECT_FALSE(result.ChangedNear(truth + Eigen::Vector2d(20, 0), 5.0));
+    EXPECT_TRUE(result.Compared(truth));
+    kept.push_back(std::move(result));
   }
   EXPECT_GE(found, frames * 9 / 10);
+  // Each answer holds its own masks: after the detector has moved on, the old answers still say
+  // where the walker was in their frame, and only there.
+  ASSERT_EQ(int(kept.size()), frames);
+  for (const ChangeFrame& result : kept) {
+    const Eigen::Vector2d truth =
+        walker(int(result.frame)).centre - kCameraStep * double(result.frame);
+    EXPECT_TRUE(result.ChangedNear(truth, 2.0)) << "frame " << result.frame;
+    EXPECT_FALSE(result.ChangedNear(truth + Eigen::Vector2d(20, 0), 5.0));
+  }
+  for (size_t i = 1; i < kept.size(); ++i) {
+    EXPECT_NE(kept[i].changed.data, kept[i - 1].changed.data) << "masks are not shared";
+  }
 }
 
 TEST(ChangeDetectorTest, NoGhostBehindASlowLongMover) {
@@ -137,15 +154,16 @@ TEST(ChangeDetectorTest, NoGhostBehindASlowLongMover) {
   };
   int checked = 0;
   for (int n = 0; n < 70; ++n) {
-    detector.Process(n, Frame(ground, n, {bar(n)}, 1.0, &random),
-                     n == 0 ? std::nullopt : std::optional<Eigen::Matrix3d>(CameraMotion()));
-    if (detector.frame() < 0) continue;
-    const int64_t f = detector.frame();
+    const ChangeFrame result =
+        detector.Process(n, Frame(ground, n, {bar(n)}, 1.0, &random),
+                         n == 0 ? std::nullopt : std::optional<Eigen::Matrix3d>(CameraMotion()));
+    if (!result.answered()) continue;
+    const int64_t f = result.frame;
     const Eigen::Vector2d centre = bar(int(f)).centre - kCameraStep * double(f);
     // The bar's middle changed (in neither other frame); behind it, where it was, nothing did.
-    EXPECT_TRUE(detector.ChangedNear(centre, 2.0)) << "frame " << f;
+    EXPECT_TRUE(result.ChangedNear(centre, 2.0)) << "frame " << f;
     for (double behind = 5; behind <= 10; behind += 1) {
-      EXPECT_FALSE(detector.ChangedNear(centre - Eigen::Vector2d(behind, 0), 0.5))
+      EXPECT_FALSE(result.ChangedNear(centre - Eigen::Vector2d(behind, 0), 0.5))
           << "ghost " << behind << " px behind, frame " << f;
     }
     ++checked;
@@ -157,19 +175,62 @@ TEST(ChangeDetectorTest, AChainBreakStartsAgain) {
   const cv::Mat ground = Ground();
   std::mt19937 random(4);
   ChangeDetector detector(SmallFrameOptions());
+  ChangeFrame result;
   for (int n = 0; n < 30; ++n) {
-    detector.Process(n, Frame(ground, n, {}, 1.0, &random),
-                     n == 0 ? std::nullopt : std::optional<Eigen::Matrix3d>(CameraMotion()));
+    result =
+        detector.Process(n, Frame(ground, n, {}, 1.0, &random),
+                         n == 0 ? std::nullopt : std::optional<Eigen::Matrix3d>(CameraMotion()));
   }
-  EXPECT_EQ(detector.frame(), 30 - 1 - 12);
-  detector.Process(30, Frame(ground, 30, {}, 1.0, &random), std::nullopt);
-  EXPECT_EQ(detector.frame(), -1);
-  EXPECT_FALSE(detector.Compared(Eigen::Vector2d(160, 120)));
+  EXPECT_EQ(result.frame, 30 - 1 - 12);
+  EXPECT_TRUE(result.Compared(Eigen::Vector2d(160, 120)));
+  const ChangeFrame before_break = result;
+  result = detector.Process(30, Frame(ground, 30, {}, 1.0, &random), std::nullopt);
+  EXPECT_EQ(result.frame, -1);
+  EXPECT_FALSE(result.answered());
+  EXPECT_FALSE(result.Compared(Eigen::Vector2d(160, 120)));
+  EXPECT_FALSE(result.ChangedNear(Eigen::Vector2d(160, 120), 1000));
+  EXPECT_TRUE(before_break.Compared(Eigen::Vector2d(160, 120))) << "an earlier answer is kept";
   for (int n = 31; n < 55; ++n) {
-    detector.Process(n, Frame(ground, n, {}, 1.0, &random), CameraMotion());
-    EXPECT_EQ(detector.frame(), n < 54 ? -1 : 54 - 12) << n;
+    result = detector.Process(n, Frame(ground, n, {}, 1.0, &random), CameraMotion());
+    EXPECT_EQ(result.frame, n < 54 ? -1 : 54 - 12) << n;
   }
-  EXPECT_TRUE(detector.Compared(Eigen::Vector2d(160, 120)));
+  EXPECT_TRUE(result.Compared(Eigen::Vector2d(160, 120)));
+  EXPECT_FALSE(result.Compared(Eigen::Vector2d(1, 1))) << "inside the border";
+}
+
+TEST(ChangeDetectorTest, AnswersAtTheProcessingSizeMapToFullResolution) {
+  // The same walker scene at twice the size, processed on a copy half as wide: the answer's
+  // masks are at the processing size and its scale maps full-resolution points onto them.
+  const cv::Mat ground = Ground();
+  std::mt19937 random(6);
+  ChangeOptions options;
+  options.processing_width = kWidth;
+  ChangeDetector detector(options);
+  const auto walker = [](int n) {
+    return Mover{Eigen::Vector2d(250, 180) + Eigen::Vector2d(0.25, -0.1) * n,
+                 Eigen::Vector2d(1.0, 1.5)};
+  };
+  int answered = 0;
+  for (int n = 0; n < 40; ++n) {
+    cv::Mat big;
+    cv::resize(Frame(ground, n, {walker(n)}, 1.0, &random), big, cv::Size(2 * kWidth, 2 * kHeight),
+               0, 0, cv::INTER_LINEAR);
+    Eigen::Matrix3d motion = CameraMotion();
+    motion(0, 2) *= 2, motion(1, 2) *= 2;
+    const ChangeFrame result =
+        detector.Process(n, big, n == 0 ? std::nullopt : std::optional<Eigen::Matrix3d>(motion));
+    if (!result.answered()) continue;
+    ++answered;
+    EXPECT_EQ(result.changed.size(), cv::Size(kWidth, kHeight));
+    EXPECT_EQ(result.valid.size(), cv::Size(kWidth, kHeight));
+    EXPECT_DOUBLE_EQ(result.scale, 2.0);
+    const Eigen::Vector2d truth =
+        2.0 * (walker(int(result.frame)).centre - kCameraStep * double(result.frame)) +
+        Eigen::Vector2d(0.5, 0.5);
+    EXPECT_TRUE(result.ChangedNear(truth, 4.0)) << "frame " << result.frame;
+    EXPECT_FALSE(result.ChangedNear(truth + Eigen::Vector2d(40, 0), 10.0));
+  }
+  EXPECT_EQ(answered, 40 - 2 * 12);
 }
 
 TEST(ChangeDetectorTest, OptionsAreChecked) {
@@ -242,6 +303,90 @@ TEST(SupportedByChangeTest, CountsOnlyWhereTheDetectorLooked) {
   EXPECT_FALSE(SupportedByChange(track, 0.6));
   for (TargetObservation& o : track.observations) o.change = ChangeEvidence::kNotLooked;
   EXPECT_TRUE(SupportedByChange(track, 0.9));  // never looked: no evidence against it
+}
+
+// A feature target (two corners moving 2 px per frame) seen in frames 0..9, then never again,
+// while the change evidence comes `lag` frames late and finds a change everywhere. Returns the
+// targets finished, in order, and the frame each was handed out at.
+std::vector<std::pair<int64_t, TargetTrack>> EndingTarget(bool wait_for_change, int lag) {
+  TargetTrackOptions options;
+  options.wait_for_change = wait_for_change;
+  TargetTracker tracker(options);
+  std::vector<std::pair<int64_t, TargetTrack>> finished;
+  for (int64_t n = 0; n < 80; ++n) {
+    std::vector<MovingPoint> moving;
+    if (n < 10) {
+      for (int i = 0; i < 2; ++i) {
+        MovingPoint p;
+        p.id = FeatureTrackId(i + 1);
+        p.position = Eigen::Vector2d(100 + 2.0 * double(n), 50 + 3.0 * i);
+        p.residual_velocity = Eigen::Vector2d(2, 0);
+        moving.push_back(p);
+      }
+    }
+    tracker.AddFrame(n, moving);
+    if (n >= lag) {
+      tracker.RecordChange(n - lag,
+                           [](const TargetObservation&) { return ChangeEvidence::kChanged; });
+    }
+    for (TargetTrack& t : tracker.TakeFinished()) finished.emplace_back(n, std::move(t));
+  }
+  return finished;
+}
+
+TEST(ChangeEvidenceTest, AnEndedTargetWaitsForTheEvidenceOfItsLastFrame) {
+  // The target ends 26 frames after its last sighting (max_gap_frames 25); evidence 30 frames late
+  // has then reached frame 5 only.
+  const auto without = EndingTarget(false, 30);
+  ASSERT_EQ(without.size(), 1u);
+  EXPECT_EQ(without[0].first, 9 + 26);
+  ASSERT_EQ(without[0].second.observations.size(), 10u);
+  for (const TargetObservation& o : without[0].second.observations) {
+    EXPECT_EQ(o.change, o.frame < 35 - 30 ? ChangeEvidence::kChanged : ChangeEvidence::kNotLooked)
+        << o.frame;
+  }
+  // Waiting, it leaves once the evidence has reached its last frame, with all of it.
+  const auto with = EndingTarget(true, 30);
+  ASSERT_EQ(with.size(), 1u);
+  EXPECT_EQ(with[0].first, 9 + 30);
+  for (const TargetObservation& o : with[0].second.observations) {
+    EXPECT_EQ(o.change, ChangeEvidence::kChanged) << o.frame;
+  }
+  // Evidence that comes in time: no wait.
+  const auto early = EndingTarget(true, 12);
+  ASSERT_EQ(early.size(), 1u);
+  EXPECT_EQ(early[0].first, 9 + 26);
+}
+
+TEST(ChangeEvidenceTest, WaitingEndsWhenNoMoreEvidenceWillCome) {
+  TargetTrackOptions options;
+  options.wait_for_change = true;
+  TargetTracker tracker(options);
+  for (int64_t n = 0; n < 12; ++n) {
+    std::vector<MovingPoint> moving(2);
+    for (int i = 0; i < 2; ++i) {
+      moving[i].id = FeatureTrackId(i + 1);
+      moving[i].position = Eigen::Vector2d(100 + 2.0 * double(n), 50 + 3.0 * i);
+      moving[i].residual_velocity = Eigen::Vector2d(2, 0);
+    }
+    tracker.AddFrame(n, moving);
+    if (n >= 4) {
+      tracker.RecordChange(n - 4, [](const TargetObservation&) { return ChangeEvidence::kNone; });
+    }
+  }
+  // A chain break: every target ends, and the change detector will not answer for frames 8..11.
+  tracker.FinishAll();
+  EXPECT_TRUE(tracker.active().empty());
+  ASSERT_EQ(tracker.waiting().size(), 1u);
+  EXPECT_TRUE(tracker.TakeFinished().empty());
+  tracker.EndChangeEvidence();
+  EXPECT_TRUE(tracker.waiting().empty());
+  const std::vector<TargetTrack> finished = tracker.TakeFinished();
+  ASSERT_EQ(finished.size(), 1u);
+  for (const TargetObservation& o : finished[0].observations) {
+    EXPECT_EQ(o.change, o.frame <= 7 ? ChangeEvidence::kNone : ChangeEvidence::kNotLooked);
+  }
+  EXPECT_TRUE(tracker.TakeFinished().empty()) << "handed out once";
 }
 
 }  // namespace
