@@ -1,5 +1,6 @@
 #include "app/cli_evaluate.h"
 
+#include "app/cli_mosaic.h"
 #include "core/frontend/evaluate.h"
 #include "core/frontend/front_end.h"
 #include "core/mosaic/evaluate.h"
@@ -52,12 +53,7 @@ EvaluateCommand::EvaluateCommand(CLI::App& app) : state_(std::make_unique<State>
                    "counted again when it comes back")
       ->capture_default_str()
       ->check(CLI::NonNegativeNumber);
-  s.command
-      ->add_option("--adjust", s.adjust,
-                   "Bundle adjustment of every key frame (full) or of the nodes of the node/arc "
-                   "decomposition, the other key frames then placed along the arcs (decomposed)")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"full", "decomposed"}));
+  AddAdjustOption(s.command, &s.adjust);
   s.command
       ->add_option("--max-arc-links", s.decomposition.max_arc_links,
                    "Decomposed: longest arc, in sequential links")

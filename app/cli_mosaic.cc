@@ -29,6 +29,15 @@ struct MosaicCommand::State {
   mosaic::RenderOptions render;
 };
 
+CLI::Option* AddAdjustOption(CLI::App* command, std::string* mode) {
+  return command
+      ->add_option("--adjust", *mode,
+                   "Bundle adjustment of every key frame (full) or of the nodes of the node/arc "
+                   "decomposition, the other key frames then placed along the arcs (decomposed)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"full", "decomposed"}));
+}
+
 namespace {
 
 // Progress on one stderr line, rewritten in place; silent when quiet or when stderr is not a
@@ -75,8 +84,9 @@ MosaicCommand::MosaicCommand(CLI::App& app) : state_(std::make_unique<State>()) 
       "mosaic",
       "Build the mosaic map of a video: track features, chain key frames, close loops (geometric\n"
       "matching inside uncertainty ellipses, SIFT appearance matching when lost), bundle adjust\n"
-      "the key frames' absolute homographies (with the metadata corners when present) and write\n"
-      "the key frames warped and blended into one picture. See docs/mosaic.md.");
+      "the key frames' absolute homographies (with the metadata corners when present; by default\n"
+      "through the node/arc decomposition, see --adjust), place every frame between the key\n"
+      "frames, and write the key frames warped and blended into one picture. See docs/mosaic.md.");
   s.command->add_option("VIDEO", s.video, "Video file (MPEG-TS, MP4, ...)")->required();
   s.command->add_option("-o,--output", s.output, "Mosaic picture to write (.png, .jpg, .tif)")
       ->required();
@@ -89,12 +99,7 @@ MosaicCommand::MosaicCommand(CLI::App& app) : state_(std::make_unique<State>()) 
                    "Stated accuracy of the metadata corners, metres (1 sigma)")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
-  s.command
-      ->add_option("--adjust", s.adjust,
-                   "Bundle adjustment of every key frame (full) or of the nodes of the node/arc "
-                   "decomposition, the other key frames then placed along the arcs (decomposed)")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"full", "decomposed"}));
+  AddAdjustOption(s.command, &s.adjust);
   s.command->add_flag("--outlines", s.outlines,
                       "Draw key frame outlines (by chain segment) and links (cross-links in red)");
   s.command->add_flag("--unadjusted", s.unadjusted,

@@ -11,6 +11,10 @@
 
 namespace saker::app {
 
+// `--adjust full|decomposed` (mosaic::ParseAdjustmentMode reads it), shared by the subcommands
+// that build a mosaic.
+CLI::Option* AddAdjustOption(CLI::App* command, std::string* mode);
+
 class MosaicCommand {
  public:
   explicit MosaicCommand(CLI::App& app);

@@ -612,6 +612,24 @@ void BenchmarkDecomposition(const std::vector<int>& sizes,
       "metres.\n");
 }
 
+// A comma-separated list of sizes of at least 2 ("" is the empty list); false, with a message
+// naming `option`, for anything else.
+bool ParseSizes(const std::string& text, const char* option, std::vector<int>* sizes) {
+  for (size_t begin = 0; begin < text.size();) {
+    const size_t end = std::min(text.find(',', begin), text.size());
+    const std::string item = text.substr(begin, end - begin);
+    int n = 0;
+    const auto [rest, error] = std::from_chars(item.data(), item.data() + item.size(), n);
+    if (error != std::errc() || rest != item.data() + item.size() || n < 2) {
+      std::fprintf(stderr, "%s: \"%s\" is not a size of at least 2\n", option, item.c_str());
+      return false;
+    }
+    sizes->push_back(n);
+    begin = end + 1;
+  }
+  return true;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -631,7 +649,7 @@ int main(int argc, char** argv) {
   uint64_t seed = 1234;
   int covariance_max = 1000;
   std::string chain_sizes_text = "1000,10000,100000,1000000";
-  std::vector<int> decomposition_sizes = {75, 300, 1000, 10000};
+  std::string decomposition_sizes_text = "75,300,1000,10000";
   int full_max = 0;
   app.add_option("--sizes", sizes, "Numbers of key frames")->delimiter(',')->capture_default_str();
   app.add_option("--threads", threads, "Ceres threads")
@@ -654,33 +672,18 @@ int main(int argc, char** argv) {
   app.add_option("--chain-sizes", chain_sizes_text,
                  "Frames of the in-between chain solver benchmark, comma separated (\"\": skip it)")
       ->capture_default_str();
-  app.add_option("--decomposition-sizes", decomposition_sizes,
-                 "Key frames of the full-versus-decomposed benchmark (empty: skip it)")
-      ->delimiter(',')
-      ->expected(0, -1)
+  app.add_option("--decomposition-sizes", decomposition_sizes_text,
+                 "Key frames of the full-versus-decomposed benchmark, comma separated (\"\": skip "
+                 "it)")
       ->capture_default_str();
   app.add_option("--full-max", full_max,
                  "Skip the full adjustment above this many key frames (0: never)")
       ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
-  for (int n : decomposition_sizes) {
-    if (n < 2) {
-      std::fprintf(stderr, "--decomposition-sizes: each size must be at least 2\n");
-      return 2;
-    }
-  }
-  std::vector<int> chain_sizes;
-  for (size_t begin = 0; begin < chain_sizes_text.size();) {
-    const size_t end = std::min(chain_sizes_text.find(',', begin), chain_sizes_text.size());
-    const std::string item = chain_sizes_text.substr(begin, end - begin);
-    int n = 0;
-    const auto [rest, error] = std::from_chars(item.data(), item.data() + item.size(), n);
-    if (error != std::errc() || rest != item.data() + item.size() || n < 2) {
-      std::fprintf(stderr, "--chain-sizes: \"%s\" is not a size of at least 2\n", item.c_str());
-      return 2;
-    }
-    chain_sizes.push_back(n);
-    begin = end + 1;
+  std::vector<int> chain_sizes, decomposition_sizes;
+  if (!ParseSizes(chain_sizes_text, "--chain-sizes", &chain_sizes) ||
+      !ParseSizes(decomposition_sizes_text, "--decomposition-sizes", &decomposition_sizes)) {
+    return 2;
   }
   for (int n : sizes) {
     if (n < 2) {

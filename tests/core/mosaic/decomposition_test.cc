@@ -29,8 +29,8 @@ using testing_support::Matrix8;
 using testing_support::MeasureLink;
 using testing_support::RmsCornerError;
 
-// A sequential link k -> k + 1 with an identity measurement (structure tests only).
-Link Sequential(int from, int to, LinkKind kind = LinkKind::kSequential) {
+// A link from -> to (sequential unless told) with an identity measurement: structure tests only.
+Link IdentityLink(int from, int to, LinkKind kind = LinkKind::kSequential) {
   Link link;
   link.from = KeyFrameId(from);
   link.to = KeyFrameId(to);
@@ -85,9 +85,9 @@ TEST(DecompositionTest, NodesAreCrossLinkEndsChainEndsMetadataAndSplitsOfLongArc
   // Two segments: 0..9 and 10..14; a cross-link 7 -> 2; metadata on 12.
   LinkGraph graph = EmptyGraph(15, true);
   for (int k = 0; k < 14; ++k) {
-    if (k != 9) graph.links.push_back(Sequential(k, k + 1));
+    if (k != 9) graph.links.push_back(IdentityLink(k, k + 1));
   }
-  graph.links.push_back(Sequential(7, 2, LinkKind::kGeometric));
+  graph.links.push_back(IdentityLink(7, 2, LinkKind::kGeometric));
   graph.nodes[12].metadata_corners = ImageCorners(kWidth, kHeight);
   ASSERT_TRUE(graph.Validate().ok());
 
@@ -116,14 +116,14 @@ TEST(DecompositionTest, NodesAreCrossLinkEndsChainEndsMetadataAndSplitsOfLongArc
 
 TEST(DecompositionTest, CrossLinkSpacingKeepsTheStrongestOfALoopClosure) {
   LinkGraph graph = EmptyGraph(30, false);
-  for (int k = 0; k < 29; ++k) graph.links.push_back(Sequential(k, k + 1));
+  for (int k = 0; k < 29; ++k) graph.links.push_back(IdentityLink(k, k + 1));
   // One loop closure seen as three cross-links, the middle one the strongest, and another far off.
   for (int i = -1; i <= 1; ++i) {
-    Link link = Sequential(25 + i, 5 + i, LinkKind::kGeometric);
+    Link link = IdentityLink(25 + i, 5 + i, LinkKind::kGeometric);
     link.correspondences.resize(i == 0 ? 40 : 20);
     graph.links.push_back(link);
   }
-  graph.links.push_back(Sequential(29, 0, LinkKind::kAppearance));
+  graph.links.push_back(IdentityLink(29, 0, LinkKind::kAppearance));
   DecompositionOptions options;
   EXPECT_EQ(Decompose(graph, options, false).NodeCount(), 8);  // 0 4 5 6 24 25 26 29
   options.cross_link_spacing = 2;
@@ -164,7 +164,9 @@ TEST(DecompositionTest, ReducedGraphChainsEachArc) {
                                   graph.links[d.arcs[a].links[0]].covariance, {0, 0});
     const Eigen::Matrix2d chained =
         track::TransferCovariance(link.to_from_from, link.covariance, {0, 0});
-    if (d.arcs[a].links.size() > 1) EXPECT_GT(chained.trace(), single.trace());
+    if (d.arcs[a].links.size() > 1) {
+      EXPECT_GT(chained.trace(), single.trace());
+    }
   }
 }
 
@@ -360,8 +362,8 @@ TEST(DecompositionTest, CovariancesCoverEveryKeyFrame) {
 
 TEST(DecompositionTest, RejectsBadOptions) {
   LinkGraph graph = EmptyGraph(3, false);
-  graph.links.push_back(Sequential(0, 1));
-  graph.links.push_back(Sequential(1, 2));
+  graph.links.push_back(IdentityLink(0, 1));
+  graph.links.push_back(IdentityLink(1, 2));
   DecompositionOptions options;
   options.max_arc_links = 0;
   EXPECT_FALSE(AdjustDecomposed(&graph, {}, options).ok());
@@ -375,7 +377,7 @@ TEST(DecompositionTest, RejectsBadOptions) {
   EXPECT_EQ(ParseAdjustmentMode("decomposed"), AdjustmentMode::kDecomposed);
   EXPECT_FALSE(ParseAdjustmentMode("fast").has_value());
   // An invalid graph is an error, not a crash.
-  graph.links.push_back(Sequential(2, 7));
+  graph.links.push_back(IdentityLink(2, 7));
   EXPECT_FALSE(AdjustDecomposed(&graph, {}, {}).ok());
 }
 
