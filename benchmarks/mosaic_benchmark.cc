@@ -22,6 +22,7 @@
 //                      [--seed S] [--max-iterations N] [--function-tolerance T]
 //                      [--chain-sizes 1000,10000,100000,1000000]
 //                      [--decomposition-sizes 75,300,1000,10000] [--full-max N]
+//                      [--warm-every 1000]
 //
 // Each part is its own function called from main (BenchmarkAdjustment, BenchmarkQuery,
 // BenchmarkChain, BenchmarkDecomposition).
@@ -567,44 +568,102 @@ Scene MakeLoops(int n, uint64_t seed) {
   return scene;
 }
 
+// The first m key frames of `graph` and the links among them.
+LinkGraph Prefix(const LinkGraph& graph, int m) {
+  LinkGraph prefix = graph;
+  prefix.nodes.resize(size_t(m));
+  prefix.links.clear();
+  for (const Link& link : graph.links) {
+    if (int(link.from) < m && int(link.to) < m) prefix.links.push_back(link);
+  }
+  return prefix;
+}
+
+// Key frames from `first` on chained through the sequential links from key frame first - 1.
+void ChainFrom(LinkGraph* graph, int first) {
+  for (const Link& link : graph->links) {
+    if (int(link.to) == int(link.from) + 1 && int(link.to) >= first) {
+      graph->nodes[size_t(link.to)].map_from_frame =
+          Normalised(graph->nodes[size_t(link.from)].map_from_frame * link.to_from_from.inverse());
+    }
+  }
+}
+
+// The start the mosaic builder has when the flight reaches its last key frame: it adjusted as the
+// flight went (the builder adjusts at every loop closure; here, harsher, every `every` key
+// frames: the graph so far, decomposed, warm started from the previous solution and the chain
+// beyond it), and the key frames since the last adjustment are chained. Returns the time spent.
+double WarmStart(const Scene& scene, int every, const saker::mosaic::AdjustmentOptions& options,
+                 LinkGraph* start) {
+  *start = scene.graph;
+  const int n = int(scene.graph.nodes.size());
+  double seconds = 0;
+  for (int m = every; m < n; m += every) {
+    LinkGraph prefix = Prefix(*start, m);
+    const auto begin = Clock::now();
+    const auto summary = saker::mosaic::AdjustDecomposed(&prefix, options, {});
+    seconds += Seconds(begin);
+    SAKER_CHECK(summary.ok()) << summary.status().ToString();
+    for (int k = 0; k < m; ++k) start->nodes[size_t(k)] = prefix.nodes[size_t(k)];
+    ChainFrom(start, m);
+  }
+  return seconds;
+}
+
 // Full against decomposed adjustment on MakeLoops graphs: nodes and arcs, times, the speed-up,
 // both final costs (the same problem solved: they should be close) and both solutions' RMS corner
-// error against the truth. The full adjustment is skipped above `full_max` key frames (0: never).
+// error against the truth, from two starts: the chain through every link ("chained", drifted
+// tens of kilometres at 10 000 key frames) and, above `warm_every` key frames, the builder's
+// ("warm": adjusted every `warm_every` key frames on the way, WarmStart). The full adjustment is
+// skipped above `full_max` key frames (0: never).
 void BenchmarkDecomposition(const std::vector<int>& sizes,
                             const saker::mosaic::AdjustmentOptions& options, int full_max,
-                            uint64_t seed) {
+                            int warm_every, uint64_t seed) {
   std::printf(
       "\nFull versus decomposed adjustment (loops of 60 key frames, closures and crossings):\n");
-  std::printf("%7s %6s %5s %5s %8s %8s %8s %8s %8s %10s %10s %9s %9s\n", "keyfr", "links", "nodes",
-              "arcs", "full_s", "decomp_s", "nodes_s", "place_s", "speedup", "full_cost",
-              "dec_cost", "full_rms", "dec_rms");
+  std::printf("%7s %7s %6s %5s %5s %8s %8s %8s %8s %8s %10s %10s %9s %9s %9s\n", "keyfr", "start",
+              "links", "nodes", "arcs", "full_s", "decomp_s", "nodes_s", "place_s", "speedup",
+              "full_cost", "dec_cost", "start_rms", "full_rms", "dec_rms");
   for (const int n : sizes) {
     const Scene scene = MakeLoops(n, seed + uint64_t(n));
-    char full_s[16] = "-", speedup[16] = "-", full_cost[16] = "-", full_rms[16] = "-";
-    double full_seconds = 0;
-    if (full_max <= 0 || n <= full_max) {
-      LinkGraph full = scene.graph;
+    std::vector<std::pair<const char*, LinkGraph>> starts = {{"chained", scene.graph}};
+    double warm_s = 0;
+    if (warm_every > 0 && n > warm_every) {
+      starts.emplace_back("warm", LinkGraph{});
+      warm_s = WarmStart(scene, warm_every, options, &starts.back().second);
+    }
+    for (const auto& [name, graph] : starts) {
+      char full_s[16] = "-", speedup[16] = "-", full_cost[16] = "-", full_rms[16] = "-";
+      double full_seconds = 0;
+      if (full_max <= 0 || n <= full_max) {
+        LinkGraph full = graph;
+        const auto start = Clock::now();
+        const auto summary = saker::mosaic::Adjust(&full, options);
+        full_seconds = Seconds(start);
+        SAKER_CHECK(summary.ok()) << summary.status().ToString();
+        std::snprintf(full_s, sizeof(full_s), "%.3f", full_seconds);
+        std::snprintf(full_cost, sizeof(full_cost), "%.1f", summary->final_cost);
+        std::snprintf(full_rms, sizeof(full_rms), "%.2f", RmsCornerError(full, scene.truth));
+      }
+      LinkGraph decomposed = graph;
       const auto start = Clock::now();
-      const auto summary = saker::mosaic::Adjust(&full, options);
-      full_seconds = Seconds(start);
+      const auto summary = saker::mosaic::AdjustDecomposed(&decomposed, options, {});
+      const double decomposed_s = Seconds(start);
       SAKER_CHECK(summary.ok()) << summary.status().ToString();
-      std::snprintf(full_s, sizeof(full_s), "%.3f", full_seconds);
-      std::snprintf(full_cost, sizeof(full_cost), "%.1f", summary->final_cost);
-      std::snprintf(full_rms, sizeof(full_rms), "%.2f", RmsCornerError(full, scene.truth));
+      if (full_seconds > 0) {
+        std::snprintf(speedup, sizeof(speedup), "%.1fx", full_seconds / decomposed_s);
+      }
+      std::printf("%7d %7s %6zu %5d %5d %8s %8.3f %8.3f %8.3f %8s %10s %10.1f %9.2f %9s %9.2f\n", n,
+                  name, graph.links.size(), summary->nodes, summary->arcs, full_s, decomposed_s,
+                  summary->adjust_s, summary->place_s, speedup, full_cost,
+                  summary->adjustment.final_cost, RmsCornerError(graph, scene.truth), full_rms,
+                  RmsCornerError(decomposed, scene.truth));
+      std::fflush(stdout);
     }
-    LinkGraph decomposed = scene.graph;
-    const auto start = Clock::now();
-    const auto summary = saker::mosaic::AdjustDecomposed(&decomposed, options, {});
-    const double decomposed_s = Seconds(start);
-    SAKER_CHECK(summary.ok()) << summary.status().ToString();
-    if (full_seconds > 0) {
-      std::snprintf(speedup, sizeof(speedup), "%.1fx", full_seconds / decomposed_s);
+    if (warm_s > 0) {
+      std::printf("%7s (the warm start's own adjustments, every %d key frames: %.3f s)\n", "",
+                  warm_every, warm_s);
     }
-    std::printf("%7d %6zu %5d %5d %8s %8.3f %8.3f %8.3f %8s %10s %10.1f %9s %9.2f\n", n,
-                scene.graph.links.size(), summary->nodes, summary->arcs, full_s, decomposed_s,
-                summary->adjust_s, summary->place_s, speedup, full_cost,
-                summary->adjustment.final_cost, full_rms, RmsCornerError(decomposed, scene.truth));
-    std::fflush(stdout);
   }
   std::printf(
       "cost: the adjustment's final cost (half the sum of squared whitened residuals; for the\n"
@@ -651,6 +710,7 @@ int main(int argc, char** argv) {
   std::string chain_sizes_text = "1000,10000,100000,1000000";
   std::string decomposition_sizes_text = "75,300,1000,10000";
   int full_max = 0;
+  int warm_every = 1000;
   app.add_option("--sizes", sizes, "Numbers of key frames")->delimiter(',')->capture_default_str();
   app.add_option("--threads", threads, "Ceres threads")
       ->check(CLI::PositiveNumber)
@@ -679,6 +739,11 @@ int main(int argc, char** argv) {
   app.add_option("--full-max", full_max,
                  "Skip the full adjustment above this many key frames (0: never)")
       ->capture_default_str();
+  app.add_option("--warm-every", warm_every,
+                 "Also start the full-versus-decomposed comparison from the builder's warm start, "
+                 "adjusted every this many key frames (0: chained start only)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
   std::vector<int> chain_sizes, decomposition_sizes;
   if (!ParseSizes(chain_sizes_text, "--chain-sizes", &chain_sizes) ||
@@ -699,7 +764,7 @@ int main(int argc, char** argv) {
   BenchmarkQuery(sizes, seed);
   if (!chain_sizes.empty()) BenchmarkChain(chain_sizes, seed);
   if (!decomposition_sizes.empty()) {
-    BenchmarkDecomposition(decomposition_sizes, options, full_max, seed);
+    BenchmarkDecomposition(decomposition_sizes, options, full_max, warm_every, seed);
   }
   return 0;
 }
