@@ -5,6 +5,8 @@
 #include "core/frontend/front_end.h"
 #include "core/mosaic/evaluate.h"
 #include "core/mosaic/mosaic_builder.h"
+#include "core/pipeline/evaluate.h"
+#include "core/pipeline/process.h"
 #include "core/sim/truth.h"
 
 #include <filesystem>
@@ -108,12 +110,25 @@ int EvaluateCommand::Run() const {
     std::cerr << "saker-cli: " << s.video << ": " << mosaic_accuracy.status().message() << "\n";
     return 1;
   }
+  activity::ActivityOptions activity_options;
+  StatusOr<mission::Mission> mission = pipeline::MissionFromRun(*result, *built, activity_options);
+  if (!mission.ok()) {
+    std::cerr << "saker-cli: " << s.video << ": " << mission.status().message() << "\n";
+    return 1;
+  }
+  StatusOr<pipeline::ActivityAccuracy> activity_accuracy =
+      pipeline::EvaluateActivity(*mission, *truth, activity_options.visit_gap_s);
+  if (!activity_accuracy.ok()) {
+    std::cerr << "saker-cli: " << s.video << ": " << activity_accuracy.status().message() << "\n";
+    return 1;
+  }
   StatusOr<mosaic::MetadataExperiment> experiment = mosaic::RunMetadataExperiment(*built, *truth);
   StatusOr<mosaic::DecompositionExperiment> decomposition = mosaic::RunDecompositionExperiment(
       *built, *truth, s.decomposition, mosaic_options.adjustment);
   if (s.json) {
     nlohmann::json j = frontend::EvaluationToJson(*evaluation);
     j["mosaic"] = mosaic::MosaicAccuracyToJson(*mosaic_accuracy);
+    j["activity"] = pipeline::ActivityAccuracyToJson(*activity_accuracy);
     if (experiment.ok()) {
       j["metadata_experiment"] = {{"start_error_m", experiment->start_error_m},
                                   {"metadata_key_frames", experiment->metadata_key_frames},
@@ -130,6 +145,7 @@ int EvaluateCommand::Run() const {
   } else {
     std::cout << frontend::EvaluationToText(*evaluation);
     std::cout << mosaic::MosaicAccuracyToText(*mosaic_accuracy);
+    std::cout << pipeline::ActivityAccuracyToText(*activity_accuracy);
     if (experiment.ok()) std::cout << mosaic::MetadataExperimentToText(*experiment);
     if (decomposition.ok()) std::cout << mosaic::DecompositionExperimentToText(*decomposition);
   }

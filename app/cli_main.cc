@@ -1,8 +1,9 @@
 // saker-cli: the headless client of the Saker engine. Everything the GUI can
-// do is reachable from here: `probe`, `klv`, `simulate`, `evaluate`, `mosaic`
-// and `demo` so far.
+// do is reachable from here: `probe`, `klv`, `simulate`, `evaluate`, `mosaic`,
+// `process`, `export`, `info` and `demo`.
 
 #include "app/cli_evaluate.h"
+#include "app/cli_mission.h"
 #include "app/cli_mosaic.h"
 #include "app/cli_simulate.h"
 #include "core/ingest/report.h"
@@ -94,6 +95,9 @@ int main(int argc, char** argv) {
   saker::app::DemoCommand demo(app);
   saker::app::EvaluateCommand evaluate(app);
   saker::app::MosaicCommand mosaic(app);
+  saker::app::ProcessCommand process(app);
+  saker::app::ExportCommand export_command(app);
+  saker::app::InfoCommand info(app);
 
   try {
     app.parse(argc, argv);
@@ -110,12 +114,18 @@ int main(int argc, char** argv) {
     if (simulate.parsed()) return simulate.Run();
     if (evaluate.parsed()) return evaluate.Run();
     if (mosaic.parsed()) return mosaic.Run();
+    if (process.parsed()) return process.Run();
+    if (export_command.parsed()) return export_command.Run();
+    if (info.parsed()) return info.Run();
     if (demo.parsed()) {
-      // The main job: the mosaic of the demo mission, written next to it.
+      // The main job: the demo video processed into a mission, and its activity map.
       return demo.Run([&](const std::string& video) {
-        const std::string picture =
-            (std::filesystem::path(video).parent_path() / "mosaic.png").string();
-        return mosaic.RunOn(video, picture);
+        const std::filesystem::path folder = std::filesystem::path(video).parent_path();
+        const std::string mission = (folder / "demo.saker").string();
+        if (const int code = process.RunOn(video, mission, /*replace=*/true); code != kExitOk) {
+          return code;
+        }
+        return export_command.WriteActivityMap(mission, (folder / "activity.png").string());
       });
     }
   } catch (const saker::CheckError& e) {

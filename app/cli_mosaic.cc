@@ -38,10 +38,6 @@ CLI::Option* AddAdjustOption(CLI::App* command, std::string* mode) {
       ->check(CLI::IsMember({"full", "decomposed"}));
 }
 
-namespace {
-
-// Progress on one stderr line, rewritten in place; silent when quiet or when stderr is not a
-// terminal (a log file would collect every update).
 JobContext ProgressContext(bool quiet) {
   if (quiet || isatty(STDERR_FILENO) == 0) return JobContext();
   return JobContext(
@@ -53,6 +49,8 @@ JobContext ProgressContext(bool quiet) {
         std::cerr << "\r" << stage << ": " << p << " %   " << std::flush;
       });
 }
+
+namespace {
 
 // Writes the picture under a temporary name and renames it into place: never half a file.
 Status WritePicture(const cv::Mat& image, const std::filesystem::path& path) {

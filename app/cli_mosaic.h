@@ -4,6 +4,8 @@
 // closure, bundle adjustment), a mosaic picture out with a summary of what was found. It is also
 // the main job the demo runs.
 
+#include "core/util/job_context.h"
+
 #include <CLI/CLI.hpp>
 
 #include <memory>
@@ -14,6 +16,10 @@ namespace saker::app {
 // `--adjust full|decomposed` (mosaic::ParseAdjustmentMode reads it), shared by the subcommands
 // that build a mosaic.
 CLI::Option* AddAdjustOption(CLI::App* command, std::string* mode);
+
+// Progress on one stderr line, rewritten in place; silent when quiet or when stderr is not a
+// terminal (a log file would collect every update).
+JobContext ProgressContext(bool quiet);
 
 class MosaicCommand {
  public:

@@ -1,12 +1,12 @@
 #include "app/cli_simulate.h"
 
+#include "app/cli_interrupt.h"
 #include "core/sim/simulator.h"
 #include "core/util/job_context.h"
 
 #include <unistd.h>
 
 #include <chrono>
-#include <csignal>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -19,12 +19,6 @@ namespace {
 constexpr int kExitOk = 0;
 constexpr int kExitFailed = 1;
 constexpr int kExitUsage = 2;
-
-// Ctrl-C cancels the running job cleanly (its partial files are removed) instead of killing it.
-JobContext* g_running_job = nullptr;
-extern "C" void OnInterrupt(int) {
-  if (g_running_job != nullptr) g_running_job->RequestCancel();
-}
 
 // A one-line progress bar on stderr when it is a terminal; silent otherwise.
 class ProgressBar {
@@ -58,11 +52,10 @@ int RunSimulation(const sim::SimulationOptions& options, bool quiet) {
   JobContext job([&](const std::string&, double fraction) {
     if (!quiet) bar.Update(fraction);
   });
-  g_running_job = &job;
-  auto previous = std::signal(SIGINT, OnInterrupt);
-  StatusOr<sim::SimulationSummary> summary = sim::Simulate(options, &job);
-  std::signal(SIGINT, previous);
-  g_running_job = nullptr;
+  StatusOr<sim::SimulationSummary> summary = [&] {
+    const ScopedInterrupt interrupt(&job);
+    return sim::Simulate(options, &job);
+  }();
   if (!summary.ok()) {
     std::cerr << "\nsaker-cli: " << summary.status().message() << "\n";
     return kExitFailed;
@@ -291,7 +284,8 @@ DemoCommand::DemoCommand(CLI::App& app) : state_(std::make_unique<State>()) {
       "demo",
       "The built-in demo mission: generates DIR/demo.ts (the roundabout-loop scenario, 71 s of\n"
       "1280x720 video at 25 fps with KLV, and its truth) unless it is already there, then runs\n"
-      "the main job on it: the mosaic, written to DIR/mosaic.png.");
+      "the main job on it: processes it into the mission DIR/demo.saker (replacing an earlier\n"
+      "one) and writes its activity map, tracks coloured by speed, to DIR/activity.png.");
   state_->command->add_option("--dir", state_->directory, "Where the demo mission lives")
       ->capture_default_str();
 }

@@ -1,0 +1,28 @@
+#include "app/cli_interrupt.h"
+
+#include <atomic>
+#include <csignal>
+
+namespace saker::app {
+namespace {
+
+std::atomic<JobContext*> g_job{nullptr};
+
+extern "C" void CancelOnInterrupt(int) {
+  if (JobContext* job = g_job.load()) job->RequestCancel();
+  std::signal(SIGINT, SIG_DFL);  // a second Ctrl-C ends the process at once
+}
+
+}  // namespace
+
+ScopedInterrupt::ScopedInterrupt(JobContext* job) {
+  g_job.store(job);
+  previous_ = std::signal(SIGINT, CancelOnInterrupt);
+}
+
+ScopedInterrupt::~ScopedInterrupt() {
+  std::signal(SIGINT, previous_ == SIG_ERR ? SIG_DFL : previous_);
+  g_job.store(nullptr);
+}
+
+}  // namespace saker::app

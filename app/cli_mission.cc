@@ -1,0 +1,377 @@
+#include "app/cli_mission.h"
+
+#include "app/cli_interrupt.h"
+#include "app/cli_mosaic.h"
+#include "core/activity/colours.h"
+#include "core/export/export.h"
+#include "core/mission/mission_store.h"
+#include "core/mosaic/decomposition.h"
+#include "core/pipeline/process.h"
+#include "core/render/activity_map.h"
+#include "core/tiles/pyramid.h"
+
+#include <nlohmann/json.hpp>
+#include <unistd.h>
+
+#include <filesystem>
+#include <iostream>
+#include <map>
+
+namespace saker::app {
+namespace {
+
+constexpr int kExitOk = 0;
+constexpr int kExitFailed = 1;
+constexpr int kExitCancelled = 130;  // as a shell reports a job stopped by Ctrl-C
+
+// Tiles of an open mission, decoded.
+render::TileReader StoreTiles(const mission::MissionStore& store) {
+  return [&store](int level, int x, int y) -> StatusOr<cv::Mat> {
+    SAKER_ASSIGN_OR_RETURN(const std::optional<std::vector<uint8_t>> bytes,
+                           store.ReadTile(level, x, y));
+    if (!bytes) return cv::Mat();
+    StatusOr<cv::Mat> tile = tiles::DecodeTile(*bytes);
+    if (!tile.ok()) {
+      return InvalidDataError(store.path() + ": tile " + std::to_string(level) + "/" +
+                              std::to_string(x) + "/" + std::to_string(y) + ": " +
+                              tile.status().message());
+    }
+    return tile;
+  };
+}
+
+int Fail(const Status& status) {
+  std::cerr << "saker-cli: " << status.message() << "\n";
+  return status.code() == StatusCode::kCancelled ? kExitCancelled : kExitFailed;
+}
+
+void ClearProgressLine(bool shown) {
+  if (shown && isatty(STDERR_FILENO) != 0) std::cerr << "\r" << std::string(60, ' ') << "\r";
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------
+struct ProcessCommand::State {
+  CLI::App* command = nullptr;
+  std::string video;
+  std::string mission;
+  bool replace = false;
+  bool json = false;
+  bool quiet = false;
+  bool no_metadata = false;
+  bool no_tiles = false;
+  std::string adjust = "decomposed";
+  pipeline::ProcessOptions options;
+};
+
+ProcessCommand::ProcessCommand(CLI::App& app) : state_(std::make_unique<State>()) {
+  State& s = *state_;
+  s.command = app.add_subcommand(
+      "process",
+      "Process a video into a mission file: front end (moving targets, key frames), loop\n"
+      "closure and bundle adjustment, every frame placed on the map, activity mapping (speed,\n"
+      "direction, visit of every track), and the mosaic's tile pyramid. Each stage is saved as it\n"
+      "completes; Ctrl-C cancels cleanly and leaves a valid mission holding the stages that\n"
+      "completed. See docs/missions.md.");
+  s.command->add_option("VIDEO", s.video, "Video file (MPEG-TS, MP4, ...)")->required();
+  s.command->add_option("-o,--output", s.mission, "Mission file to write (.saker)")->required();
+  s.command->add_flag("--replace", s.replace,
+                      "Replace an existing mission file (never a file that is not a mission)");
+  s.command->add_flag("--json", s.json, "Print the summary as JSON");
+  s.command->add_flag("-q,--quiet", s.quiet, "No progress on stderr");
+  s.command->add_flag("--no-metadata", s.no_metadata,
+                      "Ignore the metadata corners (map frame = the first key frame's pixels)");
+  s.command->add_flag("--no-tiles", s.no_tiles, "Do not render the mosaic's tile pyramid");
+  AddAdjustOption(s.command, &s.adjust);
+  s.command
+      ->add_option("--visit-gap", s.options.activity.visit_gap_s,
+                   "Seconds out of view after which the camera's return over a place is a new "
+                   "visit")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
+}
+
+ProcessCommand::~ProcessCommand() = default;
+bool ProcessCommand::parsed() const { return state_->command->parsed(); }
+int ProcessCommand::Run() const { return RunOn(state_->video, state_->mission, state_->replace); }
+
+int ProcessCommand::RunOn(const std::string& video, const std::string& mission,
+                          bool replace) const {
+  const State& s = *state_;
+  pipeline::ProcessOptions options = s.options;
+  options.replace = replace;
+  options.saker_version = SAKER_VERSION;
+  options.mosaic.use_metadata = !s.no_metadata;
+  options.mosaic.adjust_mode = *mosaic::ParseAdjustmentMode(s.adjust);
+  options.render_tiles = !s.no_tiles;
+  const bool show_progress = !s.quiet && !s.json;
+  JobContext job = ProgressContext(!show_progress);
+  StatusOr<pipeline::ProcessSummary> summary = [&] {
+    const ScopedInterrupt interrupt(&job);
+    return pipeline::ProcessVideo(video, mission, options, &job);
+  }();
+  ClearProgressLine(show_progress);
+  if (!summary.ok()) return Fail(summary.status());
+  if (s.json) {
+    const pipeline::ProcessSummary& p = *summary;
+    nlohmann::json warnings = p.warnings;
+    std::cout << nlohmann::json{{"video", video},
+                                {"mission", mission},
+                                {"frames", p.frames},
+                                {"frames_placed", p.frames_placed},
+                                {"key_frames", p.key_frames},
+                                {"cross_links", p.cross_links},
+                                {"tracks", p.tracks},
+                                {"tiles", p.tiles},
+                                {"geo_referenced", p.geo_referenced},
+                                {"front_end_s", p.front_end_s},
+                                {"mosaic_s", p.mosaic_s},
+                                {"activity_s", p.activity_s},
+                                {"tiles_s", p.tiles_s},
+                                {"save_s", p.save_s},
+                                {"total_s", p.total_s},
+                                {"video_duration_s", p.video_duration_s},
+                                {"warnings", warnings}}
+                     .dump(2)
+              << "\n";
+  } else {
+    std::cout << mission << ": " << summary->ToText();
+  }
+  return kExitOk;
+}
+
+// ---------------------------------------------------------------------------------------------
+struct ExportCommand::State {
+  CLI::App* command = nullptr;
+  std::string mission;
+  std::string png, geotiff, geojson, kml, csv;
+  std::string colour_by = "speed";
+  int level = 0;
+  render::ActivityMapOptions map;
+  double start_s = -1, end_s = -1;
+};
+
+ExportCommand::ExportCommand(CLI::App& app) : state_(std::make_unique<State>()) {
+  State& s = *state_;
+  s.command = app.add_subcommand(
+      "export",
+      "Export a mission for other tools: the activity map picture (mosaic with the tracks\n"
+      "coloured, legend, scale bar and north arrow when geo-referenced), the mosaic as GeoTIFF\n"
+      "(UTM of the map origin when geo-referenced), the tracks as GeoJSON (WGS84), KML and CSV\n"
+      "with every attribute. Give one or more outputs. See docs/exports.md.");
+  s.command->add_option("MISSION", s.mission, "Mission file (.saker)")->required();
+  s.command->add_option("--png", s.png, "Activity map picture to write (.png or .jpg)");
+  s.command->add_option("--geotiff", s.geotiff, "Mosaic GeoTIFF to write (.tif)");
+  s.command->add_option("--geojson", s.geojson, "Tracks as GeoJSON");
+  s.command->add_option("--kml", s.kml, "Tracks as KML (geo-referenced missions)");
+  s.command->add_option("--csv", s.csv, "Track observations as CSV");
+  s.command->add_option("--color-by,--colour-by", s.colour_by, "Track colours on the activity map")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"speed", "direction", "visit", "time"}));
+  s.command
+      ->add_option("--level", s.level,
+                   "GeoTIFF resolution: pyramid level (0 = full, each level halves it)")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
+  s.command
+      ->add_option("--max-side", s.map.max_side_px, "Activity map: longer side of the mosaic, px")
+      ->capture_default_str()
+      ->check(CLI::Range(64, 30000));
+  s.command->add_option("--from", s.start_s, "Activity map: only tracks seen after this second");
+  s.command->add_option("--to", s.end_s, "Activity map: only tracks seen before this second");
+}
+
+ExportCommand::~ExportCommand() = default;
+bool ExportCommand::parsed() const { return state_->command->parsed(); }
+
+int ExportCommand::Run() const {
+  const State& s = *state_;
+  if (s.png.empty() && s.geotiff.empty() && s.geojson.empty() && s.kml.empty() && s.csv.empty()) {
+    std::cerr << "saker-cli export: give at least one of --png, --geotiff, --geojson, --kml, "
+                 "--csv\n";
+    return 2;
+  }
+  StatusOr<std::unique_ptr<mission::MissionStore>> store = mission::MissionStore::Open(s.mission);
+  if (!store.ok()) return Fail(store.status());
+  StatusOr<mission::Mission> m = (*store)->Load();
+  if (!m.ok()) return Fail(m.status());
+  const auto wrote = [](const std::string& path, const std::string& what) {
+    std::cout << "wrote " << path << " (" << what << ")\n";
+  };
+  if (!s.png.empty()) {
+    render::ActivityMapOptions options = s.map;
+    options.colour_by = *activity::ParseColourMode(s.colour_by);
+    if (s.start_s >= 0) options.start_s = s.start_s;
+    if (s.end_s >= 0) options.end_s = s.end_s;
+    StatusOr<render::ActivityMap> map = render::RenderActivityMap(*m, StoreTiles(**store), options);
+    if (!map.ok())
+      return Fail(Status(map.status().code(), s.mission + ": " + map.status().message()));
+    if (Status w = render::WritePicture(map->bgr, s.png); !w.ok()) return Fail(w);
+    wrote(s.png, "activity map, " + std::to_string(map->tracks) + " tracks coloured by " +
+                     s.colour_by + ", " + std::to_string(map->bgr.cols) + "x" +
+                     std::to_string(map->bgr.rows));
+  }
+  if (!s.geotiff.empty()) {
+    if (!m->pyramid) {
+      return Fail(InvalidArgumentError(s.mission +
+                                       ": the mission has no mosaic tiles (processed with "
+                                       "--no-tiles, cancelled, or no key frame)"));
+    }
+    const auto reader = StoreTiles(**store);
+    StatusOr<exporting::GeoTiffReport> report = exporting::ExportGeoTiff(
+        m->map, *m->pyramid, s.level, [&](int level, int x, int y) { return reader(level, x, y); },
+        s.geotiff);
+    if (!report.ok()) return Fail(report.status());
+    char fit[64];
+    std::snprintf(fit, sizeof(fit), ", affine fit within %.3f m", report->max_fit_error_m);
+    wrote(s.geotiff, "mosaic " + std::to_string(report->width) + "x" +
+                         std::to_string(report->height) + ", CRS " + report->crs +
+                         (m->map.geo_referenced ? fit : ""));
+  }
+  const size_t tracks = m->tracks.size();
+  if (!s.geojson.empty()) {
+    if (Status w = exporting::ExportGeoJson(*m, s.geojson); !w.ok()) return Fail(w);
+    wrote(s.geojson, std::to_string(tracks) + " tracks");
+  }
+  if (!s.kml.empty()) {
+    if (Status w = exporting::ExportKml(*m, s.kml); !w.ok()) return Fail(w);
+    wrote(s.kml, std::to_string(tracks) + " tracks");
+  }
+  if (!s.csv.empty()) {
+    if (Status w = exporting::ExportCsv(*m, s.csv); !w.ok()) return Fail(w);
+    wrote(s.csv, std::to_string(tracks) + " tracks");
+  }
+  return kExitOk;
+}
+
+int ExportCommand::WriteActivityMap(const std::string& mission, const std::string& png) const {
+  State& s = *state_;
+  s.mission = mission;
+  s.png = png;
+  return Run();
+}
+
+// ---------------------------------------------------------------------------------------------
+struct InfoCommand::State {
+  CLI::App* command = nullptr;
+  std::string mission;
+  bool json = false;
+};
+
+InfoCommand::InfoCommand(CLI::App& app) : state_(std::make_unique<State>()) {
+  State& s = *state_;
+  s.command = app.add_subcommand(
+      "info",
+      "What a mission holds: its video (and whether it is still where it was, which frame\n"
+      "recall needs), the stages completed, frames, key frames, links, tracks by visit, the map\n"
+      "frame and the mosaic pyramid. Opens the file read-only; never reprocesses.");
+  s.command->add_option("MISSION", s.mission, "Mission file (.saker)")->required();
+  s.command->add_flag("--json", s.json, "Print as JSON");
+}
+
+InfoCommand::~InfoCommand() = default;
+bool InfoCommand::parsed() const { return state_->command->parsed(); }
+
+int InfoCommand::Run() const {
+  const State& s = *state_;
+  StatusOr<std::unique_ptr<mission::MissionStore>> store = mission::MissionStore::Open(s.mission);
+  if (!store.ok()) return Fail(store.status());
+  StatusOr<mission::Mission> m = (*store)->Load();
+  if (!m.ok()) return Fail(m.status());
+  StatusOr<int64_t> tiles = (*store)->CountTiles();
+  if (!tiles.ok()) return Fail(tiles.status());
+  // Is the video still there, and the same file?
+  std::string video_state = "missing: frame recall needs it (the mosaic and tracks do not)";
+  std::error_code error;
+  if (std::filesystem::is_regular_file(m->source.path, error)) {
+    const StatusOr<std::string> fingerprint = mission::FingerprintFile(m->source.path);
+    video_state = fingerprint.ok() && *fingerprint == m->source.fingerprint
+                      ? "present"
+                      : "changed: the file at that path is not the video that was processed";
+  }
+  std::map<int, int> visits;
+  int64_t observations = 0;
+  for (const mission::ActivityTrack& t : m->tracks) {
+    ++visits[t.visit];
+    observations += int64_t(t.points.size());
+  }
+  int64_t placed = 0;
+  for (const mission::FrameRecord& f : m->frames) placed += f.map_from_frame.has_value();
+  std::map<std::string, int> links;
+  for (const mission::LinkRecord& l : m->links) ++links[mission::LinkKindName(l.kind)];
+  const mission::Progress& p = m->progress;
+  std::string stages;
+  for (const auto& [done, name] :
+       std::vector<std::pair<bool, const char*>>{{p.front_end, "front end"},
+                                                 {p.mosaic, "mosaic"},
+                                                 {p.activity, "activity"},
+                                                 {p.tiles, "tiles"}}) {
+    if (done) stages += std::string(stages.empty() ? "" : ", ") + name;
+  }
+  if (stages.empty()) stages = "none";
+  if (s.json) {
+    nlohmann::json visit_json = nlohmann::json::object();
+    for (const auto& [v, n] : visits) visit_json[std::to_string(v)] = n;
+    nlohmann::json j = {{"mission", s.mission},
+                        {"schema_version", m->schema_version},
+                        {"saker_version", m->saker_version},
+                        {"video", m->source.path},
+                        {"video_state", video_state},
+                        {"width", m->source.width},
+                        {"height", m->source.height},
+                        {"frame_rate", m->source.frame_rate},
+                        {"frames", m->frames.size()},
+                        {"frames_placed", placed},
+                        {"key_frames", m->key_frames.size()},
+                        {"links", links},
+                        {"tracks", m->tracks.size()},
+                        {"observations", observations},
+                        {"tracks_by_visit", visit_json},
+                        {"geo_referenced", m->map.geo_referenced},
+                        {"tiles", *tiles},
+                        {"completed",
+                         {{"front_end", p.front_end},
+                          {"mosaic", p.mosaic},
+                          {"activity", p.activity},
+                          {"tiles", p.tiles}}},
+                        {"cancelled", p.cancelled}};
+    if (m->map.origin) {
+      j["origin"] = {{"latitude_deg", m->map.origin->latitude_deg},
+                     {"longitude_deg", m->map.origin->longitude_deg},
+                     {"height_m", m->map.origin->height_m}};
+    }
+    std::cout << j.dump(2) << "\n";
+    return kExitOk;
+  }
+  std::cout << s.mission << " (schema " << m->schema_version << ", written by Saker "
+            << m->saker_version << ")\n";
+  std::cout << "  video: " << m->source.path << " (" << video_state << ")\n";
+  std::cout << "         " << m->source.width << "x" << m->source.height << ", "
+            << m->source.frame_rate << " fps, " << m->frames.size() << " frames\n";
+  std::cout << "  completed: " << stages << (p.cancelled ? " (then cancelled)" : "") << "\n";
+  std::cout << "  map: ";
+  if (m->map.geo_referenced && m->map.origin) {
+    char origin[128];
+    std::snprintf(origin, sizeof(origin), "east-north-up metres around %.6f, %.6f (%.1f m)\n",
+                  m->map.origin->latitude_deg, m->map.origin->longitude_deg,
+                  m->map.origin->height_m);
+    std::cout << origin;
+  } else {
+    std::cout << "the first key frame's pixels (no metadata)\n";
+  }
+  std::cout << "  frames placed on the map: " << placed << " of " << m->frames.size() << "\n";
+  std::cout << "  key frames: " << m->key_frames.size() << "; links:";
+  for (const auto& [kind, n] : links) std::cout << " " << n << " " << kind;
+  std::cout << "\n  tracks: " << m->tracks.size() << " (" << observations << " observations)";
+  for (const auto& [v, n] : visits) std::cout << "; visit " << v << ": " << n;
+  std::cout << "\n  mosaic tiles: " << *tiles;
+  if (m->pyramid) {
+    std::cout << " (" << m->pyramid->levels << " levels, " << m->pyramid->width << "x"
+              << m->pyramid->height << " px at full resolution)";
+  }
+  std::cout << "\n";
+  return kExitOk;
+}
+
+}  // namespace saker::app

@@ -1,0 +1,757 @@
+#include "core/export/export.h"
+
+#include "core/geo/utm.h"
+
+#include <Eigen/Dense>
+#include <cpl_error.h>
+#include <cpl_string.h>
+#include <gdal.h>
+#include <nlohmann/json.hpp>
+#include <ogr_srs_api.h>
+#include <opencv2/core.hpp>
+
+#include <algorithm>
+#include <array>
+#include <charconv>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <exception>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <set>
+#include <sstream>
+#include <string_view>
+#include <utility>
+#include <vector>
+
+namespace saker::exporting {
+namespace {
+
+using Json = nlohmann::json;
+
+// ---------------------------------------------------------------------------------------------
+// Files
+
+std::string PartialPath(const std::string& path) { return path + ".partial"; }
+
+void RemoveQuietly(const std::string& path) {
+  std::error_code ignored;
+  std::filesystem::remove(path, ignored);
+}
+
+// Moves the finished "<path>.partial" over `path`; removes it when that fails.
+Status CommitPartial(const std::string& path) {
+  std::error_code ec;
+  std::filesystem::rename(PartialPath(path), path, ec);
+  if (ec) {
+    RemoveQuietly(PartialPath(path));
+    return IoError(path + ": cannot replace the file (" + ec.message() + ")");
+  }
+  return Status::Ok();
+}
+
+// Writes `contents` to `path` through "<path>.partial", so a failure leaves no partial file and
+// keeps an earlier export intact.
+Status WriteFileAtomically(const std::string& path, const std::string& contents) {
+  const std::string partial = PartialPath(path);
+  std::ofstream out(partial, std::ios::binary | std::ios::trunc);
+  if (!out) {
+    return IoError(path + ": cannot create the file (" + std::strerror(errno) + ")");
+  }
+  out.write(contents.data(), static_cast<std::streamsize>(contents.size()));
+  out.close();
+  if (!out) {
+    RemoveQuietly(partial);
+    return IoError(path + ": writing the file failed (" + std::strerror(errno) + ")");
+  }
+  return CommitPartial(path);
+}
+
+// Runs an exporter's body, turning any exception (from a library, a tile reader or a bug) into
+// an error naming the file; exceptions never cross the API.
+template <typename Body>
+auto Guarded(const std::string& path, Body&& body) -> decltype(body()) {
+  try {
+    return body();
+  } catch (const std::exception& e) {
+    RemoveQuietly(PartialPath(path));
+    return IoError(path + ": export failed: " + e.what());
+  } catch (...) {
+    RemoveQuietly(PartialPath(path));
+    return IoError(path + ": export failed (unknown exception)");
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Values and text
+
+// Shortest text that reads back as the same double; empty for NaN and infinities.
+std::string FormatNumber(double value) {
+  if (!std::isfinite(value)) return "";
+  char buffer[32];
+  const auto result = std::to_chars(buffer, buffer + sizeof(buffer), value);
+  return std::string(buffer, result.ptr);
+}
+
+Json JsonNumber(double value) { return std::isfinite(value) ? Json(value) : Json(nullptr); }
+Json JsonNumber(const std::optional<double>& value) {
+  return value ? JsonNumber(*value) : Json(nullptr);
+}
+
+std::string VideoName(const mission::Mission& mission) {
+  return std::filesystem::path(mission.source.path).filename().string();
+}
+
+// Text as XML character data: valid UTF-8 only (invalid bytes become U+FFFD), no characters
+// XML 1.0 forbids (other control characters are dropped), and & < > " ' escaped.
+std::string XmlText(std::string_view text) {
+  static constexpr std::string_view kReplacement = "\xEF\xBF\xBD";
+  std::string out;
+  out.reserve(text.size());
+  size_t i = 0;
+  while (i < text.size()) {
+    const auto byte = static_cast<unsigned char>(text[i]);
+    if (byte < 0x80) {
+      switch (byte) {
+        case '&':
+          out += "&amp;";
+          break;
+        case '<':
+          out += "&lt;";
+          break;
+        case '>':
+          out += "&gt;";
+          break;
+        case '"':
+          out += "&quot;";
+          break;
+        case '\'':
+          out += "&apos;";
+          break;
+        default:
+          if (byte >= 0x20 || byte == '\t' || byte == '\n' || byte == '\r') out += text[i];
+      }
+      ++i;
+      continue;
+    }
+    int length = 0;
+    uint32_t code = 0;
+    if ((byte & 0xE0) == 0xC0) {
+      length = 2;
+      code = byte & 0x1F;
+    } else if ((byte & 0xF0) == 0xE0) {
+      length = 3;
+      code = byte & 0x0F;
+    } else if ((byte & 0xF8) == 0xF0) {
+      length = 4;
+      code = byte & 0x07;
+    }
+    bool valid = length > 0 && i + length <= text.size();
+    for (int k = 1; valid && k < length; ++k) {
+      const auto next = static_cast<unsigned char>(text[i + k]);
+      valid = (next & 0xC0) == 0x80;
+      code = (code << 6) | (next & 0x3F);
+    }
+    static constexpr uint32_t kMinimum[] = {0, 0, 0x80, 0x800, 0x10000};
+    valid = valid && code >= kMinimum[length] && code <= 0x10FFFF &&
+            !(code >= 0xD800 && code <= 0xDFFF) && code != 0xFFFE && code != 0xFFFF;
+    if (valid) {
+      out.append(text.substr(i, length));
+      i += length;
+    } else {
+      out += kReplacement;
+      ++i;
+    }
+  }
+  return out;
+}
+
+// A CSV field (RFC 4180): quoted, with quotes doubled, when it holds a comma, quote or line
+// break.
+std::string CsvField(const std::string& text) {
+  if (text.find_first_of(",\"\r\n") == std::string::npos) return text;
+  std::string out = "\"";
+  for (char c : text) {
+    if (c == '"') out += '"';
+    out += c;
+  }
+  out += '"';
+  return out;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Positions
+
+// Where the exported coordinates come from: WGS84 (longitude, latitude) through the mission's
+// tangent plane when geo-referenced, the map point itself otherwise.
+class Positions {
+ public:
+  static StatusOr<Positions> Create(const mission::MapFrame& map, const std::string& path) {
+    Positions positions;
+    if (!map.geo_referenced) return positions;
+    if (!map.origin) {
+      return InvalidArgumentError(path +
+                                  ": the mission is marked geo-referenced but has no map origin");
+    }
+    auto plane = geo::LocalTangentPlane::Create(*map.origin);
+    if (!plane.ok()) return InvalidArgumentError(path + ": " + plane.status().message());
+    positions.plane_ = std::move(plane).value();
+    return positions;
+  }
+
+  bool geo_referenced() const { return plane_.has_value(); }
+
+  // (longitude, latitude) or the map point; nullopt when it is not finite.
+  std::optional<Eigen::Vector2d> Of(const Eigen::Vector2d& map_point) const {
+    if (!map_point.allFinite()) return std::nullopt;
+    if (!plane_) return map_point;
+    const geo::Wgs84 wgs84 = plane_->LatLonFromMap(map_point);
+    const Eigen::Vector2d lon_lat(wgs84.longitude_deg, wgs84.latitude_deg);
+    if (!lon_lat.allFinite()) return std::nullopt;
+    return lon_lat;
+  }
+
+ private:
+  std::optional<geo::LocalTangentPlane> plane_;
+};
+
+std::vector<Eigen::Vector2d> TrackPositions(const mission::ActivityTrack& track,
+                                            const Positions& positions) {
+  std::vector<Eigen::Vector2d> out;
+  out.reserve(track.points.size());
+  for (const auto& point : track.points) {
+    if (auto position = positions.Of(point.map)) out.push_back(*position);
+  }
+  return out;
+}
+
+// ---------------------------------------------------------------------------------------------
+// GeoJSON
+
+Json GeoJsonGeometry(const std::vector<Eigen::Vector2d>& positions) {
+  if (positions.empty()) return nullptr;
+  auto position = [](const Eigen::Vector2d& p) { return Json::array({p.x(), p.y()}); };
+  if (positions.size() == 1) {
+    return {{"type", "Point"}, {"coordinates", position(positions[0])}};
+  }
+  Json coordinates = Json::array();
+  for (const auto& p : positions) coordinates.push_back(position(p));
+  return {{"type", "LineString"}, {"coordinates", std::move(coordinates)}};
+}
+
+Json GeoJsonFeature(const mission::ActivityTrack& track, const Positions& positions) {
+  Json points = Json::array();
+  for (const auto& p : track.points) {
+    points.push_back({
+        {"frame", p.frame},
+        {"time_s", JsonNumber(p.time_s)},
+        {"image", {JsonNumber(p.image.x()), JsonNumber(p.image.y())}},
+        {"box",
+         {JsonNumber(p.box_min.x()), JsonNumber(p.box_min.y()), JsonNumber(p.box_max.x()),
+          JsonNumber(p.box_max.y())}},
+        {"map", {JsonNumber(p.map.x()), JsonNumber(p.map.y())}},
+    });
+  }
+  Json properties = {
+      {"id", track.id},
+      {"visit", track.visit},
+      {"start_s", JsonNumber(track.start_s)},
+      {"end_s", JsonNumber(track.end_s)},
+      {"duration_s", JsonNumber(track.end_s - track.start_s)},
+      {"length", JsonNumber(track.length)},
+      {"speed", JsonNumber(track.speed)},
+      {"speed_mps", JsonNumber(track.speed_mps)},
+      {"heading_deg", JsonNumber(track.heading_deg)},
+      {"point_count", track.points.size()},
+      {"points", std::move(points)},
+  };
+  return {{"type", "Feature"},
+          {"id", track.id},
+          {"geometry", GeoJsonGeometry(TrackPositions(track, positions))},
+          {"properties", std::move(properties)}};
+}
+
+// ---------------------------------------------------------------------------------------------
+// KML
+
+// ColorBrewer Set1 as KML colours (aabbggrr), one per visit, cycling.
+constexpr std::array<const char*, 8> kVisitColours = {
+    "ff1c1ae4", "ffb87e37", "ff4aaf4d", "ffa34e98", "ff007fff", "ff33ffff", "ff2856a6", "ffbf81f7",
+};
+
+std::string VisitStyleId(int visit) { return "visit-" + std::to_string(visit); }
+
+std::string KmlStyle(int visit) {
+  const int n = static_cast<int>(kVisitColours.size());
+  const char* colour = kVisitColours[((visit - 1) % n + n) % n];
+  std::ostringstream out;
+  out << "<Style id=\"" << VisitStyleId(visit) << "\">"
+      << "<LineStyle><color>" << colour << "</color><width>3</width></LineStyle>"
+      << "<IconStyle><color>" << colour << "</color></IconStyle>"
+      << "</Style>\n";
+  return out.str();
+}
+
+void KmlData(const std::string& name, const std::string& value, std::string& out) {
+  out += "<Data name=\"" + XmlText(name) + "\"><value>" + XmlText(value) + "</value></Data>";
+}
+
+// A per-observation list for ExtendedData: space-separated, "nan" for non-finite values.
+template <typename Get>
+std::string KmlList(const mission::ActivityTrack& track, Get get) {
+  std::string out;
+  for (const auto& p : track.points) {
+    if (!out.empty()) out += ' ';
+    const double value = get(p);
+    out += std::isfinite(value) ? FormatNumber(value) : "nan";
+  }
+  return out;
+}
+
+std::string KmlPlacemark(const mission::ActivityTrack& track, const Positions& positions,
+                         const std::string& video) {
+  using Point = mission::TrackPoint;
+  std::string out = "<Placemark id=\"track-" + std::to_string(track.id) + "\">";
+  out += "<name>Track " + std::to_string(track.id) + "</name>";
+  std::ostringstream description;
+  description << "Visit " << track.visit << ", " << FormatNumber(track.start_s) << " - "
+              << FormatNumber(track.end_s) << " s, " << track.points.size() << " points";
+  if (!video.empty()) description << ", video " << video;
+  out += "<description>" + XmlText(description.str()) + "</description>";
+  out += "<styleUrl>#" + VisitStyleId(track.visit) + "</styleUrl>";
+  out += "<ExtendedData>";
+  KmlData("id", std::to_string(track.id), out);
+  KmlData("visit", std::to_string(track.visit), out);
+  KmlData("start_s", FormatNumber(track.start_s), out);
+  KmlData("end_s", FormatNumber(track.end_s), out);
+  KmlData("duration_s", FormatNumber(track.end_s - track.start_s), out);
+  KmlData("length", FormatNumber(track.length), out);
+  KmlData("speed", FormatNumber(track.speed), out);
+  KmlData("speed_mps", track.speed_mps ? FormatNumber(*track.speed_mps) : "", out);
+  KmlData("heading_deg", FormatNumber(track.heading_deg), out);
+  KmlData("point_count", std::to_string(track.points.size()), out);
+  KmlData("frames", KmlList(track, [](const Point& p) { return double(p.frame); }), out);
+  KmlData("times_s", KmlList(track, [](const Point& p) { return p.time_s; }), out);
+  KmlData("image_x", KmlList(track, [](const Point& p) { return p.image.x(); }), out);
+  KmlData("image_y", KmlList(track, [](const Point& p) { return p.image.y(); }), out);
+  KmlData("box_min_x", KmlList(track, [](const Point& p) { return p.box_min.x(); }), out);
+  KmlData("box_min_y", KmlList(track, [](const Point& p) { return p.box_min.y(); }), out);
+  KmlData("box_max_x", KmlList(track, [](const Point& p) { return p.box_max.x(); }), out);
+  KmlData("box_max_y", KmlList(track, [](const Point& p) { return p.box_max.y(); }), out);
+  KmlData("map_x", KmlList(track, [](const Point& p) { return p.map.x(); }), out);
+  KmlData("map_y", KmlList(track, [](const Point& p) { return p.map.y(); }), out);
+  out += "</ExtendedData>";
+
+  const std::vector<Eigen::Vector2d> lon_lat = TrackPositions(track, positions);
+  std::string coordinates;
+  for (const auto& p : lon_lat) {
+    if (!coordinates.empty()) coordinates += ' ';
+    coordinates += FormatNumber(p.x()) + "," + FormatNumber(p.y());
+  }
+  if (lon_lat.size() == 1) {
+    out += "<Point><coordinates>" + coordinates + "</coordinates></Point>";
+  } else if (lon_lat.size() > 1) {
+    out += "<LineString><tessellate>1</tessellate><coordinates>" + coordinates +
+           "</coordinates></LineString>";
+  }
+  out += "</Placemark>\n";
+  return out;
+}
+
+// ---------------------------------------------------------------------------------------------
+// GeoTIFF
+
+void RegisterGdalOnce() {
+  static std::once_flag once;
+  std::call_once(once, [] { GDALAllRegister(); });
+}
+
+// Collects GDAL's first failure message on this thread while alive (instead of GDAL printing
+// it), so errors can be returned with the file's name.
+class GdalErrors {
+ public:
+  GdalErrors() {
+    CPLErrorReset();
+    CPLPushErrorHandlerEx(&GdalErrors::Handler, this);
+  }
+  ~GdalErrors() { CPLPopErrorHandler(); }
+  GdalErrors(const GdalErrors&) = delete;
+  GdalErrors& operator=(const GdalErrors&) = delete;
+
+  bool failed() const { return failed_; }
+  // The first failure's text, or `fallback` when GDAL gave none.
+  std::string message(const std::string& fallback) const {
+    return message_.empty() ? fallback : message_;
+  }
+
+ private:
+  static void CPL_STDCALL Handler(CPLErr error_class, CPLErrorNum, const char* text) {
+    auto* self = static_cast<GdalErrors*>(CPLGetErrorHandlerUserData());
+    if (self == nullptr || error_class < CE_Failure) return;
+    if (!self->failed_ && text != nullptr) self->message_ = text;
+    self->failed_ = true;
+  }
+
+  bool failed_ = false;
+  std::string message_;
+};
+
+struct DatasetCloser {
+  void operator()(void* dataset) const { GDALClose(static_cast<GDALDatasetH>(dataset)); }
+};
+using DatasetPtr = std::unique_ptr<void, DatasetCloser>;
+
+struct SrsDeleter {
+  void operator()(void* srs) const {
+    OSRDestroySpatialReference(static_cast<OGRSpatialReferenceH>(srs));
+  }
+};
+using SrsPtr = std::unique_ptr<void, SrsDeleter>;
+
+// Pixel size of pyramid level `level`: ceil(size / 2^level).
+int LevelSize(int size, int level) {
+  return static_cast<int>((static_cast<int64_t>(size) + (int64_t{1} << level) - 1) >> level);
+}
+
+Status ValidateGeoTiffInputs(const mission::PyramidInfo& pyramid, int level,
+                             const TileReader& read_tile, const std::string& path) {
+  std::ostringstream problem;
+  if (pyramid.tile_size < 1 || pyramid.tile_size > 16384) {
+    problem << "tile size " << pyramid.tile_size << " is not 1..16384";
+  } else if (pyramid.levels < 1 || pyramid.levels > 30) {
+    problem << "the pyramid has " << pyramid.levels << " levels (1..30 expected)";
+  } else if (pyramid.width < 1 || pyramid.height < 1) {
+    problem << "the pyramid is " << pyramid.width << " x " << pyramid.height << " pixels";
+  } else if (!pyramid.map_origin.allFinite() || !std::isfinite(pyramid.step_x) ||
+             !std::isfinite(pyramid.step_y) || pyramid.step_x == 0 || pyramid.step_y == 0) {
+    problem << "the pyramid's map placement is not finite and non-degenerate (origin "
+            << pyramid.map_origin.transpose() << ", steps " << pyramid.step_x << ", "
+            << pyramid.step_y << ")";
+  } else if (level < 0 || level >= pyramid.levels) {
+    problem << "level " << level << " is outside the pyramid's levels 0.." << pyramid.levels - 1;
+  } else if (!read_tile) {
+    problem << "no tile reader";
+  }
+  const std::string text = problem.str();
+  return text.empty() ? Status::Ok() : InvalidArgumentError(path + ": " + text);
+}
+
+// The geotransform of a geo-referenced raster, fitted to the exact mapping.
+struct GeoFit {
+  int epsg = 0;
+  std::string crs;
+  std::array<double, 6> geotransform{};
+  double max_error_m = 0;
+};
+
+// Fits UTM = affine(pixel corner coordinates) by least squares to the exact map -> WGS84 -> UTM
+// mapping of a 9 x 9 grid over the raster, and measures the misfit on a 17 x 17 grid (which
+// contains the fitted points and the midpoints between them).
+StatusOr<GeoFit> FitUtmGeotransform(const geo::Wgs84& origin, const mission::PyramidInfo& pyramid,
+                                    int level, int width, int height, const std::string& path) {
+  auto created = geo::LocalTangentPlane::Create(origin);
+  if (!created.ok()) return InvalidArgumentError(path + ": " + created.status().message());
+  const geo::LocalTangentPlane& plane = *created;
+  auto origin_utm = geo::UtmFromWgs84(origin);
+  if (!origin_utm.ok()) {
+    return UnsupportedError(path + ": the map origin is outside UTM's range, so the GeoTIFF " +
+                            "cannot be written in UTM (" + origin_utm.status().message() + ")");
+  }
+  const std::pair<int, bool> zone(origin_utm->zone, origin_utm->north);
+
+  // Map point of pixel corner coordinates (u, v) of this level: level-0 pixel centres sit at
+  // map_origin + (col, row) * step, so the raster's outer corner is half a level-0 pixel before
+  // the first centre, and a level pixel spans 2^level level-0 pixels.
+  const double scale = std::ldexp(1.0, level);
+  const Eigen::Vector2d corner =
+      pyramid.map_origin - 0.5 * Eigen::Vector2d(pyramid.step_x, pyramid.step_y);
+  auto exact = [&](double u, double v) -> StatusOr<Eigen::Vector2d> {
+    const Eigen::Vector2d map =
+        corner + Eigen::Vector2d(u * scale * pyramid.step_x, v * scale * pyramid.step_y);
+    auto utm = geo::UtmFromWgs84(plane.LatLonFromMap(map), zone);
+    if (!utm.ok()) {
+      return UnsupportedError(path + ": the raster reaches outside UTM's range (" +
+                              utm.status().message() + ")");
+    }
+    return Eigen::Vector2d(utm->easting, utm->northing);
+  };
+
+  // Centred, normalised pixel coordinates keep the least-squares problem well conditioned.
+  const double uc = 0.5 * width, vc = 0.5 * height;
+  const double su = std::max(1.0, 0.5 * width), sv = std::max(1.0, 0.5 * height);
+  constexpr int kFitGrid = 9;
+  Eigen::MatrixXd design(kFitGrid * kFitGrid, 3);
+  Eigen::MatrixXd target(kFitGrid * kFitGrid, 2);
+  for (int j = 0; j < kFitGrid; ++j) {
+    for (int i = 0; i < kFitGrid; ++i) {
+      const double u = width * double(i) / (kFitGrid - 1);
+      const double v = height * double(j) / (kFitGrid - 1);
+      SAKER_ASSIGN_OR_RETURN(const Eigen::Vector2d utm, exact(u, v));
+      const int row = j * kFitGrid + i;
+      design.row(row) << 1.0, (u - uc) / su, (v - vc) / sv;
+      target.row(row) = utm.transpose();
+    }
+  }
+  const Eigen::MatrixXd c = design.colPivHouseholderQr().solve(target);  // 3 x 2
+  GeoFit fit;
+  // GDAL: X = gt[0] + u * gt[1] + v * gt[2], Y = gt[3] + u * gt[4] + v * gt[5].
+  fit.geotransform = {c(0, 0) - c(1, 0) * uc / su - c(2, 0) * vc / sv, c(1, 0) / su, c(2, 0) / sv,
+                      c(0, 1) - c(1, 1) * uc / su - c(2, 1) * vc / sv, c(1, 1) / su, c(2, 1) / sv};
+  constexpr int kCheckGrid = 2 * (kFitGrid - 1) + 1;
+  for (int j = 0; j < kCheckGrid; ++j) {
+    for (int i = 0; i < kCheckGrid; ++i) {
+      const double u = width * double(i) / (kCheckGrid - 1);
+      const double v = height * double(j) / (kCheckGrid - 1);
+      SAKER_ASSIGN_OR_RETURN(const Eigen::Vector2d utm, exact(u, v));
+      const auto& g = fit.geotransform;
+      const Eigen::Vector2d affine(g[0] + u * g[1] + v * g[2], g[3] + u * g[4] + v * g[5]);
+      fit.max_error_m = std::max(fit.max_error_m, (affine - utm).norm());
+    }
+  }
+  fit.epsg = geo::UtmEpsgCode(zone.first, zone.second);
+  fit.crs = "EPSG:" + std::to_string(fit.epsg) + " (WGS 84 / UTM zone " +
+            std::to_string(zone.first) + (zone.second ? "N" : "S") + ")";
+  return fit;
+}
+
+// Checks a tile from the reader: CV_8UC4, and between the part inside the raster and a full
+// tile in each direction.
+Status CheckTile(const cv::Mat& tile, int level, int tx, int ty, int inside_w, int inside_h,
+                 int tile_size, const std::string& path) {
+  if (tile.type() == CV_8UC4 && tile.cols >= inside_w && tile.cols <= tile_size &&
+      tile.rows >= inside_h && tile.rows <= tile_size) {
+    return Status::Ok();
+  }
+  std::ostringstream message;
+  message << path << ": tile (level " << level << ", x " << tx << ", y " << ty << ") is "
+          << tile.cols << " x " << tile.rows << " of OpenCV type " << tile.type()
+          << "; expected CV_8UC4 (type " << CV_8UC4 << ") of " << tile_size << " x " << tile_size
+          << " pixels (or " << inside_w << " x " << inside_h << " at the raster edge)";
+  return InvalidDataError(message.str());
+}
+
+StatusOr<GeoTiffReport> WriteGeoTiff(const mission::MapFrame& map,
+                                     const mission::PyramidInfo& pyramid, int level,
+                                     const TileReader& read_tile, const std::string& path) {
+  SAKER_RETURN_IF_ERROR(ValidateGeoTiffInputs(pyramid, level, read_tile, path));
+  GeoTiffReport report;
+  report.width = LevelSize(pyramid.width, level);
+  report.height = LevelSize(pyramid.height, level);
+
+  std::optional<GeoFit> fit;
+  if (map.geo_referenced) {
+    if (!map.origin) {
+      return InvalidArgumentError(path +
+                                  ": the mission is marked geo-referenced but has no map origin");
+    }
+    SAKER_ASSIGN_OR_RETURN(
+        fit, FitUtmGeotransform(*map.origin, pyramid, level, report.width, report.height, path));
+    report.crs = fit->crs;
+    report.max_fit_error_m = fit->max_error_m;
+  } else {
+    report.crs = "none (not geo-referenced)";
+  }
+
+  RegisterGdalOnce();
+  GdalErrors errors;
+  GDALDriverH driver = GDALGetDriverByName("GTiff");
+  if (driver == nullptr) return UnsupportedError(path + ": GDAL has no GTiff driver");
+
+  // GeoTIFF tiles must be multiples of 16 pixels: the pyramid's own tiles when they are, so each
+  // file block is written once, whole, and flushed after each row of tiles.
+  const int ts = pyramid.tile_size;
+  const bool aligned_blocks = ts % 16 == 0;
+  const std::string block = std::to_string(aligned_blocks ? ts : 256);
+  char** options = nullptr;
+  options = CSLSetNameValue(options, "TILED", "YES");
+  options = CSLSetNameValue(options, "BLOCKXSIZE", block.c_str());
+  options = CSLSetNameValue(options, "BLOCKYSIZE", block.c_str());
+  options = CSLSetNameValue(options, "COMPRESS", "DEFLATE");
+  options = CSLSetNameValue(options, "PREDICTOR", "2");
+  options = CSLSetNameValue(options, "PHOTOMETRIC", "RGB");
+  options = CSLSetNameValue(options, "ALPHA", "UNASSOCIATED");
+  options = CSLSetNameValue(options, "INTERLEAVE", "PIXEL");
+  options = CSLSetNameValue(options, "BIGTIFF", "IF_SAFER");
+  const std::string partial = PartialPath(path);
+  DatasetPtr dataset(
+      GDALCreate(driver, partial.c_str(), report.width, report.height, 4, GDT_Byte, options));
+  CSLDestroy(options);
+  // From here on, every failure removes the partial file (after the dataset is closed).
+  auto fail = [&](Status status) -> Status {
+    dataset.reset();
+    RemoveQuietly(partial);
+    RemoveQuietly(partial + ".aux.xml");
+    return status;
+  };
+  if (!dataset) {
+    return fail(
+        IoError(path + ": cannot create the file (" + errors.message("GDAL gave no reason") + ")"));
+  }
+  GDALDatasetH ds = dataset.get();
+  constexpr std::array<GDALColorInterp, 4> kInterp = {GCI_RedBand, GCI_GreenBand, GCI_BlueBand,
+                                                      GCI_AlphaBand};
+  for (int b = 0; b < 4; ++b) {
+    if (GDALSetRasterColorInterpretation(GDALGetRasterBand(ds, b + 1), kInterp[b]) != CE_None) {
+      return fail(IoError(path + ": cannot set the colour interpretation of band " +
+                          std::to_string(b + 1) + " (" + errors.message("no reason") + ")"));
+    }
+  }
+  if (fit) {
+    if (GDALSetGeoTransform(ds, fit->geotransform.data()) != CE_None) {
+      return fail(
+          IoError(path + ": cannot set the geotransform (" + errors.message("no reason") + ")"));
+    }
+    SrsPtr srs(OSRNewSpatialReference(nullptr));
+    if (!srs || OSRImportFromEPSG(srs.get(), fit->epsg) != OGRERR_NONE) {
+      return fail(IoError(path + ": cannot set up " + fit->crs +
+                          " (is PROJ's database installed?) (" + errors.message("no reason") +
+                          ")"));
+    }
+    if (GDALSetSpatialRef(ds, srs.get()) != CE_None) {
+      return fail(IoError(path + ": cannot set the CRS (" + errors.message("no reason") + ")"));
+    }
+  }
+
+  // The reader's BGRA goes to the file's bands 3, 2, 1, 4 (RGBA).
+  std::array<int, 4> band_map = {3, 2, 1, 4};
+  const cv::Mat transparent(ts, ts, CV_8UC4, cv::Scalar::all(0));
+  const int tiles_x = (report.width + ts - 1) / ts;
+  const int tiles_y = (report.height + ts - 1) / ts;
+  for (int ty = 0; ty < tiles_y; ++ty) {
+    for (int tx = 0; tx < tiles_x; ++tx) {
+      const int x0 = tx * ts, y0 = ty * ts;
+      const int w = std::min(ts, report.width - x0), h = std::min(ts, report.height - y0);
+      StatusOr<cv::Mat> tile = read_tile(level, tx, ty);
+      if (!tile.ok()) {
+        return fail(Status(tile.status().code(),
+                           path + ": reading tile (level " + std::to_string(level) + ", x " +
+                               std::to_string(tx) + ", y " + std::to_string(ty) +
+                               ") failed: " + tile.status().message()));
+      }
+      const cv::Mat& pixels = tile->empty() ? transparent : *tile;
+      if (!tile->empty()) {
+        if (Status checked = CheckTile(pixels, level, tx, ty, w, h, ts, path); !checked.ok()) {
+          return fail(checked);
+        }
+      }
+      const CPLErr written = GDALDatasetRasterIOEx(
+          ds, GF_Write, x0, y0, w, h, const_cast<uchar*>(pixels.data), w, h, GDT_Byte, 4,
+          band_map.data(), 4, static_cast<GSpacing>(pixels.step[0]), 1, nullptr);
+      if (written != CE_None || errors.failed()) {
+        return fail(IoError(path + ": writing tile (" + std::to_string(tx) + ", " +
+                            std::to_string(ty) + ") failed (" + errors.message("no reason") + ")"));
+      }
+    }
+    // The row's blocks are complete: write them out so memory holds one row of tiles at most.
+    if (aligned_blocks) GDALFlushCache(ds);
+  }
+  dataset.reset();  // closes the file, writing what remains
+  if (errors.failed()) {
+    return fail(IoError(path + ": writing the file failed (" + errors.message("no reason") + ")"));
+  }
+  SAKER_RETURN_IF_ERROR(CommitPartial(path));
+  return report;
+}
+
+}  // namespace
+
+Status ExportGeoJson(const mission::Mission& mission, const std::string& path) {
+  return Guarded(path, [&]() -> Status {
+    SAKER_ASSIGN_OR_RETURN(const Positions positions, Positions::Create(mission.map, path));
+    Json features = Json::array();
+    for (const auto& track : mission.tracks) features.push_back(GeoJsonFeature(track, positions));
+    // A foreign member (RFC 7946 section 6.1) says what the numbers mean.
+    Json about = {
+        {"video", VideoName(mission)},
+        {"geo_referenced", positions.geo_referenced()},
+        {"coordinates", positions.geo_referenced()
+                            ? "WGS 84 longitude, latitude (degrees)"
+                            : "map pixels of the first key frame (x right, y down); no CRS"},
+        {"length_unit", positions.geo_referenced() ? "m" : "px"},
+    };
+    if (positions.geo_referenced()) {
+      about["map_origin"] = {{"latitude_deg", mission.map.origin->latitude_deg},
+                             {"longitude_deg", mission.map.origin->longitude_deg},
+                             {"height_m", mission.map.origin->height_m}};
+    }
+    const Json collection = {
+        {"type", "FeatureCollection"}, {"saker", std::move(about)}, {"features", features}};
+    std::string text = collection.dump(-1, ' ', false, Json::error_handler_t::replace);
+    text += '\n';
+    return WriteFileAtomically(path, text);
+  });
+}
+
+Status ExportKml(const mission::Mission& mission, const std::string& path) {
+  return Guarded(path, [&]() -> Status {
+    if (!mission.map.geo_referenced) {
+      return UnsupportedError(
+          path + ": KML needs a geo-referenced mission (KML positions are WGS 84 longitude and " +
+          "latitude, and this mission's map is in video pixels); export GeoJSON or CSV instead");
+    }
+    SAKER_ASSIGN_OR_RETURN(const Positions positions, Positions::Create(mission.map, path));
+    const std::string video = VideoName(mission);
+    std::string out =
+        "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
+        "<kml xmlns=\"http://www.opengis.net/kml/2.2\">\n<Document>\n";
+    out += "<name>" + XmlText("Saker tracks" + (video.empty() ? "" : ": " + video)) + "</name>\n";
+    std::set<int> visits;
+    for (const auto& track : mission.tracks) visits.insert(track.visit);
+    for (int visit : visits) out += KmlStyle(visit);
+    for (const auto& track : mission.tracks) out += KmlPlacemark(track, positions, video);
+    out += "</Document>\n</kml>\n";
+    return WriteFileAtomically(path, out);
+  });
+}
+
+Status ExportCsv(const mission::Mission& mission, const std::string& path) {
+  return Guarded(path, [&]() -> Status {
+    SAKER_ASSIGN_OR_RETURN(const Positions positions, Positions::Create(mission.map, path));
+    static constexpr const char* kHeader =
+        "video,track_id,visit,start_s,end_s,duration_s,length,speed,speed_mps,heading_deg,"
+        "point_count,point_index,frame,time_s,image_x,image_y,box_min_x,box_min_y,box_max_x,"
+        "box_max_y,map_x,map_y,latitude_deg,longitude_deg\r\n";
+    const std::string video = CsvField(VideoName(mission));
+    std::string out = kHeader;
+    for (const auto& track : mission.tracks) {
+      const std::string track_fields =
+          video + "," + std::to_string(track.id) + "," + std::to_string(track.visit) + "," +
+          FormatNumber(track.start_s) + "," + FormatNumber(track.end_s) + "," +
+          FormatNumber(track.end_s - track.start_s) + "," + FormatNumber(track.length) + "," +
+          FormatNumber(track.speed) + "," +
+          (track.speed_mps ? FormatNumber(*track.speed_mps) : "") + "," +
+          FormatNumber(track.heading_deg) + "," + std::to_string(track.points.size());
+      for (size_t i = 0; i < track.points.size(); ++i) {
+        const auto& p = track.points[i];
+        out += track_fields;
+        for (const std::string& field :
+             {std::to_string(i), std::to_string(p.frame), FormatNumber(p.time_s),
+              FormatNumber(p.image.x()), FormatNumber(p.image.y()), FormatNumber(p.box_min.x()),
+              FormatNumber(p.box_min.y()), FormatNumber(p.box_max.x()), FormatNumber(p.box_max.y()),
+              FormatNumber(p.map.x()), FormatNumber(p.map.y())}) {
+          out += "," + field;
+        }
+        std::optional<Eigen::Vector2d> lon_lat;
+        if (positions.geo_referenced()) lon_lat = positions.Of(p.map);
+        out += "," + (lon_lat ? FormatNumber(lon_lat->y()) : "");
+        out += "," + (lon_lat ? FormatNumber(lon_lat->x()) : "");
+        out += "\r\n";
+      }
+    }
+    return WriteFileAtomically(path, out);
+  });
+}
+
+StatusOr<GeoTiffReport> ExportGeoTiff(const mission::MapFrame& map,
+                                      const mission::PyramidInfo& pyramid, int level,
+                                      const TileReader& read_tile, const std::string& path) {
+  return Guarded(path, [&]() -> StatusOr<GeoTiffReport> {
+    return WriteGeoTiff(map, pyramid, level, read_tile, path);
+  });
+}
+
+}  // namespace saker::exporting

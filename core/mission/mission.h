@@ -1,0 +1,138 @@
+#pragma once
+
+// A processed mission as plain data: what the mission file (`.saker`, an SQLite database)
+// stores, what the exports write and what the GUI shows. Nothing here refers to a running engine
+// stage; `mission/process.h` fills it from one, `mission/mission_store.h` saves and loads it.
+//
+// Conventions (docs/architecture.md): homographies are `target_from_source`, H(2,2) = 1, with
+// 8x8 covariances in the order of track/types.h; the map frame is east-north-up metres around
+// `MapFrame::origin` when the mission is geo-referenced, otherwise the first key frame's pixel
+// frame (x right, y down). Times are seconds from the start of the video.
+
+#include <array>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "core/geo/local_tangent_plane.h"
+
+namespace saker::mission {
+
+// Version of the mission file's schema. A file with a newer version is refused, never written.
+inline constexpr int kSchemaVersion = 1;
+
+using Covariance8 = Eigen::Matrix<double, 8, 8>;
+
+struct SourceVideo {
+  std::string path;         // absolute path at processing time (the video may move later)
+  std::string fingerprint;  // FingerprintFile(path): recognises the same video elsewhere
+  int64_t size_bytes = 0;
+  int width = 0;
+  int height = 0;
+  double frame_rate = 0;  // frames per second
+  int64_t frame_count = 0;
+  double duration_s = 0;
+};
+
+struct MapFrame {
+  bool geo_referenced = false;       // true: ENU metres around `origin`; false: key frame pixels
+  std::optional<geo::Wgs84> origin;  // set exactly when geo_referenced
+};
+
+struct FrameRecord {
+  int64_t index = 0;
+  double time_s = 0;
+  std::optional<int64_t> utc_us;                  // KLV time stamp, when the frame has metadata
+  std::optional<Eigen::Matrix3d> map_from_frame;  // absent: the frame could not be placed
+  // The four image corners (top-left, top-right, bottom-right, bottom-left) on the map according
+  // to the frame's metadata, when it has them.
+  std::optional<std::array<Eigen::Vector2d, 4>> metadata_corners;
+  std::optional<geo::Wgs84> sensor;  // sensor position from the metadata
+};
+
+struct KeyFrameRecord {
+  int32_t id = 0;  // KeyFrameId
+  int64_t frame_index = 0;
+  int32_t segment = 0;  // chain segment (a chain break starts a new one)
+  Eigen::Matrix3d map_from_frame = Eigen::Matrix3d::Identity();
+  Covariance8 covariance = Covariance8::Zero();
+  bool node = false;  // a node of the node/arc decomposition
+};
+
+enum class LinkKind { kSequential, kGeometric, kAppearance };
+
+struct LinkRecord {
+  int32_t from = 0;  // KeyFrameId
+  int32_t to = 0;
+  LinkKind kind = LinkKind::kSequential;
+  Eigen::Matrix3d to_from_from = Eigen::Matrix3d::Identity();
+  Covariance8 covariance = Covariance8::Zero();
+  int32_t correspondences = 0;  // inlier point pairs that measured it
+};
+
+// One observation of a moving target.
+struct TrackPoint {
+  int64_t frame = 0;
+  double time_s = 0;
+  Eigen::Vector2d image{0, 0};  // pixels in the original video frame
+  Eigen::Vector2d box_min{0, 0};
+  Eigen::Vector2d box_max{0, 0};
+  Eigen::Vector2d map{0, 0};  // map frame
+};
+
+// A moving target's track with its activity attributes (docs/activity.md).
+struct ActivityTrack {
+  int64_t id = 0;  // TargetTrackId
+  std::vector<TrackPoint> points;  // increasing frame
+  double start_s = 0;
+  double end_s = 0;
+  double length = 0;  // path length, map units
+  double speed = 0;   // average speed, map units per second
+  std::optional<double> speed_mps;  // metres per second, when geo-referenced
+  double heading_deg = 0;           // direction of travel, degrees clockwise from map north (+y
+                                    // when geo-referenced, -y, up the image, otherwise)
+  int visit = 1;                    // which pass of the aircraft over the place, from 1
+};
+
+// Where the mosaic's tile pyramid lies on the map. Level 0 is full resolution; level l is
+// downsampled by 2^l; tile (x, y) of level l covers pixels [x, x+1) * tile_size of that level.
+struct PyramidInfo {
+  int tile_size = 256;
+  int levels = 0;
+  int width = 0;   // level 0 size in pixels
+  int height = 0;
+  // Map coordinates of level 0 pixel centres: map = origin + (col * step_x, row * step_y).
+  Eigen::Vector2d map_origin{0, 0};
+  double step_x = 1;  // map units per pixel along columns
+  double step_y = 1;  // along rows (negative when the map's y axis points north)
+};
+
+// Which processing stages have completed (and been saved).
+struct Progress {
+  bool front_end = false;
+  bool mosaic = false;
+  bool activity = false;
+  bool tiles = false;
+  bool cancelled = false;  // the job was cancelled: what is here is what had completed
+};
+
+struct Mission {
+  int schema_version = kSchemaVersion;
+  std::string saker_version;
+  SourceVideo source;
+  std::string options_json;  // the processing options, as JSON
+  MapFrame map;
+  std::vector<FrameRecord> frames;
+  std::vector<KeyFrameRecord> key_frames;
+  std::vector<LinkRecord> links;
+  std::vector<ActivityTrack> tracks;
+  std::optional<PyramidInfo> pyramid;
+  Progress progress;
+};
+
+const char* LinkKindName(LinkKind kind);  // "sequential", "geometric", "appearance"
+
+}  // namespace saker::mission

@@ -1,0 +1,113 @@
+#pragma once
+
+// The mission file (`.saker`): an SQLite database with a versioned schema of plain relational
+// tables, so a viewer, the command-line tool or a Python script can read what a processing job
+// wrote. Every write is one transaction and the file runs in WAL mode, so a crash or kill -9 at any
+// moment leaves the last committed state, and a viewer reads while a worker writes. The schema,
+// blob layouts and error behaviour are described in docs/mission-file.md.
+//
+// A MissionStore is one SQLite connection: use it from one thread at a time (open a second store
+// for a second thread or process).
+
+#include "core/mission/mission.h"
+#include "core/util/status.h"
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace saker::mission {
+
+// The `application_id` of every Saker mission file ('SAKR'); with the `meta` table's
+// schema_version it tells a mission from any other SQLite database.
+inline constexpr int32_t kMissionApplicationId = 0x53414B52;
+
+enum class OpenMode {
+  kReadOnly,   // viewers: never writes, works while another process writes
+  kReadWrite,  // the processing job (one writer at a time; others wait up to the busy timeout)
+};
+
+// The parts of a mission that Save writes. The header (schema version, saker_version, source,
+// options_json, map, pyramid info, progress) is always written; the parts not named keep what
+// the file held.
+enum SavePart : unsigned {
+  kSaveFrames = 1u,  // Mission::frames
+  kSaveGraph = 2u,   // Mission::key_frames and Mission::links
+  kSaveTracks = 4u,  // Mission::tracks with their points
+  kSaveAll = 7u,
+};
+
+// One encoded tile of the mosaic pyramid (PyramidInfo gives the geometry).
+struct EncodedTile {
+  int level = 0;               // 0 = full resolution, >= 0
+  int x = 0;                   // column of the tile in its level, >= 0
+  int y = 0;                   // row, >= 0
+  std::vector<uint8_t> bytes;  // PNG or JPEG; opaque to the store
+};
+
+// An open mission file. Errors are returned as Status naming the file (and, for bad content,
+// the table); nothing throws across this interface.
+class MissionStore {
+ public:
+  // Creates a new mission file at `path` holding an empty mission of schema kSchemaVersion, open
+  // for reading and writing. If a file exists there, it is refused (InvalidArgument) unless
+  // `replace` is true AND that file is a Saker mission this version can read: a foreign, corrupt
+  // or newer-version file is never overwritten (its Open error is returned). The new file is
+  // built beside the target and renamed over it, so a crash leaves either the old or the new file.
+  // Replacing a mission that another process has open fails with IoError.
+  static StatusOr<std::unique_ptr<MissionStore>> Create(const std::string& path,
+                                                        bool replace = false);
+  // Opens an existing mission. NotFound when missing; InvalidData for a zero-byte, truncated,
+  // corrupt or non-SQLite file or an SQLite database that is not a Saker mission; Unsupported for
+  // a newer schema version. A file that is refused is never written. Read-only stores work while
+  // another process writes.
+  static StatusOr<std::unique_ptr<MissionStore>> Open(const std::string& path,
+                                                      OpenMode mode = OpenMode::kReadOnly);
+
+  MissionStore(const MissionStore&) = delete;
+  MissionStore& operator=(const MissionStore&) = delete;
+  ~MissionStore();
+
+  // The path the store was opened with.
+  const std::string& path() const;
+  OpenMode mode() const;
+
+  // One transaction: writes the header and replaces the parts named by `parts` (SavePart bits).
+  // InvalidArgument on a read-only store, for unknown part bits, or for a mission the file cannot
+  // represent (duplicate frame indices, a map origin that is not set exactly when geo-referenced,
+  // an unknown link kind); nothing is written then. A crash at any moment leaves the last
+  // committed state readable.
+  Status Save(const Mission& mission, unsigned parts = kSaveAll);
+  // The whole mission except the tile images, read in one transaction (so never half of a
+  // concurrent Save). Frames come back sorted by index, everything else in saved order.
+  // InvalidData naming the file and the table when the content is inconsistent (a blob of the
+  // wrong size, a value of the wrong type, an unknown link kind, a missing row).
+  StatusOr<Mission> Load() const;
+
+  // Stores tiles of the mosaic pyramid in one transaction, replacing tiles with the same
+  // (level, x, y). InvalidArgument on a read-only store or for a negative level or position.
+  Status WriteTiles(const std::vector<EncodedTile>& tiles);
+  // Removes every tile, in one transaction.
+  Status ClearTiles();
+  // The bytes of one tile, or std::nullopt when the file has no such tile.
+  StatusOr<std::optional<std::vector<uint8_t>>> ReadTile(int level, int x, int y) const;
+  // How many tiles the file holds.
+  StatusOr<int64_t> CountTiles() const;
+
+ private:
+  struct Impl;
+  explicit MissionStore(std::unique_ptr<Impl> impl);
+
+  std::unique_ptr<Impl> impl_;
+};
+
+// A fingerprint that recognises the same video file elsewhere (renamed, moved, copied) without
+// reading all of a multi-gigabyte file: "v1:<size in bytes>:<16 hex digits>", the digits a 64-bit
+// FNV-1a hash of the size and of the first, middle and last MiB of the file (see
+// docs/mission-file.md). NotFound when the file is missing, IoError when it cannot be read; the
+// message names the path.
+StatusOr<std::string> FingerprintFile(const std::string& path);
+
+}  // namespace saker::mission

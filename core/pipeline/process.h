@@ -1,0 +1,69 @@
+#pragma once
+
+// One entry point from a video to a saved mission: ingest and front end, key frames, loop
+// closure and adjustment, in-between frames, activity mapping, the mosaic's tile pyramid. Each
+// stage's result is committed to the mission file as it completes (one transaction each), so a
+// viewer can open the mission while it is processed, a cancelled job keeps what completed and a
+// crash leaves the last committed state. docs/missions.md.
+
+#include "core/activity/activity.h"
+#include "core/frontend/front_end.h"
+#include "core/mission/mission.h"
+#include "core/mosaic/mosaic_builder.h"
+#include "core/tiles/pyramid.h"
+#include "core/util/job_context.h"
+#include "core/util/status.h"
+
+#include <functional>
+#include <string>
+
+namespace saker::pipeline {
+
+struct ProcessOptions {
+  frontend::FrontEndOptions front_end;
+  mosaic::MosaicOptions mosaic;
+  activity::ActivityOptions activity;
+  tiles::PyramidOptions pyramid;
+  bool render_tiles = true;   // false: no mosaic picture in the mission (faster)
+  bool replace = false;       // overwrite an existing mission file (never a foreign file)
+  std::string saker_version;  // recorded in the mission
+  // Called on the processing thread after each commit, with the stage just saved ("source",
+  // "front end", "mosaic", "activity", "tiles"): a viewer reloads the mission then.
+  std::function<void(const std::string& stage)> on_commit;
+
+  Status Validate() const;
+};
+
+struct ProcessSummary {
+  mission::Progress progress;  // what completed
+  int64_t frames = 0;
+  int64_t frames_placed = 0;
+  int64_t key_frames = 0;
+  int64_t cross_links = 0;
+  int64_t tracks = 0;
+  int64_t tiles = 0;
+  bool geo_referenced = false;
+  double front_end_s = 0, mosaic_s = 0, activity_s = 0, tiles_s = 0, save_s = 0, total_s = 0;
+  double video_duration_s = 0;
+  std::vector<std::string> warnings;  // what could not be done, for a person (not errors)
+  std::string ToText() const;         // a few lines for a person
+};
+
+// Processes `video` into a new mission file at `mission_path`. Errors name the file. When `job`
+// is cancelled the mission keeps the stages that completed, is marked cancelled, and the result
+// is a Cancelled status saying so. A video in which the front end finds no key frame still gives
+// a mission (frames and metadata; no mosaic), and the summary says so.
+StatusOr<ProcessSummary> ProcessVideo(const std::string& video, const std::string& mission_path,
+                                      const ProcessOptions& options, JobContext* job = nullptr);
+
+// The plain mission records of an engine run (exposed for tests and the evaluation).
+std::vector<mission::FrameRecord> FrameRecords(const frontend::FrontEndResult& front,
+                                               const mosaic::MosaicResult* mosaic);
+std::vector<mission::ActivityTrack> TrackRecords(const frontend::FrontEndResult& front);
+// The mission an engine run gives without tiles: source size and rate, map frame, frames, key
+// frames, links and the mapped tracks (what `saker-cli evaluate` compares with the truth).
+StatusOr<mission::Mission> MissionFromRun(const frontend::FrontEndResult& front,
+                                          const mosaic::MosaicResult& mosaic,
+                                          const activity::ActivityOptions& options);
+
+}  // namespace saker::pipeline

@@ -1,0 +1,287 @@
+#include "core/render/activity_map.h"
+
+#include <Eigen/Geometry>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <limits>
+
+namespace saker::render {
+namespace {
+
+const cv::Scalar kBackground(48, 40, 36);  // no-data: dark blue-grey, not black
+constexpr int kShift = 4;                  // sub-pixel bits for drawing
+constexpr double kOne = 1 << kShift;
+
+cv::Scalar Bgr(const activity::Rgb& c) { return {double(c.b), double(c.g), double(c.r)}; }
+
+cv::Point Fixed(const Eigen::Vector2d& p) {
+  return {int(std::lround(p.x() * kOne)), int(std::lround(p.y() * kOne))};
+}
+
+// Alpha-blends a BGRA tile onto the canvas at (x, y), clipped.
+void Blend(const cv::Mat& tile, cv::Mat* canvas, int x, int y) {
+  const cv::Rect target =
+      cv::Rect(x, y, tile.cols, tile.rows) & cv::Rect(0, 0, canvas->cols, canvas->rows);
+  for (int r = target.y; r < target.y + target.height; ++r) {
+    const cv::Vec4b* source = tile.ptr<cv::Vec4b>(r - y);
+    cv::Vec3b* out = canvas->ptr<cv::Vec3b>(r);
+    for (int c = target.x; c < target.x + target.width; ++c) {
+      const cv::Vec4b& s = source[c - x];
+      const int a = s[3];
+      for (int k = 0; k < 3; ++k) out[c][k] = uint8_t((s[k] * a + out[c][k] * (255 - a)) / 255);
+    }
+  }
+}
+
+// A "nice" length (1, 2 or 5 times a power of ten) at most `at_most`.
+double NiceLength(double at_most) {
+  const double power = std::pow(10.0, std::floor(std::log10(at_most)));
+  for (const double m : {5.0, 2.0, 1.0}) {
+    if (m * power <= at_most) return m * power;
+  }
+  return power;
+}
+
+void Text(cv::Mat* image, const std::string& text, cv::Point at, double scale,
+          const cv::Scalar& colour, int thickness = 1) {
+  cv::putText(*image, text, at, cv::FONT_HERSHEY_SIMPLEX, scale, colour, thickness, cv::LINE_AA);
+}
+
+cv::Size TextSize(const std::string& text, double scale, int thickness = 1) {
+  int baseline = 0;
+  return cv::getTextSize(text, cv::FONT_HERSHEY_SIMPLEX, scale, thickness, &baseline);
+}
+
+// A translucent white panel behind overlays, so they read on any mosaic.
+void Panel(cv::Mat* image, cv::Rect box) {
+  box &= cv::Rect(0, 0, image->cols, image->rows);
+  if (box.empty()) return;
+  cv::Mat region = (*image)(box);
+  cv::Mat white(region.size(), region.type(), cv::Scalar(255, 255, 255));
+  cv::addWeighted(region, 0.2, white, 0.8, 0, region);
+  cv::rectangle(*image, box, cv::Scalar(90, 90, 90), 1);
+}
+
+void DrawLegend(const activity::Legend& legend, double ui, cv::Mat* image) {
+  const double text_scale = 0.5 * ui;
+  const int pad = int(10 * ui), line = int(22 * ui);
+  const int width = std::max(int(190 * ui), TextSize(legend.title, text_scale).width + 2 * pad);
+  const int rows = legend.continuous ? 3 : int(legend.entries.size()) + 1;
+  const cv::Rect box(image->cols - width - pad, pad, width, rows * line + 2 * pad);
+  Panel(image, box);
+  const cv::Scalar ink(30, 30, 30);
+  Text(image, legend.title, {box.x + pad, box.y + pad + int(14 * ui)}, text_scale, ink);
+  if (legend.continuous) {
+    // A ramp through the entries' colours, labels under their positions.
+    const int x0 = box.x + pad, x1 = box.x + width - pad;
+    const int y0 = box.y + pad + line, y1 = y0 + int(14 * ui);
+    for (int x = x0; x <= x1; ++x) {
+      const double p = double(x - x0) / std::max(1, x1 - x0);
+      size_t i = 0;
+      while (i + 2 < legend.entries.size() && legend.entries[i + 1].position < p) ++i;
+      const auto& a = legend.entries[i];
+      const auto& b = legend.entries[std::min(i + 1, legend.entries.size() - 1)];
+      const double f = b.position > a.position
+                           ? std::clamp((p - a.position) / (b.position - a.position), 0.0, 1.0)
+                           : 0;
+      const cv::Scalar colour = Bgr(a.colour) * (1 - f) + Bgr(b.colour) * f;
+      cv::line(*image, {x, y0}, {x, y1}, colour, 1);
+    }
+    cv::rectangle(*image, {x0, y0}, {x1, y1}, cv::Scalar(90, 90, 90), 1);
+    for (const auto& entry : legend.entries) {
+      const int x = x0 + int(entry.position * (x1 - x0));
+      const cv::Size size = TextSize(entry.label, 0.42 * ui);
+      const int left = std::clamp(x - size.width / 2, box.x + 2, box.x + width - size.width - 2);
+      cv::line(*image, {x, y1}, {x, y1 + int(4 * ui)}, ink, 1);
+      Text(image, entry.label, {left, y1 + int(18 * ui)}, 0.42 * ui, ink);
+    }
+  } else {
+    for (size_t i = 0; i < legend.entries.size(); ++i) {
+      const int y = box.y + pad + line * int(i + 1);
+      cv::line(*image, {box.x + pad, y + int(8 * ui)},
+               {box.x + pad + int(28 * ui), y + int(8 * ui)}, Bgr(legend.entries[i].colour),
+               std::max(2, int(4 * ui)), cv::LINE_AA);
+      Text(image, legend.entries[i].label, {box.x + pad + int(38 * ui), y + int(13 * ui)},
+           0.45 * ui, ink);
+    }
+  }
+}
+
+void DrawScaleBar(double metres_per_px, double ui, cv::Mat* image) {
+  const double metres = NiceLength(0.2 * image->cols * metres_per_px);
+  const int length = int(std::lround(metres / metres_per_px));
+  const std::string label = metres >= 1000 ? std::to_string(int(metres / 1000)) + " km"
+                                           : std::to_string(int(metres)) + " m";
+  const int pad = int(10 * ui);
+  const cv::Rect box(pad, image->rows - int(46 * ui) - pad, length + 2 * pad, int(46 * ui));
+  Panel(image, box);
+  const int y = box.y + int(32 * ui), x0 = box.x + pad;
+  const cv::Scalar ink(30, 30, 30);
+  cv::rectangle(*image, {x0, y}, {x0 + length / 2, y + int(6 * ui)}, ink, cv::FILLED);
+  cv::rectangle(*image, {x0, y}, {x0 + length, y + int(6 * ui)}, ink, 1);
+  Text(image, label, {x0, y - int(8 * ui)}, 0.5 * ui, ink);
+}
+
+void DrawNorthArrow(double ui, cv::Mat* image) {
+  const int pad = int(10 * ui), size = int(52 * ui);
+  const cv::Rect box(pad, pad, int(40 * ui), size + int(20 * ui));
+  Panel(image, box);
+  const int cx = box.x + box.width / 2, top = box.y + int(24 * ui),
+            bottom = box.y + box.height - int(6 * ui);
+  const std::vector<cv::Point> left = {
+      {cx, top}, {cx - int(9 * ui), bottom}, {cx, bottom - int(10 * ui)}};
+  const std::vector<cv::Point> right = {
+      {cx, top}, {cx + int(9 * ui), bottom}, {cx, bottom - int(10 * ui)}};
+  cv::fillConvexPoly(*image, left, cv::Scalar(30, 30, 30), cv::LINE_AA);
+  cv::polylines(*image, right, true, cv::Scalar(30, 30, 30), 1, cv::LINE_AA);
+  const cv::Size n = TextSize("N", 0.55 * ui, 2);
+  Text(image, "N", {cx - n.width / 2, box.y + int(19 * ui)}, 0.55 * ui, cv::Scalar(30, 30, 30), 2);
+}
+
+}  // namespace
+
+Status ActivityMapOptions::Validate() const {
+  if (max_side_px < 64 || max_side_px > 30000) {
+    return InvalidArgumentError("activity map: the longer side must be 64..30000 pixels");
+  }
+  if (!(line_width > 0 && line_width <= 50)) {
+    return InvalidArgumentError("activity map: the line width must be in (0, 50] pixels");
+  }
+  if (start_s && end_s && *end_s < *start_s) {
+    return InvalidArgumentError("activity map: the time window ends before it starts");
+  }
+  return {};
+}
+
+StatusOr<ActivityMap> RenderActivityMap(const mission::Mission& mission, const TileReader& tiles,
+                                        const ActivityMapOptions& options) {
+  SAKER_RETURN_IF_ERROR(options.Validate());
+  std::vector<const mission::ActivityTrack*> shown;
+  std::vector<mission::ActivityTrack> shown_copy;
+  for (const mission::ActivityTrack& track : mission.tracks) {
+    if (options.start_s && track.end_s < *options.start_s) continue;
+    if (options.end_s && track.start_s > *options.end_s) continue;
+    shown_copy.push_back(track);
+  }
+  ActivityMap out;
+  double metres_per_px = 0;
+  if (mission.pyramid) {
+    const mission::PyramidInfo& info = *mission.pyramid;
+    int level = 0;
+    while (level + 1 < info.levels &&
+           (std::max(info.width, info.height) >> level) > options.max_side_px) {
+      ++level;
+    }
+    const double f = double(int64_t(1) << level);
+    const int width = int(std::ceil(info.width / f)), height = int(std::ceil(info.height / f));
+    out.bgr = cv::Mat(height, width, CV_8UC3, kBackground);
+    const int t = info.tile_size;
+    for (int ty = 0; ty * t < height; ++ty) {
+      for (int tx = 0; tx * t < width; ++tx) {
+        SAKER_ASSIGN_OR_RETURN(const cv::Mat tile, tiles(level, tx, ty));
+        if (tile.empty()) continue;
+        if (tile.type() != CV_8UC4) return InvalidDataError("activity map: a tile is not BGRA");
+        Blend(tile, &out.bgr, tx * t, ty * t);
+      }
+    }
+    out.level = level;
+    // Level-l pixel (centre) from level-0 pixel u0: (u0 - (f - 1) / 2) / f.
+    Eigen::Matrix3d level_from_level0;
+    level_from_level0 << 1 / f, 0, -(f - 1) / (2 * f), 0, 1 / f, -(f - 1) / (2 * f), 0, 0, 1;
+    Eigen::Matrix3d level0_from_map;
+    level0_from_map << 1 / info.step_x, 0, -info.map_origin.x() / info.step_x, 0, 1 / info.step_y,
+        -info.map_origin.y() / info.step_y, 0, 0, 1;
+    out.image_from_map = level_from_level0 * level0_from_map;
+    metres_per_px = std::abs(info.step_x) * f;
+  } else {
+    if (shown_copy.empty()) {
+      return InvalidDataError("activity map: the mission has neither a mosaic nor tracks to draw");
+    }
+    Eigen::Vector2d lo = Eigen::Vector2d::Constant(std::numeric_limits<double>::infinity());
+    Eigen::Vector2d hi = -lo;
+    for (const auto& track : shown_copy) {
+      for (const auto& p : track.points) lo = lo.cwiseMin(p.map), hi = hi.cwiseMax(p.map);
+    }
+    const double extent = std::max((hi - lo).maxCoeff(), 1.0);
+    const double side = std::min(options.max_side_px, 2048);
+    const double scale = 0.9 * side / extent;
+    const int width = int(std::ceil((hi.x() - lo.x()) * scale + 0.1 * side));
+    const int height = int(std::ceil((hi.y() - lo.y()) * scale + 0.1 * side));
+    out.bgr = cv::Mat(std::max(height, 64), std::max(width, 64), CV_8UC3, kBackground);
+    const double flip = mission.map.geo_referenced ? -1 : 1;
+    out.image_from_map << scale, 0, 0.05 * side - lo.x() * scale,  //
+        0, flip * scale, flip > 0 ? 0.05 * side - lo.y() * scale : 0.05 * side + hi.y() * scale, 0,
+        0, 1;
+    metres_per_px = 1 / scale;
+  }
+  // Overlays scale with the picture, so they stay readable on large exports.
+  const double ui = std::clamp(std::min(out.bgr.cols, out.bgr.rows) / 700.0, 0.8, 3.0);
+
+  const activity::TrackColouring colouring(options.colour_by, shown_copy,
+                                           mission.map.geo_referenced);
+  const int width_px = std::max(1, int(std::lround(options.line_width * ui)));
+  for (const mission::ActivityTrack& track : shown_copy) {
+    std::vector<cv::Point> line;
+    for (const mission::TrackPoint& p : track.points) {
+      line.push_back(Fixed((out.image_from_map * p.map.homogeneous()).hnormalized()));
+    }
+    const cv::Scalar colour = Bgr(colouring.ColourOf(track));
+    // A dark casing under the colour keeps thin lines visible on bright ground.
+    cv::polylines(out.bgr, line, false, cv::Scalar(20, 20, 20), width_px + 2, cv::LINE_AA, kShift);
+    cv::polylines(out.bgr, line, false, colour, width_px, cv::LINE_AA, kShift);
+    // The direction of travel: an arrow head at the end, along the last ~12 pixels of the path.
+    const Eigen::Vector2d end(line.back().x / kOne, line.back().y / kOne);
+    for (size_t i = line.size(); i-- > 0;) {
+      const Eigen::Vector2d p(line[i].x / kOne, line[i].y / kOne);
+      if ((end - p).norm() >= 12 * ui) {
+        const Eigen::Vector2d d = (end - p).normalized();
+        const Eigen::Vector2d n(-d.y(), d.x());
+        const double s = 5 * ui + width_px;
+        const std::vector<cv::Point> head = {Fixed(end + d * s * 0.6),
+                                             Fixed(end - d * s + n * s * 0.6),
+                                             Fixed(end - d * s - n * s * 0.6)};
+        cv::fillConvexPoly(out.bgr, head, colour, cv::LINE_AA, kShift);
+        cv::polylines(out.bgr, head, true, cv::Scalar(20, 20, 20), 1, cv::LINE_AA, kShift);
+        break;
+      }
+    }
+    ++out.tracks;
+  }
+  if (options.legend) DrawLegend(colouring.legend(), ui, &out.bgr);
+  if (mission.map.geo_referenced && metres_per_px > 0) {
+    DrawScaleBar(metres_per_px, ui, &out.bgr);
+    DrawNorthArrow(ui, &out.bgr);
+  }
+  return out;
+}
+
+Status WritePicture(const cv::Mat& bgr, const std::string& path) {
+  const std::filesystem::path target(path);
+  const std::string extension = target.extension().string();
+  const std::filesystem::path part = path + ".part" + extension;
+  bool written = false;
+  try {
+    written = cv::imwrite(part.string(), bgr);
+  } catch (const cv::Exception&) {
+    written = false;
+  }
+  std::error_code error;
+  if (!written) {
+    std::filesystem::remove(part, error);
+    return IoError("cannot write " + path +
+                   " (the folder must exist and be writable; the name must end in .png or .jpg)");
+  }
+  std::filesystem::rename(part, target, error);
+  if (error) {
+    std::filesystem::remove(part, error);
+    return IoError("cannot write " + path + ": " + error.message());
+  }
+  return {};
+}
+
+}  // namespace saker::render

@@ -1,0 +1,333 @@
+#include "core/tiles/pyramid.h"
+
+#include <Eigen/Geometry>
+#include <Eigen/LU>
+#include <opencv2/core/eigen.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <string>
+
+namespace saker::tiles {
+namespace {
+
+// Full-resolution image corners, pixel centres at integers.
+std::array<Eigen::Vector2d, 4> Corners(int width, int height) {
+  return {Eigen::Vector2d(0, 0), Eigen::Vector2d(width - 1, 0),
+          Eigen::Vector2d(width - 1, height - 1), Eigen::Vector2d(0, height - 1)};
+}
+
+struct Box {
+  Eigen::Vector2d lo{std::numeric_limits<double>::infinity(),
+                     std::numeric_limits<double>::infinity()};
+  Eigen::Vector2d hi{-std::numeric_limits<double>::infinity(),
+                     -std::numeric_limits<double>::infinity()};
+  bool Valid() const { return lo.allFinite() && hi.allFinite(); }
+  bool Overlaps(const Box& other) const {
+    return lo.x() <= other.hi.x() && other.lo.x() <= hi.x() && lo.y() <= other.hi.y() &&
+           other.lo.y() <= hi.y();
+  }
+};
+
+// The map box of a frame's footprint; invalid when a corner is at or beyond the horizon.
+Box Footprint(const Eigen::Matrix3d& map_from_frame, int width, int height) {
+  Box box;
+  for (const Eigen::Vector2d& c : Corners(width, height)) {
+    const Eigen::Vector3d q = map_from_frame * c.homogeneous();
+    if (!(q.z() > 1e-12) || !q.allFinite()) return Box{};
+    box.lo = box.lo.cwiseMin(q.hnormalized());
+    box.hi = box.hi.cwiseMax(q.hnormalized());
+  }
+  return box;
+}
+
+class Renderer {
+ public:
+  Renderer(const std::vector<KeyFrameView>& frames, int width, int height,
+           const mission::PyramidInfo& info, const PyramidOptions& options, const TileSink& write,
+           JobContext* job)
+      : frames_(frames), info_(info), options_(options), write_(write), job_(job) {
+    boxes_.reserve(frames.size());
+    for (const KeyFrameView& frame : frames) {
+      boxes_.push_back(frame.grey && !frame.grey->empty()
+                           ? Footprint(frame.map_from_frame, width, height)
+                           : Box{});
+    }
+  }
+
+  // The tile (level, x, y), rendering and writing its subtree first; empty when nothing covers
+  // it.
+  StatusOr<cv::Mat> Tile(int level, int x, int y) {
+    if (job_ && job_->IsCancelled()) return CancelledError("mosaic tiles: cancelled");
+    const Box region = Region(level, x, y);
+    std::vector<size_t> covering;
+    for (size_t i = 0; i < boxes_.size(); ++i) {
+      if (boxes_[i].Valid() && boxes_[i].Overlaps(region)) covering.push_back(i);
+    }
+    if (covering.empty()) {
+      ++summary_.empty_tiles;
+      return cv::Mat();
+    }
+    cv::Mat tile;
+    if (level == 0) {
+      tile = RenderLevel0(x, y, covering);
+      ReportProgress();
+    } else {
+      const int t = info_.tile_size;
+      cv::Mat quad(2 * t, 2 * t, CV_8UC4, cv::Scalar::all(0));
+      bool any = false;
+      for (int dy = 0; dy < 2; ++dy) {
+        for (int dx = 0; dx < 2; ++dx) {
+          SAKER_ASSIGN_OR_RETURN(cv::Mat child, Tile(level - 1, 2 * x + dx, 2 * y + dy));
+          if (child.empty()) continue;
+          child.copyTo(quad(cv::Rect(dx * t, dy * t, t, t)));
+          any = true;
+        }
+      }
+      if (!any) return cv::Mat();
+      tile = Downsample(quad);
+    }
+    if (cv::countNonZero(ExtractAlpha(tile)) == 0) {
+      ++summary_.empty_tiles;
+      return cv::Mat();
+    }
+    std::vector<uint8_t> bytes;
+    if (!cv::imencode(".png", tile, bytes,
+                      {cv::IMWRITE_PNG_COMPRESSION, options_.png_compression})) {
+      return IoError("mosaic tiles: PNG encoding failed");
+    }
+    batch_.push_back({level, x, y, std::move(bytes)});
+    ++summary_.tiles_written;
+    if (batch_.size() >= 64) SAKER_RETURN_IF_ERROR(Flush());
+    return tile;
+  }
+
+  Status Flush() {
+    if (batch_.empty()) return {};
+    SAKER_RETURN_IF_ERROR(write_(batch_));
+    batch_.clear();
+    return {};
+  }
+
+  RenderSummary& summary() { return summary_; }
+
+ private:
+  // Map box of a tile (pixel centres of its first and last pixels, widened by half a pixel).
+  Box Region(int level, int x, int y) const {
+    const double f = double(int64_t(1) << level);
+    const double t = info_.tile_size;
+    const double u0 = (x * t - 0.5) * f, u1 = ((x + 1) * t - 0.5) * f;
+    const double v0 = (y * t - 0.5) * f, v1 = ((y + 1) * t - 0.5) * f;
+    const Eigen::Vector2d a =
+        info_.map_origin + Eigen::Vector2d(u0 * info_.step_x, v0 * info_.step_y);
+    const Eigen::Vector2d b =
+        info_.map_origin + Eigen::Vector2d(u1 * info_.step_x, v1 * info_.step_y);
+    Box box;
+    box.lo = a.cwiseMin(b);
+    box.hi = a.cwiseMax(b);
+    return box;
+  }
+
+  static cv::Mat ExtractAlpha(const cv::Mat& bgra) {
+    cv::Mat alpha;
+    cv::extractChannel(bgra, alpha, 3);
+    return alpha;
+  }
+
+  const cv::Mat& Feather(cv::Size size) {
+    auto it = feathers_.find({size.width, size.height});
+    if (it != feathers_.end()) return it->second;
+    // Weight: distance to the border, so that overlapping frames fade into each other.
+    cv::Mat inside(size, CV_8U, cv::Scalar(255)), feather;
+    cv::rectangle(inside, cv::Rect(0, 0, size.width, size.height), cv::Scalar(0), 1);
+    cv::distanceTransform(inside, feather, cv::DIST_L2, 3, CV_32F);
+    feather += 1.0f;
+    return feathers_.emplace(std::make_pair(size.width, size.height), feather).first->second;
+  }
+
+  cv::Mat RenderLevel0(int x, int y, const std::vector<size_t>& covering) {
+    const int t = info_.tile_size;
+    // Tile pixel from map: inverse of map = origin + ((x t + i) sx, (y t + j) sy).
+    Eigen::Matrix3d tile_from_map;
+    tile_from_map << 1 / info_.step_x, 0, -info_.map_origin.x() / info_.step_x - x * t,  //
+        0, 1 / info_.step_y, -info_.map_origin.y() / info_.step_y - y * t,               //
+        0, 0, 1;
+    cv::Mat sum(t, t, CV_32F, cv::Scalar(0)), weight(t, t, CV_32F, cv::Scalar(0));
+    cv::Mat warped, warped_weight, product;
+    for (const size_t i : covering) {
+      const KeyFrameView& frame = frames_[i];
+      // Grey pixel (u, v) is full-resolution ((u + 0.5) s - 0.5, (v + 0.5) s - 0.5).
+      Eigen::Matrix3d full_from_grey;
+      full_from_grey << frame.scale, 0, 0.5 * frame.scale - 0.5, 0, frame.scale,
+          0.5 * frame.scale - 0.5, 0, 0, 1;
+      cv::Mat h;
+      cv::eigen2cv(Eigen::Matrix3d(tile_from_map * frame.map_from_frame * full_from_grey), h);
+      cv::warpPerspective(*frame.grey, warped, h, sum.size(), cv::INTER_LINEAR, cv::BORDER_CONSTANT,
+                          cv::Scalar(0));
+      cv::warpPerspective(Feather(frame.grey->size()), warped_weight, h, sum.size(),
+                          cv::INTER_LINEAR, cv::BORDER_CONSTANT, cv::Scalar(0));
+      warped.convertTo(product, CV_32F);
+      product = product.mul(warped_weight);
+      sum += product;
+      weight += warped_weight;
+    }
+    cv::Mat grey, alpha;
+    cv::divide(sum, weight, grey);
+    grey.setTo(0, weight <= 0);
+    grey.convertTo(grey, CV_8U);
+    alpha = weight > 0;  // 255 where covered
+    cv::Mat bgra;
+    cv::merge(std::vector<cv::Mat>{grey, grey, grey, alpha}, bgra);
+    return bgra;
+  }
+
+  // 2t x 2t BGRA to t x t, colours averaged over covered pixels only (alpha-weighted).
+  cv::Mat Downsample(const cv::Mat& quad) const {
+    cv::Mat f;
+    quad.convertTo(f, CV_32F, 1.0 / 255);
+    std::vector<cv::Mat> channels;
+    cv::split(f, channels);
+    for (int c = 0; c < 3; ++c) channels[size_t(c)] = channels[size_t(c)].mul(channels[3]);
+    cv::Mat premultiplied, small;
+    cv::merge(channels, premultiplied);
+    cv::resize(premultiplied, small, cv::Size(info_.tile_size, info_.tile_size), 0, 0,
+               cv::INTER_AREA);
+    cv::split(small, channels);
+    for (int c = 0; c < 3; ++c) {
+      cv::divide(channels[size_t(c)], channels[3], channels[size_t(c)]);
+      channels[size_t(c)].setTo(0, channels[3] <= 0);
+    }
+    cv::merge(channels, small);
+    cv::Mat out;
+    small.convertTo(out, CV_8U, 255);
+    return out;
+  }
+
+  void ReportProgress() {
+    ++level0_done_;
+    if (job_) {
+      const int64_t columns = (info_.width + info_.tile_size - 1) / info_.tile_size;
+      const int64_t rows = (info_.height + info_.tile_size - 1) / info_.tile_size;
+      job_->ReportProgress(
+          "Mosaic tiles",
+          std::min(1.0, double(level0_done_) / double(std::max<int64_t>(1, columns * rows))));
+    }
+  }
+
+  const std::vector<KeyFrameView>& frames_;
+  const mission::PyramidInfo& info_;
+  const PyramidOptions& options_;
+  const TileSink& write_;
+  JobContext* job_;
+  std::vector<Box> boxes_;
+  std::map<std::pair<int, int>, cv::Mat> feathers_;
+  std::vector<mission::EncodedTile> batch_;
+  RenderSummary summary_;
+  int64_t level0_done_ = 0;
+};
+
+}  // namespace
+
+Status PyramidOptions::Validate() const {
+  if (tile_size < 16 || tile_size > 4096) {
+    return InvalidArgumentError("mosaic tiles: tile_size must be 16..4096 pixels");
+  }
+  if (!(map_units_per_px >= 0) || !std::isfinite(map_units_per_px)) {
+    return InvalidArgumentError("mosaic tiles: map_units_per_px must be >= 0");
+  }
+  if (max_side_px < tile_size || max_side_px > (1 << 22)) {
+    return InvalidArgumentError("mosaic tiles: max_side_px must be tile_size..4194304");
+  }
+  if (png_compression < 0 || png_compression > 9) {
+    return InvalidArgumentError("mosaic tiles: png_compression must be 0..9");
+  }
+  return {};
+}
+
+StatusOr<mission::PyramidInfo> PlanPyramid(const std::vector<KeyFrameView>& frames, int width,
+                                           int height, bool geo_referenced,
+                                           const PyramidOptions& options) {
+  SAKER_RETURN_IF_ERROR(options.Validate());
+  if (width < 2 || height < 2) return InvalidArgumentError("mosaic tiles: no frame size");
+  Box extent;
+  std::vector<double> resolutions;
+  for (const KeyFrameView& frame : frames) {
+    const Box box = Footprint(frame.map_from_frame, width, height);
+    if (!box.Valid() || !frame.grey || frame.grey->empty()) continue;
+    extent.lo = extent.lo.cwiseMin(box.lo);
+    extent.hi = extent.hi.cwiseMax(box.hi);
+    // Map units per full-resolution pixel at the image centre.
+    const Eigen::Vector2d centre((width - 1) / 2.0, (height - 1) / 2.0);
+    const Eigen::Vector3d q = frame.map_from_frame * centre.homogeneous();
+    const Eigen::Matrix<double, 2, 3> d =
+        (Eigen::Matrix<double, 2, 3>() << 1 / q.z(), 0, -q.x() / (q.z() * q.z()), 0, 1 / q.z(),
+         -q.y() / (q.z() * q.z()))
+            .finished();
+    const Eigen::Matrix2d jacobian = d * frame.map_from_frame.leftCols<2>();
+    resolutions.push_back(std::sqrt(std::abs(jacobian.determinant())));
+  }
+  if (!extent.Valid() || resolutions.empty()) {
+    return InvalidDataError("mosaic tiles: no key frame has a finite footprint on the map");
+  }
+  std::nth_element(resolutions.begin(), resolutions.begin() + long(resolutions.size() / 2),
+                   resolutions.end());
+  double units =
+      options.map_units_per_px > 0 ? options.map_units_per_px : resolutions[resolutions.size() / 2];
+  if (!(units > 0) || !std::isfinite(units)) {
+    return InvalidDataError("mosaic tiles: degenerate key frame homographies");
+  }
+  const Eigen::Vector2d size = extent.hi - extent.lo;
+  units = std::max(units, size.maxCoeff() / (options.max_side_px - 1));
+  mission::PyramidInfo info;
+  info.tile_size = options.tile_size;
+  info.width = int(std::ceil(size.x() / units)) + 1;
+  info.height = int(std::ceil(size.y() / units)) + 1;
+  info.step_x = units;
+  if (geo_referenced) {  // north up: rows go south
+    info.map_origin = {extent.lo.x(), extent.hi.y()};
+    info.step_y = -units;
+  } else {
+    info.map_origin = extent.lo;
+    info.step_y = units;
+  }
+  info.levels = 1;
+  while ((int64_t(options.tile_size) << (info.levels - 1)) < std::max(info.width, info.height)) {
+    ++info.levels;
+  }
+  return info;
+}
+
+StatusOr<RenderSummary> RenderPyramid(const std::vector<KeyFrameView>& frames, int width,
+                                      int height, const mission::PyramidInfo& info,
+                                      const PyramidOptions& options, const TileSink& write,
+                                      JobContext* job) {
+  SAKER_RETURN_IF_ERROR(options.Validate());
+  if (info.levels < 1 || info.levels > 24 || info.tile_size != options.tile_size ||
+      !(std::abs(info.step_x) > 0) || !(std::abs(info.step_y) > 0)) {
+    return InvalidArgumentError("mosaic tiles: the pyramid does not match the options");
+  }
+  const auto begin = std::chrono::steady_clock::now();
+  Renderer renderer(frames, width, height, info, options, write, job);
+  SAKER_RETURN_IF_ERROR(renderer.Tile(info.levels - 1, 0, 0).status());
+  SAKER_RETURN_IF_ERROR(renderer.Flush());
+  if (job) job->ReportProgress("Mosaic tiles", 1.0);
+  RenderSummary summary = renderer.summary();
+  summary.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - begin).count();
+  return summary;
+}
+
+StatusOr<cv::Mat> DecodeTile(const std::vector<uint8_t>& bytes) {
+  if (bytes.empty()) return InvalidDataError("mosaic tile: no bytes");
+  cv::Mat tile = cv::imdecode(bytes, cv::IMREAD_UNCHANGED);
+  if (tile.empty() || tile.type() != CV_8UC4) {
+    return InvalidDataError("mosaic tile: not a BGRA PNG image");
+  }
+  return tile;
+}
+
+}  // namespace saker::tiles

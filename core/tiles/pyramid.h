@@ -1,0 +1,66 @@
+#pragma once
+
+// The mosaic as a tiled, multi-resolution pyramid (for the GUI's view and the GeoTIFF export):
+// key frame images warped into the map and blended, rendered one full-resolution tile at a time
+// so a long flight never needs the whole mosaic in memory, the coarser levels built from the
+// finer ones. Tiles are BGRA PNGs (alpha 0 where no key frame covers the map); their placement
+// is a mission::PyramidInfo. docs/missions.md ("Tile pyramid").
+
+#include "core/mission/mission.h"
+#include "core/mission/mission_store.h"
+#include "core/util/job_context.h"
+#include "core/util/status.h"
+
+#include <Eigen/Core>
+#include <opencv2/core/mat.hpp>
+
+#include <functional>
+#include <vector>
+
+namespace saker::tiles {
+
+// A key frame to draw: its grey image (a downscaled copy of the video frame) and where it lies.
+struct KeyFrameView {
+  const cv::Mat* grey = nullptr;  // CV_8UC1, not owned
+  double scale = 1;               // full-resolution video pixels per pixel of `grey`
+  Eigen::Matrix3d map_from_frame = Eigen::Matrix3d::Identity();  // full-resolution pixels
+};
+
+struct PyramidOptions {
+  int tile_size = 256;          // pixels per tile side
+  double map_units_per_px = 0;  // level 0 resolution; 0: the key frames' median resolution
+  int max_side_px = 32768;      // level 0's longer side at most (coarsens the resolution)
+  int png_compression = 1;      // 0-9: fast by default (tiles are written often)
+  Status Validate() const;
+};
+
+// The pyramid covering the key frames' footprints (video frames of `width` x `height`): north up
+// on a geo-referenced map, the first key frame's orientation otherwise. InvalidData when no
+// footprint is finite.
+StatusOr<mission::PyramidInfo> PlanPyramid(const std::vector<KeyFrameView>& frames, int width,
+                                           int height, bool geo_referenced,
+                                           const PyramidOptions& options);
+
+// Writes a batch of encoded tiles (one transaction in a mission store).
+using TileSink = std::function<Status(const std::vector<mission::EncodedTile>&)>;
+
+struct RenderSummary {
+  int64_t tiles_written = 0;  // every level
+  int64_t empty_tiles = 0;    // not written: no key frame covers them
+  double time_s = 0;
+};
+
+// Renders every tile of `info` and hands them to `write` in batches. Tiles no key frame covers
+// are not written. The pyramid is walked depth first from its single top tile, so only four
+// tiles per level are held at a time. Cancelled through `job` (between tiles; what was written
+// stays).
+StatusOr<RenderSummary> RenderPyramid(const std::vector<KeyFrameView>& frames, int width,
+                                      int height, const mission::PyramidInfo& info,
+                                      const PyramidOptions& options, const TileSink& write,
+                                      JobContext* job = nullptr);
+
+// Decodes a tile written by RenderPyramid: CV_8UC4 BGRA. InvalidData when the bytes are not an
+// image of that kind.
+StatusOr<cv::Mat> DecodeTile(const std::vector<uint8_t>& bytes);
+
+}  // namespace saker::tiles

@@ -1,0 +1,156 @@
+#include "core/tiles/pyramid.h"
+
+#include <gtest/gtest.h>
+#include <opencv2/imgproc.hpp>
+
+#include <map>
+#include <tuple>
+
+namespace saker::tiles {
+namespace {
+
+constexpr int kWidth = 640, kHeight = 480;
+
+// A grey test card: a horizontal ramp with a dark grid every 32 pixels.
+cv::Mat TestCard(int width, int height, int offset) {
+  cv::Mat grey(height, width, CV_8U);
+  for (int y = 0; y < height; ++y) {
+    for (int x = 0; x < width; ++x) {
+      const bool line = (x + offset) % 32 == 0 || y % 32 == 0;
+      grey.at<uint8_t>(y, x) = line ? 10 : uint8_t(60 + (x + offset) % 160);
+    }
+  }
+  return grey;
+}
+
+// Full-resolution frame placed at `east` metres, 0.5 m per pixel, north up (image y down).
+Eigen::Matrix3d MapFromFrame(double east) {
+  Eigen::Matrix3d h;
+  h << 0.5, 0, east, 0, -0.5, 0, 0, 0, 1;
+  return h;
+}
+
+using Store = std::map<std::tuple<int, int, int>, std::vector<uint8_t>>;
+
+TileSink Into(Store* store) {
+  return [store](const std::vector<mission::EncodedTile>& tiles) -> Status {
+    for (const mission::EncodedTile& tile : tiles)
+      store->emplace(std::make_tuple(tile.level, tile.x, tile.y), tile.bytes);
+    return {};
+  };
+}
+
+// The level 0 pixel of `info` nearest `map` as (tile x, tile y, column, row in the tile).
+std::array<int, 4> Locate(const mission::PyramidInfo& info, const Eigen::Vector2d& map) {
+  const int u = int(std::lround((map.x() - info.map_origin.x()) / info.step_x));
+  const int v = int(std::lround((map.y() - info.map_origin.y()) / info.step_y));
+  return {u / info.tile_size, v / info.tile_size, u % info.tile_size, v % info.tile_size};
+}
+
+TEST(Pyramid, PlacesAndBlendsKeyFramesAcrossLevels) {
+  // Two 640 x 480 frames stored at half size (scale 2), 100 m apart (overlapping by 220 m).
+  const cv::Mat a = TestCard(kWidth / 2, kHeight / 2, 0), b = TestCard(kWidth / 2, kHeight / 2, 0);
+  const std::vector<KeyFrameView> frames = {{&a, 2.0, MapFromFrame(0)},
+                                            {&b, 2.0, MapFromFrame(100)}};
+  PyramidOptions options;
+  options.tile_size = 64;
+  const auto info = PlanPyramid(frames, kWidth, kHeight, /*geo_referenced=*/true, options);
+  ASSERT_TRUE(info.ok()) << info.status().ToString();
+  EXPECT_DOUBLE_EQ(info->step_x, 0.5);   // the frames' own resolution
+  EXPECT_DOUBLE_EQ(info->step_y, -0.5);  // north up
+  EXPECT_EQ(info->width, 840);           // (100 + 319.5) / 0.5 + 1
+  EXPECT_EQ(info->height, 480);
+  EXPECT_EQ(info->levels, 5);  // 840 -> 420 -> 210 -> 105 -> 53 <= 64
+  EXPECT_NEAR(info->map_origin.x(), 0, 1e-9);
+  EXPECT_NEAR(info->map_origin.y(), 0, 1e-9);
+
+  Store store;
+  const auto summary = RenderPyramid(frames, kWidth, kHeight, *info, options, Into(&store));
+  ASSERT_TRUE(summary.ok()) << summary.status().ToString();
+  EXPECT_EQ(summary->tiles_written, int64_t(store.size()));
+  // Level 0: 14 x 8 tiles, all covered; the top level: a single tile.
+  int level0 = 0;
+  for (const auto& [key, bytes] : store) level0 += std::get<0>(key) == 0;
+  EXPECT_EQ(level0, 14 * 8);
+  ASSERT_EQ(store.count({4, 0, 0}), 1u);
+
+  // A map point on frame a only (x = 20 m, y = -30 m): full-resolution pixel (40, 60), grey
+  // pixel (19.75, 29.75) of the half-size card, between card values.
+  const auto pixel = [&](const Eigen::Vector2d& map) {
+    const auto [tx, ty, col, row] = Locate(*info, map);
+    const auto tile = DecodeTile(store.at({0, tx, ty}));
+    EXPECT_TRUE(tile.ok());
+    return tile->at<cv::Vec4b>(row, col);
+  };
+  const cv::Vec4b on_a = pixel({20.5, -30.5});
+  EXPECT_EQ(on_a[3], 255);
+  EXPECT_EQ(on_a[0], on_a[1]);       // grey
+  EXPECT_NEAR(on_a[0], 60 + 20, 2);  // the ramp at grey column 20
+  // In the overlap both cards agree up to the ramp's shift of 100 m = 100 grey pixels: the blend
+  // lies between the two values.
+  const cv::Vec4b overlap = pixel({150.5, -30.5});
+  const double value_a = 60 + 150, value_b = 60 + 50;
+  EXPECT_EQ(overlap[3], 255);
+  EXPECT_GE(overlap[0], value_b - 2);
+  EXPECT_LE(overlap[0], value_a + 2);
+  // The top tile covers everything, downsampled 16x: alpha on the footprint, 0 beyond it.
+  const auto top = DecodeTile(store.at({4, 0, 0}));
+  ASSERT_TRUE(top.ok());
+  EXPECT_EQ(top->at<cv::Vec4b>(10, 20)[3], 255);
+  EXPECT_EQ(top->at<cv::Vec4b>(50, 60)[3], 0);  // row 50 * 16 = 800 > 480: below the footprint
+}
+
+TEST(Pyramid, TilesNoFrameCoversAreNotWritten) {
+  // Two frames far apart on a diagonal: the tiles between them stay empty.
+  const cv::Mat a = TestCard(kWidth, kHeight, 0);
+  Eigen::Matrix3d far = MapFromFrame(2000);
+  far(1, 2) = -2000;
+  const std::vector<KeyFrameView> frames = {{&a, 1.0, MapFromFrame(0)}, {&a, 1.0, far}};
+  PyramidOptions options;
+  options.tile_size = 128;
+  const auto info = PlanPyramid(frames, kWidth, kHeight, true, options);
+  ASSERT_TRUE(info.ok());
+  Store store;
+  const auto summary = RenderPyramid(frames, kWidth, kHeight, *info, options, Into(&store));
+  ASSERT_TRUE(summary.ok());
+  int level0 = 0;
+  for (const auto& [key, bytes] : store) level0 += std::get<0>(key) == 0;
+  // Each frame covers 640 x 480 px: 6 x 5 tiles of 128 at most (depending on alignment).
+  EXPECT_LE(level0, 2 * 6 * 5);
+  EXPECT_GE(level0, 2 * 5 * 4);
+  EXPECT_GT(summary->empty_tiles, 0);
+}
+
+TEST(Pyramid, CancelAndErrors) {
+  const cv::Mat a = TestCard(kWidth, kHeight, 0);
+  const std::vector<KeyFrameView> frames = {{&a, 1.0, MapFromFrame(0)}};
+  PyramidOptions options;
+  const auto info = PlanPyramid(frames, kWidth, kHeight, false, options);
+  ASSERT_TRUE(info.ok());
+  EXPECT_GT(info->step_y, 0);  // not geo-referenced: the image's orientation
+
+  JobContext job;
+  job.RequestCancel();
+  Store store;
+  const auto cancelled = RenderPyramid(frames, kWidth, kHeight, *info, options, Into(&store), &job);
+  ASSERT_FALSE(cancelled.ok());
+  EXPECT_EQ(cancelled.status().code(), StatusCode::kCancelled);
+
+  // A failing sink stops the render with its error.
+  const auto failed =
+      RenderPyramid(frames, kWidth, kHeight, *info, options,
+                    [](const std::vector<mission::EncodedTile>&) { return IoError("disk full"); });
+  ASSERT_FALSE(failed.ok());
+  EXPECT_NE(failed.status().message().find("disk full"), std::string::npos);
+
+  // Nothing drawable.
+  Eigen::Matrix3d beyond = Eigen::Matrix3d::Identity();
+  beyond(2, 0) = -0.01;  // the right of the image is beyond the horizon
+  EXPECT_FALSE(PlanPyramid({{&a, 1.0, beyond}}, kWidth, kHeight, false, options).ok());
+  EXPECT_FALSE(DecodeTile({1, 2, 3}).ok());
+  options.tile_size = 3;
+  EXPECT_FALSE(options.Validate().ok());
+}
+
+}  // namespace
+}  // namespace saker::tiles
