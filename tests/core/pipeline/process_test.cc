@@ -1,0 +1,171 @@
+#include "core/pipeline/process.h"
+
+#include "core/mission/mission_store.h"
+#include "core/pipeline/evaluate.h"
+#include "core/sim/simulator.h"
+#include "tests/testing/test_data.h"
+
+#include <fcntl.h>
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <random>
+#include <thread>
+
+namespace saker::pipeline {
+namespace {
+
+// A small revisiting flight: the roundabout loop at 640x360, 12.5 frames per second, with KLV
+// metadata, cars and people (as the mosaic tests make it).
+class ProcessTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = new std::filesystem::path(testing::MakeTempDir("saker-process"));
+    sim::SimulationOptions options;
+    options.output = *dir_ / "loop.ts";
+    options.scenario = sim::Scenario::kRoundaboutLoop;
+    options.camera.width = 640;
+    options.camera.height = 360;
+    options.flight.altitude_m = 200;
+    options.fps = 12.5;
+    options.world.loop_length_m = 500;
+    options.targets.cars = 6;
+    options.targets.vans = 0;
+    options.targets.people = 4;
+    const auto summary = sim::Simulate(options);
+    ASSERT_TRUE(summary.ok()) << summary.status().ToString();
+    truth_path_ = new std::filesystem::path(options.TruthPath());
+  }
+  static void TearDownTestSuite() {
+    delete dir_;
+    delete truth_path_;
+  }
+  static std::string Video() { return (*dir_ / "loop.ts").string(); }
+
+  static std::filesystem::path* dir_;
+  static std::filesystem::path* truth_path_;
+};
+std::filesystem::path* ProcessTest::dir_ = nullptr;
+std::filesystem::path* ProcessTest::truth_path_ = nullptr;
+
+TEST_F(ProcessTest, ProcessesIntoAMissionThatReopensWithTheTruthsActivity) {
+  const std::string path = (*dir_ / "full.saker").string();
+  std::vector<std::string> commits;
+  ProcessOptions options;
+  options.saker_version = "test";
+  options.on_commit = [&](const std::string& stage) { commits.push_back(stage); };
+  const auto summary = ProcessVideo(Video(), path, options);
+  ASSERT_TRUE(summary.ok()) << summary.status().ToString();
+  std::cout << summary->ToText();
+  EXPECT_EQ(commits,
+            (std::vector<std::string>{"source", "front end", "mosaic", "activity", "tiles"}));
+  EXPECT_TRUE(summary->geo_referenced);
+
+  // Reopened read-only: everything the run produced, nothing reprocessed.
+  const auto store = mission::MissionStore::Open(path);
+  ASSERT_TRUE(store.ok()) << store.status().ToString();
+  const auto m = (*store)->Load();
+  ASSERT_TRUE(m.ok()) << m.status().ToString();
+  EXPECT_TRUE(m->progress.front_end && m->progress.mosaic && m->progress.activity &&
+              m->progress.tiles);
+  EXPECT_FALSE(m->progress.cancelled);
+  EXPECT_EQ(int64_t(m->frames.size()), summary->frames);
+  EXPECT_EQ(int64_t(m->key_frames.size()), summary->key_frames);
+  EXPECT_EQ(int64_t(m->tracks.size()), summary->tracks);
+  EXPECT_GT(summary->tracks, 3);
+  ASSERT_TRUE(m->pyramid.has_value());
+  EXPECT_EQ(*(*store)->CountTiles(), summary->tiles);
+  EXPECT_EQ(m->source.path, std::filesystem::absolute(Video()).string());
+  EXPECT_EQ(*mission::FingerprintFile(Video()), m->source.fingerprint);
+
+  // The activity against the truth: speed, visit and picking (docs/activity.md has the demo's).
+  const auto truth = sim::ReadTruth(*truth_path_);
+  ASSERT_TRUE(truth.ok());
+  const auto accuracy = EvaluateActivity(*m, *truth, options.activity.visit_gap_s);
+  ASSERT_TRUE(accuracy.ok()) << accuracy.status().ToString();
+  std::cout << ActivityAccuracyToText(*accuracy);
+  EXPECT_GE(accuracy->matched, 3);
+  EXPECT_LT(accuracy->speed_median_error_mps, 1.0);
+  EXPECT_LT(accuracy->direction_median_error_deg, 15.0);
+  EXPECT_GE(accuracy->visit_agreement, 0.8);
+  EXPECT_GE(accuracy->pick_accuracy, 0.5);
+}
+
+TEST_F(ProcessTest, CancelKeepsTheStagesThatCompleted) {
+  const std::string path = (*dir_ / "cancelled.saker").string();
+  JobContext job;
+  ProcessOptions options;
+  options.on_commit = [&](const std::string& stage) {
+    if (stage == "front end") job.RequestCancel();
+  };
+  const auto summary = ProcessVideo(Video(), path, options, &job);
+  ASSERT_FALSE(summary.ok());
+  EXPECT_EQ(summary.status().code(), StatusCode::kCancelled);
+  EXPECT_NE(summary.status().message().find(path), std::string::npos);
+  const auto store = mission::MissionStore::Open(path);
+  ASSERT_TRUE(store.ok()) << store.status().ToString();
+  const auto m = (*store)->Load();
+  ASSERT_TRUE(m.ok()) << m.status().ToString();
+  EXPECT_TRUE(m->progress.front_end);
+  EXPECT_FALSE(m->progress.mosaic);
+  EXPECT_TRUE(m->progress.cancelled);
+  EXPECT_FALSE(m->frames.empty());
+}
+
+TEST_F(ProcessTest, NotAVideoLeavesNoMission) {
+  const std::filesystem::path text = *dir_ / "notes.ts";
+  std::ofstream(text) << "this is not a video\n";
+  const std::string path = (*dir_ / "never.saker").string();
+  const auto summary = ProcessVideo(text.string(), path, {});
+  ASSERT_FALSE(summary.ok());
+  EXPECT_NE(summary.status().message().find("notes.ts"), std::string::npos);
+  EXPECT_FALSE(std::filesystem::exists(path));
+}
+
+// kill -9 of `saker-cli process` at random moments: the mission, when there is one, always
+// reopens in a committed state.
+TEST_F(ProcessTest, KillNineDuringProcessingLeavesAReadableMission) {
+  std::mt19937_64 random(20261121);
+  int runs = 0, failures = 0, with_file = 0;
+  for (int run = 0; run < 8; ++run) {
+    const std::string path = (*dir_ / ("killed-" + std::to_string(run) + ".saker")).string();
+    const pid_t child = fork();
+    ASSERT_GE(child, 0);
+    if (child == 0) {
+      const int null = ::open("/dev/null", O_WRONLY);
+      dup2(null, STDOUT_FILENO);
+      dup2(null, STDERR_FILENO);
+      execl(SAKER_CLI_PATH, SAKER_CLI_PATH, "process", Video().c_str(), "-o", path.c_str(), "-q",
+            static_cast<char*>(nullptr));
+      _exit(127);
+    }
+    // Spread over the whole job (a few seconds for this clip), front end to tiles.
+    std::this_thread::sleep_for(
+        std::chrono::milliseconds(std::uniform_int_distribution<int>(50, 6000)(random)));
+    kill(child, SIGKILL);
+    int status = 0;
+    waitpid(child, &status, 0);
+    ++runs;
+    if (!std::filesystem::exists(path)) continue;
+    ++with_file;
+    const auto store = mission::MissionStore::Open(path);
+    const auto m = store.ok() ? (*store)->Load() : StatusOr<mission::Mission>(store.status());
+    if (!m.ok()) {
+      ++failures;
+      ADD_FAILURE() << "run " << run << ": " << m.status().ToString();
+    }
+  }
+  std::cout << runs << " runs killed, " << with_file << " left a mission file, " << failures
+            << " failed to reopen\n";
+  EXPECT_EQ(failures, 0);
+  EXPECT_GT(with_file, 0);
+}
+
+}  // namespace
+}  // namespace saker::pipeline
