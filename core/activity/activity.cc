@@ -52,10 +52,10 @@ std::vector<Eigen::Vector2d> Smoothed(const std::vector<TrackPoint>& points, dou
   for (size_t i = 0; i < points.size(); ++i) {
     const double half =
         std::min({0.5 * window_s, times[i] - times.front(), times.back() - times[i]});
-    const size_t lo = size_t(std::lower_bound(times.begin(), times.end(), times[i] - half) -
-                             times.begin());
-    const size_t hi = size_t(std::upper_bound(times.begin(), times.end(), times[i] + half) -
-                             times.begin());
+    const size_t lo =
+        size_t(std::lower_bound(times.begin(), times.end(), times[i] - half) - times.begin());
+    const size_t hi =
+        size_t(std::upper_bound(times.begin(), times.end(), times[i] + half) - times.begin());
     smooth[i] = (prefix[hi] - prefix[lo]) / double(hi - lo);
   }
   return smooth;

@@ -9,15 +9,15 @@
 // `MapFrame::origin` when the mission is geo-referenced, otherwise the first key frame's pixel
 // frame (x right, y down). Times are seconds from the start of the video.
 
+#include "core/geo/local_tangent_plane.h"
+
+#include <Eigen/Core>
+
 #include <array>
 #include <cstdint>
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
-
-#include "core/geo/local_tangent_plane.h"
 
 namespace saker::mission {
 
@@ -85,12 +85,12 @@ struct TrackPoint {
 
 // A moving target's track with its activity attributes (docs/activity.md).
 struct ActivityTrack {
-  int64_t id = 0;  // TargetTrackId
+  int64_t id = 0;                  // TargetTrackId
   std::vector<TrackPoint> points;  // increasing frame
   double start_s = 0;
   double end_s = 0;
-  double length = 0;  // path length, map units
-  double speed = 0;   // average speed, map units per second
+  double length = 0;                // path length, map units
+  double speed = 0;                 // average speed, map units per second
   std::optional<double> speed_mps;  // metres per second, when geo-referenced
   double heading_deg = 0;           // direction of travel, degrees clockwise from map north (+y
                                     // when geo-referenced, -y, up the image, otherwise)
@@ -102,7 +102,7 @@ struct ActivityTrack {
 struct PyramidInfo {
   int tile_size = 256;
   int levels = 0;
-  int width = 0;   // level 0 size in pixels
+  int width = 0;  // level 0 size in pixels
   int height = 0;
   // Map coordinates of level 0 pixel centres: map = origin + (col * step_x, row * step_y).
   Eigen::Vector2d map_origin{0, 0};

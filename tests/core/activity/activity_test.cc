@@ -1,11 +1,10 @@
 #include "core/activity/activity.h"
 
+#include <Eigen/LU>
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <random>
-
-#include <Eigen/LU>
 
 namespace saker::activity {
 namespace {
