@@ -218,10 +218,8 @@ int ExportCommand::Run() const {
                                        ": the mission has no mosaic tiles (processed with "
                                        "--no-tiles, cancelled, or no key frame)"));
     }
-    const auto reader = StoreTiles(**store);
-    StatusOr<exporting::GeoTiffReport> report = exporting::ExportGeoTiff(
-        m->map, *m->pyramid, s.level, [&](int level, int x, int y) { return reader(level, x, y); },
-        s.geotiff);
+    StatusOr<exporting::GeoTiffReport> report =
+        exporting::ExportGeoTiff(m->map, *m->pyramid, s.level, StoreTiles(**store), s.geotiff);
     if (!report.ok()) return Fail(report.status());
     char fit[64];
     std::snprintf(fit, sizeof(fit), ", affine fit within %.3f m", report->max_fit_error_m);
@@ -245,7 +243,7 @@ int ExportCommand::Run() const {
   return kExitOk;
 }
 
-int ExportCommand::WriteActivityMap(const std::string& mission, const std::string& png) const {
+int ExportCommand::WriteActivityMap(const std::string& mission, const std::string& png) {
   State& s = *state_;
   s.mission = mission;
   s.png = png;

@@ -32,7 +32,7 @@ class ExportCommand {
   bool parsed() const;
   int Run() const;
   // The demo's activity map: `mission` drawn to `png`, coloured by speed.
-  int WriteActivityMap(const std::string& mission, const std::string& png) const;
+  int WriteActivityMap(const std::string& mission, const std::string& png);
 
  private:
   struct State;

@@ -3,6 +3,7 @@
 #include "core/frontend/front_end.h"
 #include "core/mosaic/mosaic_builder.h"
 #include "core/mosaic/render.h"
+#include "core/render/activity_map.h"
 
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -49,32 +50,6 @@ JobContext ProgressContext(bool quiet) {
         std::cerr << "\r" << stage << ": " << p << " %   " << std::flush;
       });
 }
-
-namespace {
-
-// Writes the picture under a temporary name and renames it into place: never half a file.
-Status WritePicture(const cv::Mat& image, const std::filesystem::path& path) {
-  const std::filesystem::path part = path.string() + ".part.png";
-  bool written = false;
-  try {
-    written = cv::imwrite(part.string(), image);
-  } catch (const cv::Exception&) {
-    written = false;
-  }
-  if (!written) {
-    std::error_code ignored;
-    std::filesystem::remove(part, ignored);
-    return IoError("cannot write " + path.string() +
-                   " (the folder must exist and be writable; the name must end in .png, .jpg or "
-                   ".tif)");
-  }
-  std::error_code error;
-  std::filesystem::rename(part, path, error);
-  if (error) return IoError("cannot write " + path.string() + ": " + error.message());
-  return Status::Ok();
-}
-
-}  // namespace
 
 MosaicCommand::MosaicCommand(CLI::App& app) : state_(std::make_unique<State>()) {
   State& s = *state_;
@@ -150,7 +125,8 @@ int MosaicCommand::RunOn(const std::string& video, const std::string& output) co
       drawn, front->key_frame_images, render,
       s.unadjusted ? std::vector<track::HomographyCovariance>() : result->covariances);
   if (!picture.ok()) return fail(picture.status());
-  if (Status written = WritePicture(picture->bgr, output); !written.ok()) return fail(written);
+  if (Status written = render::WritePicture(picture->bgr, output); !written.ok())
+    return fail(written);
   if (!s.quiet && !s.json && isatty(STDERR_FILENO) != 0) {
     std::cerr << "\r" << std::string(40, ' ') << "\r";
   }

@@ -79,8 +79,6 @@ double HeadingDegrees(const Eigen::Vector2d& displacement, bool geo_referenced) 
   return degrees >= 360 ? 0 : degrees;
 }
 
-int64_t CoverageIndex::Key(int64_t cx, int64_t cy) const { return CellKey(cx, cy); }
-
 CoverageIndex::CoverageIndex(const mission::Mission& mission, int stride) {
   const Eigen::Matrix<double, 3, 4> image =
       ImageCorners(std::max(mission.source.width, 2), std::max(mission.source.height, 2));
@@ -113,7 +111,7 @@ CoverageIndex::CoverageIndex(const mission::Mission& mission, int stride) {
          cx <= int64_t(std::floor(hi.x() / cell_)); ++cx) {
       for (int64_t cy = int64_t(std::floor(lo.y() / cell_));
            cy <= int64_t(std::floor(hi.y() / cell_)); ++cy) {
-        grid_[Key(cx, cy)].push_back(int32_t(i));
+        grid_[CellKey(cx, cy)].push_back(int32_t(i));
       }
     }
   }
@@ -124,7 +122,7 @@ std::vector<CoverageIndex::Interval> CoverageIndex::Visits(const Eigen::Vector2d
   std::vector<Interval> visits;
   if (!point.allFinite()) return visits;
   const auto cell = grid_.find(
-      Key(int64_t(std::floor(point.x() / cell_)), int64_t(std::floor(point.y() / cell_))));
+      CellKey(int64_t(std::floor(point.x() / cell_)), int64_t(std::floor(point.y() / cell_))));
   if (cell == grid_.end()) return visits;
   std::vector<double> times;
   for (const int32_t i : cell->second) {

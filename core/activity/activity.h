@@ -76,7 +76,6 @@ class CoverageIndex {
   std::vector<Footprint> footprints_;  // by time
   double cell_ = 1;
   std::unordered_map<int64_t, std::vector<int32_t>> grid_;  // cell key -> footprints touching it
-  int64_t Key(int64_t cx, int64_t cy) const;
 };
 
 // The nearest track observation to a map point, for picking.

@@ -299,7 +299,11 @@ StatusOr<ProcessSummary> ProcessVideo(const std::string& video, const std::strin
   m.tracks = TrackRecords(*front);
   SAKER_ASSIGN_OR_RETURN(const activity::ActivitySummary mapped,
                          activity::MapActivity(m, &m.tracks, options.activity));
-  (void)mapped;
+  if (mapped.observations_dropped > 0) {
+    summary.warnings.push_back(std::to_string(mapped.observations_dropped) +
+                               " target observations lie on frames that could not be placed on "
+                               "the map and are left out");
+  }
   summary.activity_s = Seconds(begin);
   summary.tracks = int64_t(m.tracks.size());
   m.progress.activity = true;

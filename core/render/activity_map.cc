@@ -161,7 +161,6 @@ Status ActivityMapOptions::Validate() const {
 StatusOr<ActivityMap> RenderActivityMap(const mission::Mission& mission, const TileReader& tiles,
                                         const ActivityMapOptions& options) {
   SAKER_RETURN_IF_ERROR(options.Validate());
-  std::vector<const mission::ActivityTrack*> shown;
   std::vector<mission::ActivityTrack> shown_copy;
   for (const mission::ActivityTrack& track : mission.tracks) {
     if (options.start_s && track.end_s < *options.start_s) continue;
@@ -273,8 +272,9 @@ Status WritePicture(const cv::Mat& bgr, const std::string& path) {
   std::error_code error;
   if (!written) {
     std::filesystem::remove(part, error);
-    return IoError("cannot write " + path +
-                   " (the folder must exist and be writable; the name must end in .png or .jpg)");
+    return IoError(
+        "cannot write " + path +
+        " (the folder must exist and be writable; the name must end in .png, .jpg or .tif)");
   }
   std::filesystem::rename(part, target, error);
   if (error) {

@@ -43,8 +43,8 @@ struct ActivityMap {
 StatusOr<ActivityMap> RenderActivityMap(const mission::Mission& mission, const TileReader& tiles,
                                         const ActivityMapOptions& options);
 
-// Writes a picture (.png or .jpg) through a temporary file renamed into place; the error names
-// the file.
+// Writes a picture (.png, .jpg or .tif) through a temporary file renamed into place; the error
+// names the file.
 Status WritePicture(const cv::Mat& bgr, const std::string& path);
 
 }  // namespace saker::render
