@@ -3,12 +3,11 @@
 #include "app/cli_interrupt.h"
 #include "app/cli_mosaic.h"
 #include "core/activity/colours.h"
-#include "core/export/export.h"
 #include "core/mission/mission_store.h"
 #include "core/mosaic/decomposition.h"
+#include "core/pipeline/export_mission.h"
 #include "core/pipeline/process.h"
 #include "core/render/activity_map.h"
-#include "core/tiles/pyramid.h"
 
 #include <nlohmann/json.hpp>
 #include <unistd.h>
@@ -23,22 +22,6 @@ namespace {
 constexpr int kExitOk = 0;
 constexpr int kExitFailed = 1;
 constexpr int kExitCancelled = 130;  // as a shell reports a job stopped by Ctrl-C
-
-// Tiles of an open mission, decoded.
-render::TileReader StoreTiles(const mission::MissionStore& store) {
-  return [&store](int level, int x, int y) -> StatusOr<cv::Mat> {
-    SAKER_ASSIGN_OR_RETURN(const std::optional<std::vector<uint8_t>> bytes,
-                           store.ReadTile(level, x, y));
-    if (!bytes) return cv::Mat();
-    StatusOr<cv::Mat> tile = tiles::DecodeTile(*bytes);
-    if (!tile.ok()) {
-      return InvalidDataError(store.path() + ": tile " + std::to_string(level) + "/" +
-                              std::to_string(x) + "/" + std::to_string(y) + ": " +
-                              tile.status().message());
-    }
-    return tile;
-  };
-}
 
 int Fail(const Status& status) {
   std::cerr << "saker-cli: " << status.message() << "\n";
@@ -196,49 +179,22 @@ int ExportCommand::Run() const {
   if (!store.ok()) return Fail(store.status());
   StatusOr<mission::Mission> m = (*store)->Load();
   if (!m.ok()) return Fail(m.status());
-  const auto wrote = [](const std::string& path, const std::string& what) {
-    std::cout << "wrote " << path << " (" << what << ")\n";
-  };
-  if (!s.png.empty()) {
-    render::ActivityMapOptions options = s.map;
-    options.colour_by = *activity::ParseColourMode(s.colour_by);
-    if (s.start_s >= 0) options.start_s = s.start_s;
-    if (s.end_s >= 0) options.end_s = s.end_s;
-    StatusOr<render::ActivityMap> map = render::RenderActivityMap(*m, StoreTiles(**store), options);
-    if (!map.ok())
-      return Fail(Status(map.status().code(), s.mission + ": " + map.status().message()));
-    if (Status w = render::WritePicture(map->bgr, s.png); !w.ok()) return Fail(w);
-    wrote(s.png, "activity map, " + std::to_string(map->tracks) + " tracks coloured by " +
-                     s.colour_by + ", " + std::to_string(map->bgr.cols) + "x" +
-                     std::to_string(map->bgr.rows));
-  }
-  if (!s.geotiff.empty()) {
-    if (!m->pyramid) {
-      return Fail(InvalidArgumentError(s.mission +
-                                       ": the mission has no mosaic tiles (processed with "
-                                       "--no-tiles, cancelled, or no key frame)"));
-    }
-    StatusOr<exporting::GeoTiffReport> report =
-        exporting::ExportGeoTiff(m->map, *m->pyramid, s.level, StoreTiles(**store), s.geotiff);
-    if (!report.ok()) return Fail(report.status());
-    char fit[64];
-    std::snprintf(fit, sizeof(fit), ", affine fit within %.3f m", report->max_fit_error_m);
-    wrote(s.geotiff, "mosaic " + std::to_string(report->width) + "x" +
-                         std::to_string(report->height) + ", CRS " + report->crs +
-                         (m->map.geo_referenced ? fit : ""));
-  }
-  const size_t tracks = m->tracks.size();
-  if (!s.geojson.empty()) {
-    if (Status w = exporting::ExportGeoJson(*m, s.geojson); !w.ok()) return Fail(w);
-    wrote(s.geojson, std::to_string(tracks) + " tracks");
-  }
-  if (!s.kml.empty()) {
-    if (Status w = exporting::ExportKml(*m, s.kml); !w.ok()) return Fail(w);
-    wrote(s.kml, std::to_string(tracks) + " tracks");
-  }
-  if (!s.csv.empty()) {
-    if (Status w = exporting::ExportCsv(*m, s.csv); !w.ok()) return Fail(w);
-    wrote(s.csv, std::to_string(tracks) + " tracks");
+  pipeline::ExportRequest request;
+  request.png = s.png;
+  request.map = s.map;
+  request.map.colour_by = *activity::ParseColourMode(s.colour_by);
+  if (s.start_s >= 0) request.map.start_s = s.start_s;
+  if (s.end_s >= 0) request.map.end_s = s.end_s;
+  request.geotiff = s.geotiff;
+  request.level = s.level;
+  request.geojson = s.geojson;
+  request.kml = s.kml;
+  request.csv = s.csv;
+  StatusOr<std::vector<pipeline::ExportedFile>> written =
+      pipeline::ExportMission(*m, **store, request);
+  if (!written.ok()) return Fail(written.status());
+  for (const pipeline::ExportedFile& file : *written) {
+    std::cout << "wrote " << file.path << " (" << file.what << ")\n";
   }
   return kExitOk;
 }

@@ -12,6 +12,7 @@ extern "C" {
 #include <libavformat/avformat.h>
 }
 
+#include "benchmarks/bench_stats.h"
 #include "core/video/video_reader.h"
 #include "tests/core/video/synthetic_ts.h"
 
@@ -33,28 +34,12 @@ extern "C" {
 namespace {
 
 namespace fs = std::filesystem;
-using Clock = std::chrono::steady_clock;
 using saker::Status;
 using saker::StatusOr;
-
-double Seconds(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
-
-double Median(std::vector<double> values) {
-  if (values.empty()) return 0;
-  std::sort(values.begin(), values.end());
-  const size_t n = values.size();
-  return n % 2 == 1 ? values[n / 2] : 0.5 * (values[n / 2 - 1] + values[n / 2]);
-}
-
-// Nearest-rank percentile, p in (0, 100].
-double Percentile(std::vector<double> values, double p) {
-  if (values.empty()) return 0;
-  std::sort(values.begin(), values.end());
-  const auto rank = static_cast<size_t>(std::ceil(p / 100.0 * static_cast<double>(values.size())));
-  return values[std::clamp<size_t>(rank, 1, values.size()) - 1];
-}
+using saker::bench::Clock;
+using saker::bench::Median;
+using saker::bench::Percentile;
+using saker::bench::Seconds;
 
 struct Throughput {
   int64_t frames = 0;

@@ -2,6 +2,7 @@
 
 #include "core/util/check.h"
 
+#include <Eigen/LU>
 #include <opencv2/imgproc.hpp>
 
 #include <chrono>
@@ -347,6 +348,8 @@ StatusOr<FrontEndResult> RunFrontEnd(const std::string& path, const FrontEndOpti
     change_side_ms += MillisecondsSince(start);
   };
 
+  // The placement of the current frame in the preview (KeyFramePreview): the first frame's pixels.
+  Eigen::Matrix3d preview_from_current = Eigen::Matrix3d::Identity();
   while (std::optional<video::Frame> frame = queue.Pop()) {
     if (job != nullptr && job->IsCancelled()) return CancelledError("front end: cancelled");
     FrameResult fr;
@@ -388,6 +391,8 @@ StatusOr<FrontEndResult> RunFrontEnd(const std::string& path, const FrontEndOpti
     start = Clock::now();
     const double change_side_before = change_side_ms;
     if (estimate) {
+      preview_from_current = preview_from_current * estimate->target_from_source.inverse();
+      preview_from_current /= preview_from_current(2, 2);
       fr.homography_ok = true;
       fr.current_from_previous = estimate->target_from_source;
       fr.covariance = estimate->covariance;
@@ -428,6 +433,7 @@ StatusOr<FrontEndResult> RunFrontEnd(const std::string& path, const FrontEndOpti
       image.scale = std::max(1.0, double(frame->grey.cols) / options.key_frame_image_width);
       cv::resize(frame->grey, image.grey, cv::Size(), 1.0 / image.scale, 1.0 / image.scale,
                  cv::INTER_AREA);
+      if (options.on_key_frame) options.on_key_frame({image, preview_from_current});
       result.key_frame_images.push_back(std::move(image));
     }
     timing.key_frames_ms += MillisecondsSince(start);

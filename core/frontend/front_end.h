@@ -26,10 +26,27 @@
 #include <opencv2/core/mat.hpp>
 
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
 namespace saker::frontend {
+
+struct KeyFrameImage {
+  track::KeyFrameId id{};
+  int64_t frame_index = 0;
+  cv::Mat grey;      // downscaled copy
+  double scale = 1;  // full-resolution pixels per pixel of `grey`
+};
+
+// A key frame as the front end first places it, so that a viewer can show the mosaic growing
+// while the video is processed: `preview_from_frame` chains the frame-to-frame homographies from
+// the video's first frame (its pixels are the preview's frame; across a chain break the placement
+// carries over unchanged). Unadjusted, so it drifts; the mosaic replaces it.
+struct KeyFramePreview {
+  KeyFrameImage image;  // shares its pixels with the result's copy, which is never modified
+  Eigen::Matrix3d preview_from_frame = Eigen::Matrix3d::Identity();
+};
 
 struct FrontEndOptions {
   track::TrackerOptions tracker;
@@ -49,6 +66,8 @@ struct FrontEndOptions {
                                  // answers are taken 8 frames late: more than 8 changes nothing)
   int key_frame_image_width = 640;  // width of the grey copy kept per key frame (0: none)
   int decoder_threads = 0;          // 0 = automatic
+  // Called on the calling thread with each new key frame (needs key_frame_image_width > 0).
+  std::function<void(const KeyFramePreview&)> on_key_frame;
   Status Validate() const;
 };
 
@@ -62,13 +81,6 @@ struct FrameResult {
   int tracked = 0;  // live feature tracks
   int inliers = 0;  // stationary correspondences supporting the homography
   int moving = 0;   // features labelled moving
-};
-
-struct KeyFrameImage {
-  track::KeyFrameId id{};
-  int64_t frame_index = 0;
-  cv::Mat grey;      // downscaled copy
-  double scale = 1;  // full-resolution pixels per pixel of `grey`
 };
 
 // Time spent per frame in each stage (milliseconds, averaged), and the whole run.

@@ -2,6 +2,7 @@
 
 #include "core/mission/mission_store.h"
 #include "core/pipeline/evaluate.h"
+#include "core/pipeline/export_mission.h"
 #include "core/sim/simulator.h"
 #include "tests/testing/test_data.h"
 
@@ -60,11 +61,28 @@ TEST_F(ProcessTest, ProcessesIntoAMissionThatReopensWithTheTruthsActivity) {
   ProcessOptions options;
   options.saker_version = "test";
   options.on_commit = [&](const std::string& stage) { commits.push_back(stage); };
+  // The preview a viewer shows while the front end runs: every key frame, as it is made.
+  std::vector<frontend::KeyFramePreview> previews;
+  options.front_end.on_key_frame = [&](const frontend::KeyFramePreview& preview) {
+    EXPECT_TRUE(commits == std::vector<std::string>{"source"}) << "a preview after the front end";
+    previews.push_back(preview);
+  };
   const auto summary = ProcessVideo(Video(), path, options);
   ASSERT_TRUE(summary.ok()) << summary.status().ToString();
   std::cout << summary->ToText();
   EXPECT_EQ(commits,
             (std::vector<std::string>{"source", "front end", "mosaic", "activity", "tiles"}));
+  ASSERT_EQ(int64_t(previews.size()), summary->key_frames);
+  for (size_t i = 1; i < previews.size(); ++i) {
+    EXPECT_GT(previews[i].image.frame_index, previews[i - 1].image.frame_index);
+    EXPECT_FALSE(previews[i].image.grey.empty());
+  }
+  // The first video frame is the preview's frame; the camera flies on, so later key frames
+  // are placed away from it.
+  if (previews.front().image.frame_index == 0) {
+    EXPECT_TRUE(previews.front().preview_from_frame.isApprox(Eigen::Matrix3d::Identity()));
+  }
+  EXPECT_GT(previews.back().preview_from_frame.col(2).head<2>().norm(), 50.0);
   EXPECT_TRUE(summary->geo_referenced);
 
   // Reopened read-only: everything the run produced, nothing reprocessed.
@@ -116,6 +134,45 @@ TEST_F(ProcessTest, CancelKeepsTheStagesThatCompleted) {
   EXPECT_FALSE(m->progress.mosaic);
   EXPECT_TRUE(m->progress.cancelled);
   EXPECT_FALSE(m->frames.empty());
+}
+
+// Save As: a complete copy, tiles included; never over the source or over a file that is not a
+// mission.
+TEST_F(ProcessTest, CopyMissionCopiesEverythingAndRefusesToOverwriteOtherFiles) {
+  const std::string source = (*dir_ / "to-copy.saker").string();
+  ProcessOptions options;
+  options.saker_version = "test";
+  ASSERT_TRUE(ProcessVideo(Video(), source, options).ok());
+  const std::string copy = (*dir_ / "copy.saker").string();
+  ASSERT_TRUE(CopyMission(source, copy, false).ok());
+  const auto a = mission::MissionStore::Open(source);
+  const auto b = mission::MissionStore::Open(copy);
+  ASSERT_TRUE(a.ok() && b.ok());
+  const auto ma = (*a)->Load();
+  const auto mb = (*b)->Load();
+  ASSERT_TRUE(ma.ok() && mb.ok());
+  EXPECT_EQ(ma->frames.size(), mb->frames.size());
+  EXPECT_EQ(ma->key_frames.size(), mb->key_frames.size());
+  EXPECT_EQ(ma->tracks.size(), mb->tracks.size());
+  EXPECT_EQ(ma->source.fingerprint, mb->source.fingerprint);
+  EXPECT_EQ(*(*a)->CountTiles(), *(*b)->CountTiles());
+  EXPECT_EQ(*(*a)->ReadTile(0, 0, 0), *(*b)->ReadTile(0, 0, 0));
+
+  EXPECT_EQ(CopyMission(source, copy, false).code(), StatusCode::kInvalidArgument);
+  EXPECT_TRUE(CopyMission(source, copy, true).ok());
+  EXPECT_EQ(CopyMission(source, source, true).code(), StatusCode::kInvalidArgument);
+  const std::filesystem::path notes = *dir_ / "notes.saker";
+  std::ofstream(notes) << "not a mission\n";
+  const Status refused = CopyMission(source, notes.string(), true);
+  EXPECT_FALSE(refused.ok());
+  EXPECT_NE(refused.message().find("notes.saker"), std::string::npos) << refused.message();
+  std::ifstream kept(notes);
+  std::string line;
+  std::getline(kept, line);
+  EXPECT_EQ(line, "not a mission");
+  for (const auto& entry : std::filesystem::directory_iterator(*dir_)) {
+    EXPECT_EQ(entry.path().string().find(".part-"), std::string::npos) << entry.path();
+  }
 }
 
 TEST_F(ProcessTest, NotAVideoLeavesNoMission) {

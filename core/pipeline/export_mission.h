@@ -1,0 +1,53 @@
+#pragma once
+
+// Every export of a saved mission behind one call, so that the command line (`saker-cli export`)
+// and the GUI's Export menu write the same files: the activity map picture, the mosaic GeoTIFF,
+// the tracks as GeoJSON, KML and CSV (docs/exports.md). Also a copy of a mission to a new file
+// (the GUI's Save As).
+
+#include "core/mission/mission.h"
+#include "core/mission/mission_store.h"
+#include "core/render/activity_map.h"
+#include "core/util/job_context.h"
+#include "core/util/status.h"
+
+#include <string>
+#include <vector>
+
+namespace saker::pipeline {
+
+// What to write; empty paths are skipped.
+struct ExportRequest {
+  std::string png;  // activity map picture (.png, .jpg or .tif)
+  render::ActivityMapOptions map;
+  std::string geotiff;            // mosaic
+  int level = 0;                  // the GeoTIFF's pyramid level (0 = full resolution)
+  std::string geojson, kml, csv;  // tracks
+
+  bool empty() const;
+};
+
+// One file written, with a line for a person ("activity map, 12 tracks coloured by speed, ...").
+struct ExportedFile {
+  std::string path;
+  std::string what;
+};
+
+// The decoded tiles of an open mission; errors name the mission file and the tile.
+render::TileReader StoreTileReader(const mission::MissionStore& store);
+
+// Writes what `request` asks for from `mission` (as loaded from `store`, whose tiles it reads;
+// the caller may have filtered its tracks). Stops at the first failure, whose message names the
+// file; the files written before it stay. `job` may cancel between files.
+StatusOr<std::vector<ExportedFile>> ExportMission(const mission::Mission& mission,
+                                                  const mission::MissionStore& store,
+                                                  const ExportRequest& request,
+                                                  JobContext* job = nullptr);
+
+// Copies the mission at `from` to a new mission file `to` (everything, tiles included), which
+// must not be `from`; `replace` allows overwriting another mission there. The copy is complete or
+// absent: it is built beside `to` and renamed into place.
+Status CopyMission(const std::string& from, const std::string& to, bool replace,
+                   JobContext* job = nullptr);
+
+}  // namespace saker::pipeline
