@@ -12,7 +12,11 @@
 #include "core/video/video_reader.h"
 
 #include <CLI/CLI.hpp>
+#include <unistd.h>
 
+#include <cerrno>
+#include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <iostream>
 #include <string>
@@ -50,6 +54,29 @@ int RunScan(const std::string& file, bool json, bool dump_klv, double tolerance_
 }
 
 }  // namespace
+
+// The end of the demo: with a display, the mission opens in the GUI (saker, built beside this
+// program), which replaces this process; headless, say where the results are.
+static int OpenInGui(const std::string& mission, const std::string& png) {
+  const char* x11 = std::getenv("DISPLAY");
+  const char* wayland = std::getenv("WAYLAND_DISPLAY");
+  const bool display = (x11 != nullptr && *x11 != '\0') || (wayland != nullptr && *wayland != '\0');
+  std::error_code error;
+  const std::filesystem::path gui =
+      std::filesystem::read_symlink("/proc/self/exe", error).parent_path() / "saker";
+  if (!display || error || access(gui.c_str(), X_OK) != 0) {
+    std::cout << "\nNo display" << (display ? " or no GUI build" : "") << ": the activity map is "
+              << png << ". On a desktop, open the mission with `"
+              << (error ? std::string("saker") : gui.string()) << " " << mission << "`.\n";
+    return kExitOk;
+  }
+  std::cout << "\nOpening " << mission << " in the Saker window (" << gui.string() << ")\n"
+            << std::flush;
+  execl(gui.c_str(), gui.c_str(), mission.c_str(), static_cast<char*>(nullptr));
+  std::cerr << "saker-cli: cannot start " << gui.string() << ": " << std::strerror(errno)
+            << "; the activity map is " << png << "\n";
+  return kExitInputError;
+}
 
 int main(int argc, char** argv) {
   CLI::App app{
@@ -125,7 +152,11 @@ int main(int argc, char** argv) {
         if (const int code = process.RunOn(video, mission, /*replace=*/true); code != kExitOk) {
           return code;
         }
-        return export_command.WriteActivityMap(mission, (folder / "activity.png").string());
+        const std::string png = (folder / "activity.png").string();
+        if (const int code = export_command.WriteActivityMap(mission, png); code != kExitOk) {
+          return code;
+        }
+        return demo.no_gui() ? kExitOk : OpenInGui(mission, png);
       });
     }
   } catch (const saker::CheckError& e) {

@@ -277,6 +277,7 @@ int SimulateCommand::Run() const {
 struct DemoCommand::State {
   CLI::App* command = nullptr;
   std::filesystem::path directory = "demo";
+  bool no_gui = false;
 };
 
 DemoCommand::DemoCommand(CLI::App& app) : state_(std::make_unique<State>()) {
@@ -285,13 +286,17 @@ DemoCommand::DemoCommand(CLI::App& app) : state_(std::make_unique<State>()) {
       "The built-in demo mission: generates DIR/demo.ts (the roundabout-loop scenario, 71 s of\n"
       "1280x720 video at 25 fps with KLV, and its truth) unless it is already there, then runs\n"
       "the main job on it: processes it into the mission DIR/demo.saker (replacing an earlier\n"
-      "one) and writes its activity map, tracks coloured by speed, to DIR/activity.png.");
+      "one) and writes its activity map, tracks coloured by speed, to DIR/activity.png.\n"
+      "When a display is present and the Saker GUI was built, the mission then opens in it.");
   state_->command->add_option("--dir", state_->directory, "Where the demo mission lives")
       ->capture_default_str();
+  state_->command->add_flag("--no-gui", state_->no_gui,
+                            "Do not open the GUI afterwards, even with a display");
 }
 
 DemoCommand::~DemoCommand() = default;
 bool DemoCommand::parsed() const { return state_->command->parsed(); }
+bool DemoCommand::no_gui() const { return state_->no_gui; }
 std::string DemoCommand::VideoPath() const { return (state_->directory / "demo.ts").string(); }
 
 int DemoCommand::Prepare() const {

@@ -27,6 +27,8 @@ class DemoCommand {
   explicit DemoCommand(CLI::App& app);
   ~DemoCommand();
   bool parsed() const;
+  // --no-gui: stay on the command line even when a display is present.
+  bool no_gui() const;
   // Generates the demo mission if it is not there yet, then runs the main job on it.
   // `main_job` gets the demo video's path and returns an exit code.
   template <typename MainJob>

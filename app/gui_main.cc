@@ -17,7 +17,10 @@ int main(int argc, char** argv) {
       "Saker: analyst workstation for airborne video with STANAG 4609 metadata.");
   parser.addHelpOption();
   parser.addVersionOption();
-  parser.addPositionalArgument("video", "Video file to open (MPEG-TS, MPG, MP4).", "[video]");
+  parser.addPositionalArgument(
+      "file",
+      "A mission (.saker) to open, or a video (MPEG-TS, MPG, MP4) to process into a mission.",
+      "[file]");
   parser.process(app);
 
   // Damage is reported in the window; FFmpeg's own stderr chatter is noise here.
@@ -25,6 +28,6 @@ int main(int argc, char** argv) {
   saker::ui::MainWindow window;
   window.show();
   if (!parser.positionalArguments().isEmpty())
-    window.openVideo(parser.positionalArguments().front());
+    window.openPath(parser.positionalArguments().front());
   return app.exec();
 }

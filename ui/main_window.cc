@@ -1,33 +1,46 @@
 #include "ui/main_window.h"
 
-#include "core/ingest/report.h"
-#include "core/ingest/video_scan.h"
-#include "core/util/job_context.h"
+#include "core/geo/local_tangent_plane.h"
+#include "core/mission/mission_store.h"
+#include "core/pipeline/export_mission.h"
+#include "core/pipeline/process.h"
+#include "ui/frame_panel.h"
+#include "ui/mosaic_view.h"
+#include "ui/task_runner.h"
 
-#include <opencv2/imgproc.hpp>
-
+#include <QAction>
+#include <QActionGroup>
 #include <QApplication>
 #include <QCloseEvent>
+#include <QDialog>
+#include <QDialogButtonBox>
+#include <QDir>
+#include <QDockWidget>
+#include <QDoubleSpinBox>
 #include <QDragEnterEvent>
 #include <QDropEvent>
+#include <QFile>
 #include <QFileDialog>
 #include <QFileInfo>
-#include <QFontDatabase>
+#include <QFormLayout>
+#include <QHBoxLayout>
 #include <QIcon>
-#include <QImage>
+#include <QKeySequence>
 #include <QLabel>
+#include <QMenu>
 #include <QMenuBar>
 #include <QMessageBox>
 #include <QMimeData>
-#include <QPixmap>
-#include <QPlainTextEdit>
-#include <QPointer>
 #include <QProgressBar>
 #include <QPushButton>
-#include <QResizeEvent>
-#include <QSplitter>
+#include <QSettings>
 #include <QStatusBar>
-#include <QThreadPool>
+#include <QTextBrowser>
+#include <QToolBar>
+#include <QVBoxLayout>
+#include <cmath>
+#include <filesystem>
+#include <set>
 
 // Resources compiled into a static library must be registered explicitly.
 static void InitSakerResources() { Q_INIT_RESOURCE(saker); }
@@ -37,200 +50,927 @@ namespace saker::ui {
 namespace {
 
 constexpr int kProgressSteps = 1000;
+constexpr int kMaxRecent = 10;
 
-QImage ImageFromBgr(const cv::Mat& bgr) {
-  cv::Mat rgb;
-  cv::cvtColor(bgr, rgb, cv::COLOR_BGR2RGB);
-  return QImage(rgb.data, rgb.cols, rgb.rows, static_cast<qsizetype>(rgb.step),
-                QImage::Format_RGB888)
-      .copy();
+QString FromStd(const std::string& text) { return QString::fromStdString(text); }
+
+bool IsMissionPath(const QString& path) {
+  return QFileInfo(path).suffix().compare("saker", Qt::CaseInsensitive) == 0;
+}
+
+QString SettingsKeyForVideo(const std::string& fingerprint) {
+  return "videoLocations/" + FromStd(fingerprint);
+}
+
+QString Duration(double seconds) {
+  const int total = int(std::lround(seconds));
+  return QString("%1:%2").arg(total / 60).arg(total % 60, 2, 10, QChar('0'));
+}
+
+// "51.23456° N, 1.23456° W"
+QString LatLonText(double latitude, double longitude) {
+  return QString("%1° %2, %3° %4")
+      .arg(std::abs(latitude), 0, 'f', 5)
+      .arg(latitude >= 0 ? "N" : "S")
+      .arg(std::abs(longitude), 0, 'f', 5)
+      .arg(longitude >= 0 ? "E" : "W");
 }
 
 }  // namespace
+
+// A mission as loaded on the loader's thread, with where its video is.
+struct MainWindow::Loaded {
+  QString path;
+  std::shared_ptr<const mission::Mission> mission;
+  QString video;           // the video to recall frames from; empty when not found
+  QString problem;         // why not, for a person
+  QStringList candidates;  // where to look for the video (remembered location, beside the mission)
+};
 
 MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   InitSakerResources();
   setWindowTitle(tr("Saker"));
   setWindowIcon(QIcon(":/saker/icons/saker.svg"));
   setAcceptDrops(true);
-  resize(1100, 650);
+  resize(1280, 800);
 
-  frame_view_ = new QLabel(this);
-  frame_view_->setAlignment(Qt::AlignCenter);
-  frame_view_->setMinimumSize(320, 240);
-  frame_view_->setText(tr("Open a video (File > Open Video…) or drop one here."));
-  frame_view_->setWordWrap(true);
+  jobs_ = new TaskRunner(this);
+  loader_ = new TaskRunner(this);
+  connect(jobs_, &TaskRunner::progress, this, [this](const QString& stage, double fraction) {
+    stage_label_->setText(processing_video_.isEmpty()
+                              ? stage
+                              : tr("%1: %2").arg(QFileInfo(processing_video_).fileName(), stage));
+    progress_->setValue(int(std::lround(fraction * kProgressSteps)));
+  });
+  connect(jobs_, &TaskRunner::finished, this, &MainWindow::jobEnded);
+  connect(loader_, &TaskRunner::finished, this, [this](const QString&, const Status& status) {
+    const std::shared_ptr<Loaded> loaded = std::move(loading_);
+    if (!pending_load_.isEmpty()) {  // superseded while it loaded
+      const QString next = std::exchange(pending_load_, QString());
+      startLoad(next);
+      return;
+    }
+    if (!status.ok()) {
+      const QString path = loaded ? loaded->path : QString();
+      if (path == mission_path_ && jobs_->isRunning()) return;  // mid-processing: next commit
+      showError(tr("Cannot open the mission"), FromStd(status.message()));
+      emit missionFailed(path, FromStd(status.message()));
+      return;
+    }
+    if (loaded) missionLoaded(*loaded);
+  });
 
-  summary_ = new QPlainTextEdit(this);
-  summary_->setReadOnly(true);
-  summary_->setFont(QFontDatabase::systemFont(QFontDatabase::FixedFont));
-  summary_->setLineWrapMode(QPlainTextEdit::WidgetWidth);
+  view_ = new MosaicView(this);
+  setCentralWidget(view_);
+  connect(view_, &MosaicView::mapClicked, this,
+          [this](const Eigen::Vector2d& map_point, double tolerance) {
+            if (!pickAt(map_point, tolerance)) view_->setMarker(std::nullopt);
+          });
+  connect(view_, &MosaicView::cursorMoved, this, &MainWindow::updateCursor);
 
-  auto* splitter = new QSplitter(this);
-  splitter->addWidget(frame_view_);
-  splitter->addWidget(summary_);
-  splitter->setStretchFactor(0, 3);
-  splitter->setStretchFactor(1, 2);
-  splitter->setSizes({640, 460});
-  setCentralWidget(splitter);
-
-  progress_ = new QProgressBar(this);
-  progress_->setRange(0, kProgressSteps);
-  progress_->setMaximumWidth(240);
-  cancel_button_ = new QPushButton(tr("Cancel"), this);
-  connect(cancel_button_, &QPushButton::clicked, this, &MainWindow::cancelScan);
-  statusBar()->addPermanentWidget(progress_);
-  statusBar()->addPermanentWidget(cancel_button_);
-  setBusy(false);
-  statusBar()->showMessage(tr("Ready"));
-
-  createMenus();
+  createDocks();
+  createActions();
+  createStatusBar();
+  readSettings();
+  updateActions();
+  updateMissionFacts();
 }
 
 MainWindow::~MainWindow() {
-  // A running scan holds only its shared context and a QPointer to us; cancel
-  // it so the worker stops at its next frame.
-  if (job_) job_->RequestCancel();
+  // Worker threads post to this window: end them before its members go.
+  jobs_->cancelAndWait();
+  loader_->cancelAndWait();
 }
 
-void MainWindow::createMenus() {
+// --------------------------------------------------------------------------------------------
+// Construction
+
+void MainWindow::createDocks() {
+  frame_panel_ = new FramePanel(this);
+  auto* frame_dock = new QDockWidget(tr("Frame"), this);
+  frame_dock->setObjectName("frameDock");
+  frame_dock->setWidget(frame_panel_);
+  addDockWidget(Qt::RightDockWidgetArea, frame_dock);
+  connect(frame_panel_, &FramePanel::observationChanged, this, [this](size_t track, size_t point) {
+    if (!mission_ || track >= mission_->tracks.size() ||
+        point >= mission_->tracks[track].points.size())
+      return;
+    selected_ = {track, point};
+    view_->setMarker(mission_->tracks[track].points[point].map);
+  });
+  connect(frame_panel_, &FramePanel::locateVideoRequested, this, &MainWindow::locateVideo);
+
+  // The mission's facts and the track filters.
+  auto* side = new QWidget(this);
+  auto* layout = new QVBoxLayout(side);
+  facts_ = new QLabel(side);
+  facts_->setTextInteractionFlags(Qt::TextSelectableByMouse);
+  facts_->setWordWrap(true);
+  facts_->setAlignment(Qt::AlignTop | Qt::AlignLeft);
+  layout->addWidget(facts_);
+
+  auto* filters = new QFormLayout();
+  const auto spin = [side](const QString& suffix) {
+    auto* box = new QDoubleSpinBox(side);
+    box->setDecimals(1);
+    box->setSuffix(suffix);
+    box->setKeyboardTracking(false);
+    return box;
+  };
+  from_s_ = spin(tr(" s"));
+  to_s_ = spin(tr(" s"));
+  min_speed_ = spin(QString());
+  max_speed_ = spin(QString());
+  speed_unit_ = new QLabel(side);
+  auto* time_row = new QHBoxLayout();
+  time_row->addWidget(from_s_);
+  time_row->addWidget(new QLabel(tr("to"), side));
+  time_row->addWidget(to_s_);
+  auto* speed_row = new QHBoxLayout();
+  speed_row->addWidget(min_speed_);
+  speed_row->addWidget(new QLabel(tr("to"), side));
+  speed_row->addWidget(max_speed_);
+  speed_row->addWidget(speed_unit_);
+  filters->addRow(tr("Time:"), time_row);
+  filters->addRow(tr("Speed:"), speed_row);
+  auto* filter_title = new QLabel(tr("<b>Show tracks</b>"), side);
+  layout->addSpacing(8);
+  layout->addWidget(filter_title);
+  layout->addLayout(filters);
+  shown_count_ = new QLabel(side);
+  auto* reset = new QPushButton(tr("Show All"), side);
+  reset->setToolTip(tr("Clear the time and speed filters"));
+  auto* count_row = new QHBoxLayout();
+  count_row->addWidget(shown_count_, 1);
+  count_row->addWidget(reset);
+  layout->addLayout(count_row);
+  layout->addStretch(1);
+  for (QDoubleSpinBox* box : {from_s_, to_s_, min_speed_, max_speed_}) {
+    connect(box, &QDoubleSpinBox::valueChanged, this, &MainWindow::applyFilter);
+  }
+  connect(reset, &QPushButton::clicked, this, &MainWindow::resetFilter);
+
+  auto* mission_dock = new QDockWidget(tr("Mission"), this);
+  mission_dock->setObjectName("missionDock");
+  mission_dock->setWidget(side);
+  addDockWidget(Qt::LeftDockWidgetArea, mission_dock);
+  resizeDocks({mission_dock, frame_dock}, {240, 560}, Qt::Horizontal);
+}
+
+void MainWindow::createActions() {
   QMenu* file = menuBar()->addMenu(tr("&File"));
-  QAction* open = file->addAction(tr("&Open Video…"), this, &MainWindow::chooseVideo);
-  open->setShortcut(QKeySequence::Open);
+  QAction* open_video = file->addAction(QIcon::fromTheme("video-x-generic"), tr("Open &Video…"),
+                                        this, &MainWindow::chooseVideo);
+  open_video->setShortcut(QKeySequence(tr("Ctrl+Shift+O")));
+  open_video->setStatusTip(tr("Process a video into a new mission"));
+  QAction* open_mission = file->addAction(QIcon::fromTheme("document-open"), tr("&Open Mission…"),
+                                          this, &MainWindow::chooseMission);
+  open_mission->setShortcut(QKeySequence::Open);
+  recent_menu_ = file->addMenu(tr("Open &Recent"));
   file->addSeparator();
-  QAction* quit = file->addAction(tr("&Quit"), this, &QWidget::close);
+  save_as_action_ = file->addAction(QIcon::fromTheme("document-save-as"), tr("Save Mission &As…"),
+                                    this, &MainWindow::chooseSaveAs);
+  save_as_action_->setShortcut(QKeySequence::SaveAs);
+  file->addSeparator();
+  export_map_action_ =
+      file->addAction(tr("Export Activity &Map…"), this, &MainWindow::chooseActivityMap);
+  export_map_action_->setShortcut(QKeySequence(tr("Ctrl+E")));
+  export_tracks_action_ = file->addAction(tr("Export &Tracks…"), this, &MainWindow::chooseTracks);
+  export_mosaic_action_ =
+      file->addAction(tr("Export Mo&saic (GeoTIFF)…"), this, &MainWindow::chooseMosaic);
+  file->addSeparator();
+  locate_action_ = file->addAction(tr("&Locate Video…"), this, &MainWindow::locateVideo);
+  locate_action_->setStatusTip(tr("Tell Saker where this mission's video is now"));
+  file->addSeparator();
+  QAction* quit =
+      file->addAction(QIcon::fromTheme("application-exit"), tr("&Quit"), this, &QWidget::close);
   quit->setShortcut(QKeySequence::Quit);
+  quit->setMenuRole(QAction::QuitRole);
+
+  QMenu* view = menuBar()->addMenu(tr("&View"));
+  QMenu* colour = view->addMenu(tr("&Colour Tracks By"));
+  colour_group_ = new QActionGroup(this);
+  const std::pair<activity::ColourMode, QString> modes[] = {
+      {activity::ColourMode::kSpeed, tr("&Speed")},
+      {activity::ColourMode::kDirection, tr("&Direction")},
+      {activity::ColourMode::kVisit, tr("&Visit")},
+      {activity::ColourMode::kTime, tr("&Time")}};
+  int key = 1;
+  for (const auto& [mode, label] : modes) {
+    QAction* action = colour->addAction(label);
+    action->setCheckable(true);
+    action->setData(int(mode));
+    action->setShortcut(QKeySequence(QString("Ctrl+%1").arg(key++)));
+    action->setObjectName(QString("colourBy_") + activity::ColourModeName(mode));
+    colour_group_->addAction(action);
+    connect(action, &QAction::triggered, this, [this, mode = mode] { setColourMode(mode); });
+  }
+  colour_group_->actions().front()->setChecked(true);
+  view->addSeparator();
+  const auto toggle = [&](const QString& label, const QString& shortcut, bool on,
+                          void (MosaicView::*slot)(bool)) {
+    QAction* action = view->addAction(label);
+    action->setCheckable(true);
+    action->setChecked(on);
+    action->setShortcut(QKeySequence(shortcut));
+    connect(action, &QAction::toggled, view_, slot);
+    (view_->*slot)(on);
+    return action;
+  };
+  show_tracks_action_ = toggle(tr("Show &Tracks"), tr("Ctrl+T"), true, &MosaicView::setShowTracks);
+  show_outlines_action_ = toggle(tr("Show &Key-Frame Outlines"), tr("Ctrl+K"), false,
+                                 &MosaicView::setShowKeyFrameOutlines);
+  show_ellipses_action_ = toggle(tr("Show &Uncertainty Ellipses"), tr("Ctrl+U"), false,
+                                 &MosaicView::setShowUncertainty);
+  view->addSeparator();
+  QAction* zoom_in =
+      view->addAction(QIcon::fromTheme("zoom-in"), tr("Zoom &In"), view_, &MosaicView::zoomIn);
+  zoom_in->setShortcut(QKeySequence::ZoomIn);
+  QAction* zoom_out =
+      view->addAction(QIcon::fromTheme("zoom-out"), tr("Zoom &Out"), view_, &MosaicView::zoomOut);
+  zoom_out->setShortcut(QKeySequence::ZoomOut);
+  QAction* fit = view->addAction(QIcon::fromTheme("zoom-fit-best"), tr("&Fit to Window"), view_,
+                                 &MosaicView::fitToWindow);
+  fit->setShortcut(QKeySequence(tr("Ctrl+0")));
+  view->addSeparator();
+  for (QDockWidget* dock : findChildren<QDockWidget*>()) view->addAction(dock->toggleViewAction());
 
   QMenu* help = menuBar()->addMenu(tr("&Help"));
-  help->addAction(tr("&About Saker"), this, &MainWindow::showAbout);
+  QAction* guide = help->addAction(tr("Saker &User Guide"), this, &MainWindow::showUserGuide);
+  guide->setShortcut(QKeySequence::HelpContents);
+  help->addAction(tr("&About Saker"), this, &MainWindow::showAbout)
+      ->setMenuRole(QAction::AboutRole);
+
+  QToolBar* tools = addToolBar(tr("Main"));
+  tools->setObjectName("mainToolBar");
+  tools->addAction(open_video);
+  tools->addAction(open_mission);
+  tools->addSeparator();
+  tools->addWidget(new QLabel(tr(" Colour by: "), tools));
+  for (QAction* action : colour_group_->actions()) tools->addAction(action);
+  tools->addSeparator();
+  tools->addAction(zoom_in);
+  tools->addAction(zoom_out);
+  tools->addAction(fit);
 }
 
-void MainWindow::chooseVideo() {
-  const QString path = QFileDialog::getOpenFileName(
-      this, tr("Open Video"), QString(),
-      tr("Airborne video (*.ts *.mpg *.mpeg *.m2ts *.mp4 *.mov *.mkv);;All files (*)"));
-  if (!path.isEmpty()) openVideo(path);
+void MainWindow::createStatusBar() {
+  stage_label_ = new QLabel(this);
+  progress_ = new QProgressBar(this);
+  progress_->setRange(0, kProgressSteps);
+  progress_->setMaximumWidth(220);
+  cancel_button_ = new QPushButton(tr("Cancel"), this);
+  cancel_button_->setToolTip(tr("Stop processing; the mission keeps the stages that completed"));
+  connect(cancel_button_, &QPushButton::clicked, jobs_, &TaskRunner::cancel);
+  cursor_label_ = new QLabel(this);
+  cursor_label_->setMinimumWidth(260);
+  statusBar()->addWidget(stage_label_);
+  statusBar()->addWidget(progress_);
+  statusBar()->addWidget(cancel_button_);
+  statusBar()->addPermanentWidget(cursor_label_);
+  for (QWidget* w : std::initializer_list<QWidget*>{stage_label_, progress_, cancel_button_})
+    w->setVisible(false);
 }
 
-void MainWindow::openVideo(const QString& path) {
-  if (job_) job_->RequestCancel();
-  const quint64 generation = ++job_generation_;
-  setWindowTitle(tr("%1 — Saker").arg(QFileInfo(path).fileName()));
-  statusBar()->showMessage(tr("Reading %1…").arg(path));
-  summary_->clear();
-  first_frame_ = QImage();
-  frame_view_->setPixmap({});
-  frame_view_->setText(tr("Reading…"));
-  progress_->setValue(0);
-  setBusy(true);
-
-  QPointer<MainWindow> self(this);
-  // Progress arrives on the worker thread; hop to the GUI thread, and ignore
-  // it once this scan has been superseded.
-  auto progress = [self, generation](const std::string&, double fraction) {
-    QMetaObject::invokeMethod(
-        qApp,
-        [self, generation, fraction] {
-          if (self && self->job_generation_ == generation) {
-            self->progress_->setValue(static_cast<int>(fraction * kProgressSteps));
-          }
-        },
-        Qt::QueuedConnection);
-  };
-  auto job = std::make_shared<JobContext>(progress);
-  job_ = job;
-  QThreadPool::globalInstance()->start([self, job, generation, path] {
-    ingest::ScanOptions options;
-    options.reader.want_bgr = true;
-    cv::Mat first_frame;
-    auto on_frame = [&first_frame](const video::Frame& frame) {
-      if (first_frame.empty() && !frame.bgr.empty()) first_frame = frame.bgr.clone();
-    };
-    auto scan = ingest::ScanVideo(path.toStdString(), options, job.get(), on_frame);
-    QString text;
-    QString error;
-    if (scan.ok()) {
-      text = QString::fromStdString(ingest::ProbeToText(*scan));
-    } else {
-      error = QString::fromStdString(scan.status().message());
-    }
-    const QImage image = first_frame.empty() ? QImage() : ImageFromBgr(first_frame);
-    QMetaObject::invokeMethod(
-        qApp,
-        [self, generation, path, text, error, image] {
-          if (!self || self->job_generation_ != generation) return;
-          self->job_.reset();
-          self->setBusy(false);
-          if (!error.isEmpty()) {
-            self->frame_view_->setText(error);
-            self->statusBar()->showMessage(error);
-            emit self->scanFailed(path, error);
-            return;
-          }
-          self->summary_->setPlainText(text);
-          self->first_frame_ = image;
-          if (!image.isNull()) {
-            self->showFirstFrame();
-          } else {
-            self->frame_view_->setText(tr("No frame could be decoded."));
-          }
-          self->statusBar()->showMessage(tr("Read %1").arg(path));
-          emit self->scanFinished(path);
-        },
-        Qt::QueuedConnection);
-  });
+void MainWindow::readSettings() {
+  QSettings settings;
+  restoreGeometry(settings.value("window/geometry").toByteArray());
+  restoreState(settings.value("window/state").toByteArray());
+  recent_ = settings.value("recentFiles").toStringList();
+  rebuildRecentMenu();
+  const auto mode =
+      activity::ParseColourMode(settings.value("view/colourBy", "speed").toString().toStdString());
+  setColourMode(mode.value_or(activity::ColourMode::kSpeed));
+  show_tracks_action_->setChecked(settings.value("view/showTracks", true).toBool());
+  show_outlines_action_->setChecked(settings.value("view/showOutlines", false).toBool());
+  show_ellipses_action_->setChecked(settings.value("view/showEllipses", false).toBool());
 }
 
-void MainWindow::showFirstFrame() {
-  if (first_frame_.isNull()) return;
-  frame_view_->setPixmap(
-      QPixmap::fromImage(first_frame_)
-          .scaled(frame_view_->size(), Qt::KeepAspectRatio, Qt::SmoothTransformation));
+void MainWindow::writeSettings() const {
+  QSettings settings;
+  settings.setValue("window/geometry", saveGeometry());
+  settings.setValue("window/state", saveState());
+  settings.setValue("recentFiles", recent_);
+  settings.setValue("view/colourBy", activity::ColourModeName(view_->colourMode()));
+  settings.setValue("view/showTracks", show_tracks_action_->isChecked());
+  settings.setValue("view/showOutlines", show_outlines_action_->isChecked());
+  settings.setValue("view/showEllipses", show_ellipses_action_->isChecked());
 }
 
-void MainWindow::resizeEvent(QResizeEvent* event) {
-  QMainWindow::resizeEvent(event);
-  showFirstFrame();
-}
+// --------------------------------------------------------------------------------------------
+// Opening
 
-QString MainWindow::summaryText() const { return summary_->toPlainText(); }
-
-void MainWindow::cancelScan() {
-  if (!job_) return;
-  job_->RequestCancel();
-  ++job_generation_;  // drop whatever the worker still reports
-  job_.reset();
-  setBusy(false);
-  frame_view_->setText(tr("Cancelled."));
-  statusBar()->showMessage(tr("Cancelled"));
-}
-
-void MainWindow::setBusy(bool busy) {
-  progress_->setVisible(busy);
-  cancel_button_->setVisible(busy);
-}
-
-void MainWindow::showAbout() {
-  QMessageBox::about(this, tr("About Saker"),
-                     tr("<b>Saker %1</b><p>Analyst workstation for airborne video: moving "
-                        "targets on mosaic maps from UAV video with STANAG 4609 metadata.</p>")
-                         .arg(QApplication::applicationVersion()));
-}
-
-void MainWindow::dragEnterEvent(QDragEnterEvent* event) {
-  if (event->mimeData()->hasUrls()) event->acceptProposedAction();
-}
-
-void MainWindow::dropEvent(QDropEvent* event) {
-  const auto urls = event->mimeData()->urls();
-  if (!urls.isEmpty() && urls.front().isLocalFile()) {
-    openVideo(urls.front().toLocalFile());
-    event->acceptProposedAction();
+void MainWindow::openPath(const QString& path) {
+  if (IsMissionPath(path)) {
+    openMission(path);
+  } else {
+    openVideo(path);
   }
 }
 
+void MainWindow::openMission(const QString& path) {
+  const QString absolute = QFileInfo(path).absoluteFilePath();
+  if (absolute != mission_path_) {
+    mission_.reset();
+    track_index_.reset();
+    selected_.reset();
+    view_->clearPreview();
+    view_->setMission(nullptr, QString());
+    frame_panel_->clear();
+  }
+  mission_path_ = absolute;
+  updateMissionFacts();
+  startLoad(absolute);
+}
+
+void MainWindow::reloadMission() {
+  if (!mission_path_.isEmpty()) startLoad(mission_path_);
+}
+
+void MainWindow::startLoad(const QString& path) {
+  if (loader_->isRunning()) {
+    pending_load_ = path;
+    return;
+  }
+  auto loaded = std::make_shared<Loaded>();
+  loaded->path = path;
+  // Where the video may be besides the path recorded in the mission: filled in by the loader
+  // once it knows the fingerprint; the settings are read here, on the GUI thread.
+  QSettings settings;
+  const QStringList keys = [&] {
+    settings.beginGroup("videoLocations");
+    QStringList k = settings.childKeys();
+    settings.endGroup();
+    return k;
+  }();
+  std::map<std::string, QString> remembered;
+  for (const QString& k : keys)
+    remembered[k.toStdString()] = settings.value("videoLocations/" + k).toString();
+  loading_ = loaded;
+  loader_->start(tr("Open"), [loaded, remembered](JobContext*) -> Status {
+    SAKER_ASSIGN_OR_RETURN(const std::unique_ptr<mission::MissionStore> store,
+                           mission::MissionStore::Open(loaded->path.toStdString()));
+    SAKER_ASSIGN_OR_RETURN(mission::Mission m, store->Load());
+    // The video: where it was processed, where the analyst last located it, or beside the
+    // mission file; recognised by its fingerprint.
+    QStringList candidates{FromStd(m.source.path)};
+    if (auto it = remembered.find(m.source.fingerprint); it != remembered.end())
+      candidates << it->second;
+    candidates
+        << QFileInfo(loaded->path).dir().filePath(QFileInfo(FromStd(m.source.path)).fileName());
+    for (const QString& candidate : candidates) {
+      if (candidate.isEmpty() || !QFileInfo::exists(candidate)) continue;
+      const StatusOr<std::string> fingerprint = mission::FingerprintFile(candidate.toStdString());
+      if (fingerprint.ok() && *fingerprint == m.source.fingerprint) {
+        loaded->video = candidate;
+        break;
+      }
+      if (loaded->problem.isEmpty()) {
+        loaded->problem = QObject::tr(
+                              "The file at %1 is not the video this mission was made "
+                              "from (its content differs).")
+                              .arg(candidate);
+      }
+    }
+    if (loaded->video.isEmpty() && loaded->problem.isEmpty()) {
+      loaded->problem =
+          QObject::tr("The video of this mission is not at %1.").arg(FromStd(m.source.path));
+    }
+    loaded->mission = std::make_shared<const mission::Mission>(std::move(m));
+    return Status();
+  });
+}
+
+void MainWindow::missionLoaded(const Loaded& loaded) {
+  const bool same = loaded.path == mission_path_ && mission_ != nullptr;
+  mission_ = loaded.mission;
+  mission_path_ = loaded.path;
+  video_path_ = loaded.video;
+  video_problem_ = loaded.problem;
+  track_index_ = std::make_unique<activity::TrackIndex>(&mission_->tracks);
+  if (selected_ && (selected_->first >= mission_->tracks.size() ||
+                    selected_->second >= mission_->tracks[selected_->first].points.size()))
+    selected_.reset();
+  if (mission_->progress.mosaic) view_->clearPreview();
+  view_->setMission(mission_, mission_path_);
+  frame_panel_->setMission(mission_, video_path_);
+  if (!same) {
+    resetFilter();
+    addRecent(mission_path_);
+  } else {
+    applyFilter();
+  }
+  setWindowTitle(tr("%1 — Saker").arg(QFileInfo(mission_path_).fileName()));
+  updateMissionFacts();
+  updateActions();
+  if (!jobs_->isRunning()) {
+    statusBar()->showMessage(tr("Opened %1: %n track(s)", nullptr, int(mission_->tracks.size()))
+                                 .arg(QFileInfo(mission_path_).fileName()),
+                             5000);
+  }
+  emit missionOpened(mission_path_);
+}
+
+// --------------------------------------------------------------------------------------------
+// Processing, exports and copies on the task runner
+
+bool MainWindow::startJob(const QString& title, std::function<Status(JobContext*)> task) {
+  if (jobs_->isRunning()) {
+    showError(tr("Busy"), tr("%1 is running. Wait for it or cancel it first.").arg(jobs_->title()));
+    return false;
+  }
+  jobs_->start(title, std::move(task));
+  stage_label_->setText(title);
+  progress_->setValue(0);
+  for (QWidget* w : std::initializer_list<QWidget*>{stage_label_, progress_, cancel_button_})
+    w->setVisible(true);
+  updateActions();
+  return true;
+}
+
+void MainWindow::processVideo(const QString& video, const QString& mission_path, bool replace) {
+  if (jobs_->isRunning()) {
+    showError(tr("Busy"), tr("%1 is running. Wait for it or cancel it first.").arg(jobs_->title()));
+    return;
+  }
+  // The new mission replaces what is shown; it appears as its stages are committed.
+  mission_.reset();
+  track_index_.reset();
+  selected_.reset();
+  view_->setMission(nullptr, QString());
+  view_->clearPreview();
+  frame_panel_->clear();
+  mission_path_ = QFileInfo(mission_path).absoluteFilePath();
+  processing_video_ = video;
+  setWindowTitle(tr("%1 — Saker").arg(QFileInfo(mission_path_).fileName()));
+  updateMissionFacts();
+
+  pipeline::ProcessOptions options;
+  options.replace = replace;
+  options.saker_version = SAKER_VERSION;
+  // Both callbacks run on the worker; the runner is joined before this window is destroyed.
+  options.on_commit = [this](const std::string& stage) {
+    if (stage == "source" || stage == "cancelled") return;  // nothing to show yet
+    QMetaObject::invokeMethod(this, &MainWindow::reloadMission, Qt::QueuedConnection);
+  };
+  options.front_end.on_key_frame = [this](const frontend::KeyFramePreview& preview) {
+    QMetaObject::invokeMethod(
+        this,
+        [this, preview] {
+          if (!mission_ || !mission_->progress.mosaic) view_->addPreviewKeyFrame(preview);
+        },
+        Qt::QueuedConnection);
+  };
+  const std::string video_path = video.toStdString(), target = mission_path_.toStdString();
+  startJob(tr("Processing"), [video_path, target, options](JobContext* job) -> Status {
+    return pipeline::ProcessVideo(video_path, target, options, job).status();
+  });
+}
+
+void MainWindow::jobEnded(const QString& title, const Status& status) {
+  for (QWidget* w : std::initializer_list<QWidget*>{stage_label_, progress_, cancel_button_})
+    w->setVisible(false);
+  const bool processing = !processing_video_.isEmpty();
+  processing_video_.clear();
+  updateActions();
+  if (status.ok()) {
+    statusBar()->showMessage(tr("%1: done").arg(title), 8000);
+    if (processing) reloadMission();
+  } else if (status.code() == StatusCode::kCancelled) {
+    statusBar()->showMessage(processing ? tr("Processing cancelled: the mission keeps the stages "
+                                             "that completed")
+                                        : tr("%1 cancelled").arg(title),
+                             10000);
+    if (processing) reloadMission();
+  } else {
+    showError(tr("%1 failed").arg(title), FromStd(status.message()));
+    if (processing && QFileInfo::exists(mission_path_)) reloadMission();
+  }
+  emit jobFinished(title, status);
+}
+
+void MainWindow::exportFiles(const QString& what, const QString& path, const QString& png,
+                             const QString& geotiff, const QString& geojson, const QString& kml,
+                             const QString& csv) {
+  if (!mission_) return;
+  pipeline::ExportRequest request;
+  request.png = png.toStdString();
+  request.geotiff = geotiff.toStdString();
+  request.geojson = geojson.toStdString();
+  request.kml = kml.toStdString();
+  request.csv = csv.toStdString();
+  request.map.colour_by = view_->colourMode();
+  // Only the tracks shown: the filters apply to exports as to the view.
+  std::set<int64_t> shown;
+  for (size_t i = 0; i < mission_->tracks.size(); ++i) {
+    if (view_->isTrackVisible(i)) shown.insert(mission_->tracks[i].id);
+  }
+  const bool filtered = shown.size() != mission_->tracks.size();
+  const std::string source = mission_path_.toStdString();
+  startJob(what, [source, request, shown, filtered](JobContext* job) -> Status {
+    SAKER_ASSIGN_OR_RETURN(const std::unique_ptr<mission::MissionStore> store,
+                           mission::MissionStore::Open(source));
+    SAKER_ASSIGN_OR_RETURN(mission::Mission m, store->Load());
+    if (filtered) {
+      std::erase_if(m.tracks, [&](const mission::ActivityTrack& t) { return !shown.count(t.id); });
+    }
+    return pipeline::ExportMission(m, *store, request, job).status();
+  });
+  statusBar()->showMessage(tr("Writing %1…").arg(path));
+}
+
+void MainWindow::exportActivityMap(const QString& path) {
+  exportFiles(tr("Export"), path, path, {}, {}, {}, {});
+}
+
+void MainWindow::exportTracks(const QString& path) {
+  const QString suffix = QFileInfo(path).suffix().toLower();
+  if (suffix == "kml") {
+    exportFiles(tr("Export"), path, {}, {}, {}, path, {});
+  } else if (suffix == "csv") {
+    exportFiles(tr("Export"), path, {}, {}, {}, {}, path);
+  } else {
+    exportFiles(tr("Export"), path, {}, {}, path, {}, {});
+  }
+}
+
+void MainWindow::exportMosaic(const QString& path) {
+  exportFiles(tr("Export"), path, {}, path, {}, {}, {});
+}
+
+void MainWindow::saveMissionAs(const QString& path) {
+  if (!mission_) return;
+  const std::string from = mission_path_.toStdString(), to = path.toStdString();
+  startJob(tr("Save As"), [from, to](JobContext* job) {
+    return pipeline::CopyMission(from, to, /*replace=*/true, job);
+  });
+}
+
+// --------------------------------------------------------------------------------------------
+// Dialogs
+
+void MainWindow::chooseVideo() {
+  QSettings settings;
+  const QString video = QFileDialog::getOpenFileName(
+      this, tr("Open Video"), settings.value("lastVideoDir").toString(),
+      tr("Videos (*.ts *.mpg *.mpeg *.m2ts *.mp4 *.mkv *.mov);;All files (*)"));
+  if (!video.isEmpty()) openVideo(video);
+}
+
+void MainWindow::openVideo(const QString& path) {
+  const QFileInfo info(path);
+  if (!info.exists()) {
+    showError(tr("Cannot open the video"), tr("%1: no such file").arg(path));
+    return;
+  }
+  QSettings().setValue("lastVideoDir", info.absolutePath());
+  // The mission goes beside the video by default; the dialog confirms replacing a file.
+  const QString suggestion = info.dir().filePath(info.completeBaseName() + ".saker");
+  const QString target = QFileDialog::getSaveFileName(this, tr("Save the Mission As"), suggestion,
+                                                      tr("Saker missions (*.saker)"));
+  if (target.isEmpty()) return;
+  processVideo(path, target, /*replace=*/QFileInfo::exists(target));
+}
+
+void MainWindow::chooseMission() {
+  QSettings settings;
+  const QString path = QFileDialog::getOpenFileName(this, tr("Open Mission"),
+                                                    settings.value("lastMissionDir").toString(),
+                                                    tr("Saker missions (*.saker);;All files (*)"));
+  if (path.isEmpty()) return;
+  settings.setValue("lastMissionDir", QFileInfo(path).absolutePath());
+  openMission(path);
+}
+
+void MainWindow::chooseSaveAs() {
+  if (!mission_) return;
+  const QString path = QFileDialog::getSaveFileName(this, tr("Save Mission As"), mission_path_,
+                                                    tr("Saker missions (*.saker)"));
+  if (!path.isEmpty()) saveMissionAs(path);
+}
+
+void MainWindow::chooseActivityMap() {
+  if (!mission_) return;
+  const QFileInfo info(mission_path_);
+  const QString suggestion =
+      info.dir().filePath(info.completeBaseName() + "-activity-" +
+                          activity::ColourModeName(view_->colourMode()) + ".png");
+  const QString path = QFileDialog::getSaveFileName(
+      this, tr("Export Activity Map"), suggestion,
+      tr("PNG pictures (*.png);;JPEG pictures (*.jpg);;TIFF pictures (*.tif)"));
+  if (!path.isEmpty()) exportActivityMap(path);
+}
+
+void MainWindow::chooseTracks() {
+  if (!mission_) return;
+  const QFileInfo info(mission_path_);
+  QString filters = tr("GeoJSON (*.geojson);;CSV (*.csv)");
+  if (mission_->map.geo_referenced) filters += tr(";;KML (*.kml)");
+  const QString path = QFileDialog::getSaveFileName(
+      this, tr("Export Tracks"), info.dir().filePath(info.completeBaseName() + "-tracks.geojson"),
+      filters);
+  if (!path.isEmpty()) exportTracks(path);
+}
+
+void MainWindow::chooseMosaic() {
+  if (!mission_) return;
+  const QFileInfo info(mission_path_);
+  const QString path = QFileDialog::getSaveFileName(
+      this, tr("Export Mosaic"), info.dir().filePath(info.completeBaseName() + "-mosaic.tif"),
+      tr("GeoTIFF (*.tif *.tiff)"));
+  if (!path.isEmpty()) exportMosaic(path);
+}
+
+void MainWindow::locateVideo() {
+  if (!mission_) return;
+  const QString path = QFileDialog::getOpenFileName(
+      this, tr("Locate the Video of %1").arg(QFileInfo(mission_path_).fileName()),
+      QFileInfo(mission_path_).absolutePath(),
+      tr("Videos (*.ts *.mpg *.mpeg *.m2ts *.mp4 *.mkv *.mov);;All files (*)"));
+  if (path.isEmpty()) return;
+  if (!useVideo(path)) {
+    const auto answer = QMessageBox::question(
+        this, tr("Not the same video"),
+        tr("%1 is not the video this mission was made from: its content differs, so recalled "
+           "frames would not match the tracks. Use it anyway?")
+            .arg(path),
+        QMessageBox::Yes | QMessageBox::No, QMessageBox::No);
+    if (answer == QMessageBox::Yes) useVideo(path, /*force=*/true);
+  }
+}
+
+bool MainWindow::useVideo(const QString& path, bool force) {
+  if (!mission_) return false;
+  const StatusOr<std::string> fingerprint = mission::FingerprintFile(path.toStdString());
+  if (!fingerprint.ok()) {
+    showError(tr("Cannot use the video"), FromStd(fingerprint.status().message()));
+    return false;
+  }
+  if (*fingerprint != mission_->source.fingerprint && !force) return false;
+  if (*fingerprint == mission_->source.fingerprint) {
+    QSettings().setValue(SettingsKeyForVideo(mission_->source.fingerprint),
+                         QFileInfo(path).absoluteFilePath());
+  }
+  video_path_ = QFileInfo(path).absoluteFilePath();
+  video_problem_.clear();
+  frame_panel_->setMission(mission_, video_path_);
+  if (selected_) frame_panel_->showObservation(selected_->first, selected_->second);
+  updateMissionFacts();
+  return true;
+}
+
+void MainWindow::showAbout() {
+  QMessageBox::about(
+      this, tr("About Saker"),
+      tr("<h3>Saker %1</h3>"
+         "<p>An analyst workstation for airborne video with STANAG 4609 metadata: moving targets "
+         "found in the video and placed on a mosaic map of the ground, coloured by speed, "
+         "direction, visit or time; click a track to see the original frame.</p>"
+         "<p>After <i>Building Aerial Mosaics II</i> (Turkbeyler and Harris, Roke Manor "
+         "Research).</p>"
+         "<p>Built with Qt %2, OpenCV, Eigen, Ceres Solver, GeographicLib, FFmpeg, GDAL and "
+         "SQLite.</p>")
+          .arg(SAKER_VERSION, qVersion()));
+}
+
+void MainWindow::showUserGuide() {
+  auto* dialog = new QDialog(this);
+  dialog->setAttribute(Qt::WA_DeleteOnClose);
+  dialog->setWindowTitle(tr("Saker User Guide"));
+  dialog->resize(820, 760);
+  auto* browser = new QTextBrowser(dialog);
+  browser->setOpenExternalLinks(true);
+  browser->setSearchPaths({":/saker/docs"});
+  QFile guide(":/saker/docs/user-guide.md");
+  if (guide.open(QIODevice::ReadOnly)) {
+    browser->setMarkdown(QString::fromUtf8(guide.readAll()));
+  } else {
+    browser->setPlainText(tr("The user guide is not in this build."));
+  }
+  auto* buttons = new QDialogButtonBox(QDialogButtonBox::Close, dialog);
+  connect(buttons, &QDialogButtonBox::rejected, dialog, &QDialog::close);
+  auto* layout = new QVBoxLayout(dialog);
+  layout->addWidget(browser);
+  layout->addWidget(buttons);
+  dialog->show();
+}
+
+void MainWindow::showError(const QString& title, const QString& message) {
+  // Window-modal but not blocking: the event loop (and any job) goes on while it is shown.
+  auto* box = new QMessageBox(QMessageBox::Warning, title, message, QMessageBox::Ok, this);
+  box->setAttribute(Qt::WA_DeleteOnClose);
+  box->setObjectName("errorDialog");
+  box->open();
+}
+
+// --------------------------------------------------------------------------------------------
+// The map
+
+bool MainWindow::pickAt(const Eigen::Vector2d& map_point, double tolerance) {
+  if (!mission_ || !track_index_) return false;
+  const auto pick = track_index_->Nearest(
+      map_point, tolerance, [this](size_t track) { return view_->isTrackVisible(track); });
+  if (!pick) return false;
+  selected_ = {pick->track, pick->point};
+  view_->setMarker(mission_->tracks[pick->track].points[pick->point].map);
+  if (QDockWidget* dock = qobject_cast<QDockWidget*>(frame_panel_->parentWidget())) dock->show();
+  frame_panel_->showObservation(pick->track, pick->point);
+  return true;
+}
+
+void MainWindow::setColourMode(activity::ColourMode mode) {
+  view_->setColourMode(mode);
+  for (QAction* action : colour_group_->actions()) {
+    if (action->data().toInt() == int(mode)) action->setChecked(true);
+  }
+}
+
+void MainWindow::resetFilter() {
+  filter_updating_ = true;
+  double start = 0, end = 0, fastest = 0;
+  bool geo = false;
+  if (mission_) {
+    geo = mission_->map.geo_referenced;
+    end = mission_->source.duration_s;
+    for (const mission::ActivityTrack& t : mission_->tracks) {
+      end = std::max(end, t.end_s);
+      fastest = std::max(fastest, geo ? t.speed_mps.value_or(0) : t.speed);
+    }
+  }
+  end = std::ceil(end);
+  fastest = std::ceil(fastest + 0.5);
+  for (QDoubleSpinBox* box : {from_s_, to_s_}) box->setRange(start, std::max(end, 1.0));
+  for (QDoubleSpinBox* box : {min_speed_, max_speed_}) box->setRange(0, std::max(fastest, 1.0));
+  from_s_->setValue(start);
+  to_s_->setValue(std::max(end, 1.0));
+  min_speed_->setValue(0);
+  max_speed_->setValue(std::max(fastest, 1.0));
+  speed_unit_->setText(geo ? tr("m/s") : tr("px/s"));
+  filter_updating_ = false;
+  applyFilter();
+}
+
+void MainWindow::applyFilter() {
+  if (filter_updating_) return;
+  MosaicView::TrackFilter filter;
+  // A bound at its end of the range is no bound (tracks beyond the rounded range stay shown).
+  if (from_s_->value() > from_s_->minimum()) filter.start_s = from_s_->value();
+  if (to_s_->value() < to_s_->maximum()) filter.end_s = to_s_->value();
+  if (min_speed_->value() > min_speed_->minimum()) filter.min_speed = min_speed_->value();
+  if (max_speed_->value() < max_speed_->maximum()) filter.max_speed = max_speed_->value();
+  view_->setTrackFilter(filter);
+  size_t shown = 0, total = mission_ ? mission_->tracks.size() : 0;
+  for (size_t i = 0; i < total; ++i) shown += view_->isTrackVisible(i);
+  shown_count_->setText(tr("%1 of %2 tracks shown").arg(shown).arg(total));
+}
+
+void MainWindow::updateCursor(const std::optional<Eigen::Vector2d>& map_point) {
+  if (!map_point || !mission_) {
+    cursor_label_->clear();
+    return;
+  }
+  if (mission_->map.geo_referenced && mission_->map.origin) {
+    static thread_local std::optional<std::pair<geo::Wgs84, geo::LocalTangentPlane>> plane;
+    const geo::Wgs84& origin = *mission_->map.origin;
+    if (!plane || plane->first.latitude_deg != origin.latitude_deg ||
+        plane->first.longitude_deg != origin.longitude_deg) {
+      StatusOr<geo::LocalTangentPlane> made = geo::LocalTangentPlane::Create(origin);
+      if (!made.ok()) return;
+      plane.emplace(origin, std::move(made).value());
+    }
+    const geo::Wgs84 p = plane->second.LatLonFromMap(*map_point);
+    cursor_label_->setText(LatLonText(p.latitude_deg, p.longitude_deg));
+  } else {
+    cursor_label_->setText(
+        tr("x %1, y %2 px").arg((*map_point).x(), 0, 'f', 0).arg((*map_point).y(), 0, 'f', 0));
+  }
+}
+
+// --------------------------------------------------------------------------------------------
+// State shown
+
+void MainWindow::updateMissionFacts() {
+  if (mission_path_.isEmpty()) {
+    facts_->setText(
+        tr("<p>No mission open.</p><p>Open a mission (File &gt; Open Mission…) or "
+           "process a video (File &gt; Open Video…). You can also drop either on "
+           "the window.</p>"));
+    return;
+  }
+  QString html = tr("<b>%1</b><br>").arg(QFileInfo(mission_path_).fileName().toHtmlEscaped());
+  if (!mission_) {
+    html += jobs_->isRunning() ? tr("Processing…") : tr("Loading…");
+    facts_->setText(html);
+    return;
+  }
+  const mission::Mission& m = *mission_;
+  QString state;
+  if (jobs_->isRunning() && !processing_video_.isEmpty()) {
+    state = tr("processing");
+  } else if (m.progress.cancelled) {
+    state = tr("cancelled (partial)");
+  } else if (m.progress.tiles || (m.progress.activity && !m.pyramid)) {
+    state = tr("complete");
+  } else {
+    state = tr("partial");
+  }
+  const auto row = [](const QString& key, const QString& value) {
+    return QString("<tr><td>%1&nbsp;</td><td>%2</td></tr>").arg(key, value);
+  };
+  html += "<table>";
+  html += row(tr("State"), state);
+  html += row(tr("Video"), QFileInfo(FromStd(m.source.path)).fileName().toHtmlEscaped());
+  html += row(tr("Frames"), tr("%1 (%2 × %3, %4 fps)")
+                                .arg(m.frames.size())
+                                .arg(m.source.width)
+                                .arg(m.source.height)
+                                .arg(m.source.frame_rate, 0, 'f', 2));
+  html += row(tr("Duration"), Duration(m.source.duration_s));
+  html += row(tr("Key frames"), QString::number(m.key_frames.size()));
+  html += row(tr("Tracks"), QString::number(m.tracks.size()));
+  html += row(tr("Map"),
+              m.map.geo_referenced && m.map.origin
+                  ? tr("geo-referenced at %1")
+                        .arg(LatLonText(m.map.origin->latitude_deg, m.map.origin->longitude_deg))
+                  : tr("image pixels (no metadata)"));
+  html += "</table>";
+  if (!video_problem_.isEmpty()) {
+    html += tr("<p style='color:#c0392b'>%1 Frame recall needs it: File &gt; Locate Video…</p>")
+                .arg(video_problem_.toHtmlEscaped());
+  }
+  facts_->setText(html);
+}
+
+void MainWindow::updateActions() {
+  const bool has = mission_ != nullptr;
+  const bool idle = !jobs_->isRunning();
+  save_as_action_->setEnabled(has && idle);
+  export_map_action_->setEnabled(has && idle && (!mission_->tracks.empty() || mission_->pyramid));
+  export_tracks_action_->setEnabled(has && idle && !mission_->tracks.empty());
+  export_mosaic_action_->setEnabled(has && idle && mission_->pyramid.has_value());
+  locate_action_->setEnabled(has);
+}
+
+void MainWindow::addRecent(const QString& path) {
+  recent_.removeAll(path);
+  recent_.prepend(path);
+  while (recent_.size() > kMaxRecent) recent_.removeLast();
+  QSettings().setValue("recentFiles", recent_);
+  rebuildRecentMenu();
+}
+
+void MainWindow::rebuildRecentMenu() {
+  recent_menu_->clear();
+  for (int i = 0; i < recent_.size(); ++i) {
+    const QString path = recent_[i];
+    QAction* action =
+        recent_menu_->addAction(tr("&%1 %2").arg(i + 1).arg(QFileInfo(path).fileName()), this,
+                                [this, path] { openPath(path); });
+    action->setToolTip(path);
+    action->setStatusTip(path);
+  }
+  if (!recent_.isEmpty()) {
+    recent_menu_->addSeparator();
+    recent_menu_->addAction(tr("&Clear Menu"), this, [this] {
+      recent_.clear();
+      QSettings().setValue("recentFiles", recent_);
+      rebuildRecentMenu();
+    });
+  }
+  recent_menu_->setEnabled(!recent_.isEmpty());
+}
+
+// --------------------------------------------------------------------------------------------
+// Events
+
+void MainWindow::dragEnterEvent(QDragEnterEvent* event) {
+  if (event->mimeData()->hasUrls() && event->mimeData()->urls().front().isLocalFile())
+    event->acceptProposedAction();
+}
+
+void MainWindow::dropEvent(QDropEvent* event) {
+  const QList<QUrl> urls = event->mimeData()->urls();
+  if (urls.isEmpty() || !urls.front().isLocalFile()) return;
+  event->acceptProposedAction();
+  const QString path = urls.front().toLocalFile();
+  // Dialogs after the drop has returned: the drag source must not wait on them.
+  QMetaObject::invokeMethod(
+      this, [this, path] { openPath(path); }, Qt::QueuedConnection);
+}
+
 void MainWindow::closeEvent(QCloseEvent* event) {
-  if (job_) job_->RequestCancel();
+  if (jobs_->isRunning() && !processing_video_.isEmpty()) {
+    const auto answer = QMessageBox::question(
+        this, tr("Processing is running"),
+        tr("Stop processing and quit? The mission keeps the stages that have completed."),
+        QMessageBox::Yes | QMessageBox::No, QMessageBox::No);
+    if (answer != QMessageBox::Yes) {
+      event->ignore();
+      return;
+    }
+  }
+  jobs_->cancelAndWait();
+  writeSettings();
   event->accept();
 }
 

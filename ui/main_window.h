@@ -1,24 +1,40 @@
 #pragma once
 
-// Saker's main window. In this first version it opens a video, scans it on a
-// worker thread (the GUI never waits for it) and shows the first frame with
-// the probe summary: streams, KLV metadata, frames with image corners.
+// Saker's main window: the mission's mosaic with its tracks in the centre, the recalled video
+// frame and the mission's facts and filters in docks, menus in desktop conventions. Everything
+// slow runs off the GUI thread: processing a video and exporting on one task runner, loading a
+// mission on another; results come back as queued calls, so the window never freezes.
+// docs/user-guide.md describes it for analysts.
 
-#include <QImage>
+#include "core/activity/activity.h"
+#include "core/activity/colours.h"
+#include "core/mission/mission.h"
+#include "core/util/job_context.h"
+#include "core/util/status.h"
+#include "ui/meta_types.h"
+
+#include <Eigen/Core>
+
 #include <QMainWindow>
 #include <QString>
+#include <QStringList>
+#include <functional>
 #include <memory>
+#include <optional>
 
+class QAction;
+class QActionGroup;
+class QDoubleSpinBox;
 class QLabel;
-class QPlainTextEdit;
+class QMenu;
 class QProgressBar;
 class QPushButton;
 
-namespace saker {
-class JobContext;
-}
-
 namespace saker::ui {
+
+class FramePanel;
+class MosaicView;
+class TaskRunner;
 
 class MainWindow : public QMainWindow {
   Q_OBJECT
@@ -27,40 +43,126 @@ class MainWindow : public QMainWindow {
   explicit MainWindow(QWidget* parent = nullptr);
   ~MainWindow() override;
 
-  // Starts scanning `path` in the background; a scan already running is
-  // cancelled first. Emits scanFinished or scanFailed on the GUI thread.
+  // A .saker file is opened as a mission, anything else processed as a video (asking where to
+  // save its mission).
+  void openPath(const QString& path);
+  // Loads the mission in the background: missionOpened, or missionFailed and an error dialog.
+  void openMission(const QString& path);
+  // Asks where to save the mission (beside the video by default), then processes the video.
   void openVideo(const QString& path);
+  // Processes `video` into the mission `mission_path` without asking; `replace` overwrites a
+  // mission there. The mosaic and tracks appear and grow as stages complete.
+  void processVideo(const QString& video, const QString& mission_path, bool replace);
+  // Exports with the current colour mode and filters (only the tracks shown), without asking.
+  void exportActivityMap(const QString& path);
+  void exportTracks(const QString& path);  // by extension: .geojson / .json, .kml, .csv
+  void exportMosaic(const QString& path);  // GeoTIFF, full resolution
+  void saveMissionAs(const QString& path);
+  // Uses `path` as the mission's video from now on (remembered by the video's fingerprint); a
+  // file that is not that video is refused with a dialog unless `force`.
+  bool useVideo(const QString& path, bool force = false);
 
-  // The text the summary panel shows (for tests and copy/paste).
-  QString summaryText() const;
+  std::shared_ptr<const mission::Mission> mission() const { return mission_; }
+  QString missionPath() const { return mission_path_; }
+  QString videoPath() const { return video_path_; }
+  MosaicView* mosaicView() const { return view_; }
+  FramePanel* framePanel() const { return frame_panel_; }
+  TaskRunner* taskRunner() const { return jobs_; }
+  QStringList recentFiles() const { return recent_; }
+
+  // The click: selects the shown track observation nearest `map_point` within `tolerance` (map
+  // units), marks it and recalls its frame. False when there is none.
+  bool pickAt(const Eigen::Vector2d& map_point, double tolerance);
 
  signals:
-  void scanFinished(const QString& path);
-  void scanFailed(const QString& path, const QString& message);
+  void missionOpened(const QString& path);
+  void missionFailed(const QString& path, const QString& message);
+  // A job of the task runner ended ("Processing", "Export", "Save As").
+  void jobFinished(const QString& title, const saker::Status& status);
 
  protected:
   void dragEnterEvent(QDragEnterEvent* event) override;
   void dropEvent(QDropEvent* event) override;
   void closeEvent(QCloseEvent* event) override;
-  void resizeEvent(QResizeEvent* event) override;
 
  private:
-  void createMenus();
-  void chooseVideo();
-  void cancelScan();
-  void showAbout();
-  void setBusy(bool busy);
-  void showFirstFrame();  // scaled to the view, kept in proportion
+  struct Loaded;
 
-  QLabel* frame_view_ = nullptr;
-  QPlainTextEdit* summary_ = nullptr;
+  void createActions();
+  void createDocks();
+  void createStatusBar();
+  void readSettings();
+  void writeSettings() const;
+
+  void chooseVideo();
+  void chooseMission();
+  void chooseSaveAs();
+  void chooseActivityMap();
+  void chooseTracks();
+  void chooseMosaic();
+  void locateVideo();
+  void showAbout();
+  void showUserGuide();
+
+  void reloadMission();  // the same mission again (processing committed a stage)
+  void startLoad(const QString& path);
+  void missionLoaded(const Loaded& loaded);
+  void jobEnded(const QString& title, const Status& status);
+  void setColourMode(activity::ColourMode mode);
+  void applyFilter();
+  void resetFilter();
+  void updateMissionFacts();
+  void updateActions();
+  void updateCursor(const std::optional<Eigen::Vector2d>& map_point);
+  void addRecent(const QString& path);
+  void rebuildRecentMenu();
+  void showError(const QString& title, const QString& message);
+  bool startJob(const QString& title, std::function<Status(JobContext*)> task);
+  void exportFiles(const QString& what, const QString& path, const QString& png,
+                   const QString& geotiff, const QString& geojson, const QString& kml,
+                   const QString& csv);
+
+  // The mission shown, its file and its video (empty when not found).
+  std::shared_ptr<const mission::Mission> mission_;
+  QString mission_path_;
+  QString video_path_;
+  QString video_problem_;  // why the video is not available, for the frame panel
+  std::unique_ptr<activity::TrackIndex> track_index_;
+  std::optional<std::pair<size_t, size_t>> selected_;
+
+  MosaicView* view_ = nullptr;
+  FramePanel* frame_panel_ = nullptr;
+  QLabel* facts_ = nullptr;
+  QDoubleSpinBox* from_s_ = nullptr;
+  QDoubleSpinBox* to_s_ = nullptr;
+  QDoubleSpinBox* min_speed_ = nullptr;
+  QDoubleSpinBox* max_speed_ = nullptr;
+  QLabel* speed_unit_ = nullptr;
+  QLabel* shown_count_ = nullptr;
+  bool filter_updating_ = false;
+
+  QLabel* stage_label_ = nullptr;
   QProgressBar* progress_ = nullptr;
   QPushButton* cancel_button_ = nullptr;
-  QImage first_frame_;  // full resolution, rescaled on resize
-  // The running scan's context; shared with the worker so cancel is safe
-  // whichever side finishes first.
-  std::shared_ptr<JobContext> job_;
-  quint64 job_generation_ = 0;  // results of a superseded scan are dropped
+  QLabel* cursor_label_ = nullptr;
+
+  QMenu* recent_menu_ = nullptr;
+  QActionGroup* colour_group_ = nullptr;
+  QAction* save_as_action_ = nullptr;
+  QAction* export_map_action_ = nullptr;
+  QAction* export_tracks_action_ = nullptr;
+  QAction* export_mosaic_action_ = nullptr;
+  QAction* locate_action_ = nullptr;
+  QAction* show_tracks_action_ = nullptr;
+  QAction* show_outlines_action_ = nullptr;
+  QAction* show_ellipses_action_ = nullptr;
+  QStringList recent_;
+
+  TaskRunner* jobs_ = nullptr;    // processing, exports, copies: one at a time
+  TaskRunner* loader_ = nullptr;  // mission loads
+  std::shared_ptr<Loaded> loading_;
+  QString pending_load_;  // a load asked for while one ran
+  QString processing_video_;
 };
 
 }  // namespace saker::ui

@@ -254,9 +254,12 @@ struct VideoReader::Impl {
     FrameIndex key = target;
     while (key > 0 && !index[static_cast<size_t>(key)].key_frame) --key;
 
-    // Recall of the frame held, or a later frame of the same GOP: no seek.
+    // Recall of the frame held, or a later frame of the same GOP, or of the next GOP when only a
+    // few frames lie before its key frame (playback crosses GOPs this way): no seek.
+    constexpr FrameIndex kDecodeRatherThanSeek = 4;
     if (random_cursor == target) return FrameFromRandom(target);
-    if (random_cursor >= key && random_cursor < target) {
+    if (random_cursor >= 0 && random_cursor >= key - kDecodeRatherThanSeek &&
+        random_cursor < target) {
       auto outcome = DecodeForward(target, -1);
       if (!outcome.ok()) return outcome.status();
       if (*outcome == Forward::kFound) return FrameFromRandom(target);

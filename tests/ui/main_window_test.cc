@@ -1,73 +1,439 @@
-// The main window under QT_QPA_PLATFORM=offscreen: a scan runs off the GUI
-// thread, and its result or error reaches the window.
+// The main window under QT_QPA_PLATFORM=offscreen, driven as an analyst and an operator would:
+// open a mission, switch colour modes, click a track and get its frame, process a video and
+// cancel it, export, open a corrupt mission, a mission whose video has gone.
 
 #include "ui/main_window.h"
 
+#include "core/mission/mission_store.h"
 #include "tests/testing/test_data.h"
+#include "tests/ui/ui_testing.h"
+#include "ui/frame_panel.h"
+#include "ui/mosaic_view.h"
+#include "ui/task_runner.h"
 
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
-#include <QApplication>
-#include <QLabel>
+#include <QAction>
+#include <QElapsedTimer>
+#include <QFile>
+#include <QImage>
+#include <QMessageBox>
 #include <QProgressBar>
+#include <QPushButton>
 #include <QSignalSpy>
 #include <QTest>
+#include <QTimer>
+#include <QXmlStreamReader>
+#include <filesystem>
+#include <fstream>
+#include <set>
 
 namespace saker::ui {
 namespace {
 
-TEST(MainWindowTest, OpensVideoAndShowsSummary) {
-  SAKER_REQUIRE_TEST_DATA(path, "kwiver/h264_klv.ts");
-  MainWindow window;
-  window.show();
-  QSignalSpy finished(&window, &MainWindow::scanFinished);
-  QSignalSpy failed(&window, &MainWindow::scanFailed);
-  window.openVideo(QString::fromStdString(path.string()));
-  // The call returns at once: the scan runs on a worker thread.
-  EXPECT_TRUE(window.findChild<QProgressBar*>()->isVisible());
-  ASSERT_TRUE(finished.wait(30000)) << "scan did not finish";
-  EXPECT_EQ(failed.count(), 0);
-  const QString summary = window.summaryText();
-  EXPECT_TRUE(summary.contains("160x120")) << summary.toStdString();
-  EXPECT_TRUE(summary.contains("30 frames")) << summary.toStdString();
-  EXPECT_TRUE(summary.contains("30 of 30 with metadata, 30 with image corners"))
-      << summary.toStdString();
-  EXPECT_FALSE(window.findChild<QProgressBar*>()->isVisible());
-  EXPECT_TRUE(window.windowTitle().contains("h264_klv.ts"));
+namespace fs = std::filesystem;
+using testing::SmallMission;
+using testing::TestMission;
+using testing::WaitUntil;
+
+// Opens the small mission and waits until it is shown with its tiles.
+bool OpenAndWait(MainWindow& window, const TestMission& m) {
+  QSignalSpy opened(&window, &MainWindow::missionOpened);
+  window.openMission(QString::fromStdString(m.mission.string()));
+  return (opened.count() > 0 || opened.wait(30000)) &&
+         WaitUntil([&] { return window.mosaicView()->tilesComplete(); });
 }
 
-TEST(MainWindowTest, MissingFileShowsErrorNamingIt) {
-  MainWindow window;
-  window.show();
-  QSignalSpy failed(&window, &MainWindow::scanFailed);
-  window.openVideo("/nonexistent/sortie-12.ts");
-  ASSERT_TRUE(failed.wait(30000));
-  const QString message = failed.takeFirst().at(1).toString();
-  EXPECT_TRUE(message.contains("sortie-12.ts")) << message.toStdString();
+QAction* ColourAction(MainWindow& window, const char* mode) {
+  return window.findChild<QAction*>(QString("colourBy_") + mode);
 }
 
-TEST(MainWindowTest, SecondOpenSupersedesTheFirst) {
-  SAKER_REQUIRE_TEST_DATA(first, "kwiver/aphill_short.ts");
-  SAKER_REQUIRE_TEST_DATA(second, "kwiver/h264_no_klv.ts");
+TEST(MainWindowTest, OpensAMissionAndSwitchesColourModesWithTheirLegends) {
+  const TestMission* m = SmallMission();
+  ASSERT_NE(m, nullptr);
   MainWindow window;
-  QSignalSpy finished(&window, &MainWindow::scanFinished);
-  window.openVideo(QString::fromStdString(first.string()));
-  window.openVideo(QString::fromStdString(second.string()));
+  window.show();
+  ASSERT_TRUE(OpenAndWait(window, *m));
+  ASSERT_NE(window.mission(), nullptr);
+  EXPECT_EQ(window.mission()->tracks.size(), m->loaded.tracks.size());
+  EXPECT_TRUE(window.windowTitle().contains("loop.saker"));
+  EXPECT_TRUE(window.recentFiles().contains(window.missionPath()));
+  ASSERT_FALSE(m->loaded.tracks.empty());
+
+  struct Seen {
+    std::string title;
+    std::vector<activity::Rgb> colours;
+  };
+  std::map<std::string, Seen> seen;
+  for (const char* mode : {"speed", "direction", "visit", "time"}) {
+    QAction* action = ColourAction(window, mode);
+    ASSERT_NE(action, nullptr) << mode;
+    action->trigger();
+    EXPECT_TRUE(action->isChecked());
+    EXPECT_EQ(activity::ColourModeName(window.mosaicView()->colourMode()), std::string(mode));
+    Seen& s = seen[mode];
+    s.title = window.mosaicView()->legend().title;
+    for (size_t i = 0; i < m->loaded.tracks.size(); ++i) {
+      const auto colour = window.mosaicView()->trackColour(i);
+      ASSERT_TRUE(colour.has_value());
+      s.colours.push_back(*colour);
+    }
+  }
+  // Each mode has its own legend, and the tracks' colours follow the mode.
+  std::set<std::string> titles;
+  for (const auto& [mode, s] : seen) titles.insert(s.title);
+  EXPECT_EQ(titles.size(), 4u);
+  EXPECT_NE(seen["speed"].title.find("speed"), std::string::npos) << seen["speed"].title;
+  EXPECT_NE(seen["speed"].colours, seen["direction"].colours);
+  EXPECT_NE(seen["speed"].colours, seen["time"].colours);
+  // Visit: first-visit tracks red, as in the paper, and the legend says so.
+  for (size_t i = 0; i < m->loaded.tracks.size(); ++i) {
+    const activity::Rgb c = seen["visit"].colours[i];
+    if (m->loaded.tracks[i].visit == 1) {
+      EXPECT_TRUE(c.r > 150 && c.g < 100 && c.b < 100);
+    } else if (m->loaded.tracks[i].visit == 2) {
+      EXPECT_TRUE(c.b > 150 && c.r < 100);
+    }
+  }
+  // The choice persists: a new window starts in the last mode.
+  window.close();
+  MainWindow again;
+  EXPECT_EQ(again.mosaicView()->colourMode(), activity::ColourMode::kTime);
+}
+
+TEST(MainWindowTest, ClickOnATrackRecallsTheFrameWithTheObjectMarkedWhereTheTruthHasIt) {
+  const TestMission* m = SmallMission();
+  ASSERT_NE(m, nullptr);
+  MainWindow window;
+  window.resize(1400, 900);
+  window.show();
+  ASSERT_TRUE(OpenAndWait(window, *m));
+  const mission::Mission& mission = *window.mission();
+  const sim::Truth& truth = m->truth_data;
+
+  // An observation in the middle of a long track whose truth target is right under it.
+  struct Candidate {
+    size_t track = 0;
+    int target = -1;
+    int64_t frame = 0;
+    size_t points = 0;
+  } best;
+  for (size_t t = 0; t < mission.tracks.size(); ++t) {
+    const auto& points = mission.tracks[t].points;
+    const mission::TrackPoint& middle = points[points.size() / 2];
+    for (size_t k = 0; k < truth.targets.size(); ++k) {
+      const sim::TargetSampleTruth& s = truth.targets[k].samples[size_t(middle.frame)];
+      if (s.visible && (s.image_px - middle.image).norm() < 6 && points.size() > best.points)
+        best = {t, int(k), middle.frame, points.size()};
+    }
+  }
+  ASSERT_GE(best.target, 0) << "no track follows a truth target";
+  const mission::FrameRecord& frame = mission.frames[size_t(best.frame)];
+  ASSERT_TRUE(frame.map_from_frame.has_value());
+  const sim::TargetSampleTruth& truth_at =
+      truth.targets[size_t(best.target)].samples[size_t(best.frame)];
+  const Eigen::Vector2d at =
+      (*frame.map_from_frame * truth_at.image_px.homogeneous()).hnormalized();
+
+  // Like an analyst: the tracks seen around that moment, zoomed in on the place, then a click.
+  const double time_s = frame.time_s;
+  MosaicView* view = window.mosaicView();
+  view->setTrackFilter({time_s - 0.5, time_s + 0.5, std::nullopt, std::nullopt});
+  view->fitToWindow();
+  view->zoomAt(4, view->widgetFromMap(at));
+  const QPointF click = view->widgetFromMap(at);
+  ASSERT_TRUE(view->rect().contains(click.toPoint()));
+  FramePanel* panel = window.framePanel();
+  QSignalSpy shown(panel, &FramePanel::frameShown);
+  QTest::mouseClick(view, Qt::LeftButton, Qt::NoModifier, click.toPoint());
+  ASSERT_TRUE(shown.wait(10000)) << "no frame recalled";
+  const int64_t displayed = panel->displayedFrame();
+  std::cout << "clicked at frame " << best.frame << " (target " << best.target
+            << "), recalled frame " << displayed << " in " << panel->lastRecallMs() << " ms\n";
+
+  // The red cross on the map, the frame of that moment, the object marked where the truth is.
+  ASSERT_TRUE(view->marker().has_value());
+  EXPECT_LT((*view->marker() - at).norm(), 8 / view->pixelsPerMapUnit() + 1e-9);
+  EXPECT_LE(std::abs(displayed - best.frame), int64_t(0.5 * truth.fps));
+  ASSERT_TRUE(panel->markVisible());
+  const QPointF mark = panel->markImagePosition();
+  const Eigen::Vector2d truth_px =
+      truth.targets[size_t(best.target)].samples[size_t(displayed)].image_px;
+  EXPECT_LT((Eigen::Vector2d(mark.x(), mark.y()) - truth_px).norm(), 12.0)
+      << "mark at " << mark.x() << "," << mark.y() << ", truth at " << truth_px.transpose();
+
+  // A click far from every track clears the cross and leaves the frame.
+  view->setTrackFilter({});
+  QTest::mouseClick(view, Qt::LeftButton, Qt::NoModifier, QPoint(2, 2));
+  EXPECT_FALSE(view->marker().has_value());
+  EXPECT_EQ(panel->displayedFrame(), displayed);
+}
+
+// Processing runs on the task runner: the event loop keeps turning, the mosaic grows (preview
+// key frames, then the committed stages), and Cancel leaves a usable partial mission.
+TEST(MainWindowTest, ProcessingKeepsTheWindowLiveAndCancelLeavesAUsablePartialMission) {
+  const TestMission* m = SmallMission();
+  ASSERT_NE(m, nullptr);
+  const fs::path dir = saker::testing::MakeTempDir("saker-ui-process");
+  const QString target = QString::fromStdString((dir / "partial.saker").string());
+  MainWindow window;
+  window.show();
+  QSignalSpy finished(&window, &MainWindow::jobFinished);
+
+  // The event loop's heartbeat: the longest gap between 10 ms timer ticks.
+  QElapsedTimer clock;
+  clock.start();
+  qint64 last = 0, longest_gap = 0;
+  QTimer heartbeat;
+  QObject::connect(&heartbeat, &QTimer::timeout, [&] {
+    longest_gap = std::max(longest_gap, clock.elapsed() - last);
+    last = clock.elapsed();
+  });
+  heartbeat.start(10);
+
+  window.processVideo(QString::fromStdString(m->video.string()), target, false);
+  EXPECT_TRUE(window.taskRunner()->isRunning());
+  QPushButton* cancel_button = nullptr;
+  for (QPushButton* b : window.findChildren<QPushButton*>()) {
+    if (b->text() == "Cancel") cancel_button = b;
+  }
+  ASSERT_NE(cancel_button, nullptr);
+  EXPECT_TRUE(cancel_button->isVisible());
+  // The mosaic grows while the front end runs: preview key frames arrive.
+  ASSERT_TRUE(WaitUntil([&] { return window.mosaicView()->previewKeyFrameCount() >= 3; }))
+      << "no preview";
+  EXPECT_TRUE(window.mosaicView()->showingPreview());
+  auto* progress = window.findChild<QProgressBar*>();
+  ASSERT_NE(progress, nullptr);
+  EXPECT_GT(progress->value(), 0);
+  QTest::mouseClick(cancel_button, Qt::LeftButton);
   ASSERT_TRUE(finished.wait(30000));
-  // Only the second scan reports; give a superseded one time to (not) arrive.
+  heartbeat.stop();
+  const Status status = finished.takeFirst().at(1).value<Status>();
+  EXPECT_EQ(status.code(), StatusCode::kCancelled) << status.ToString();
+  std::cout << "longest event-loop gap during processing: " << longest_gap << " ms\n";
+  EXPECT_LT(longest_gap, 500);
+  EXPECT_FALSE(cancel_button->isVisible());
+
+  // The partial mission opens: cancelled, with what had completed.
+  ASSERT_TRUE(WaitUntil([&] { return window.mission() != nullptr; }));
+  EXPECT_TRUE(window.mission()->progress.cancelled);
+  const auto store = mission::MissionStore::Open(target.toStdString());
+  ASSERT_TRUE(store.ok()) << store.status().ToString();
+  const auto reopened = (*store)->Load();
+  ASSERT_TRUE(reopened.ok()) << reopened.status().ToString();
+  EXPECT_TRUE(reopened->progress.cancelled);
+  EXPECT_EQ(reopened->source.fingerprint, m->loaded.source.fingerprint);
+}
+
+TEST(MainWindowTest, ProcessingToTheEndShowsTheMissionAsItsStagesComplete) {
+  const TestMission* m = SmallMission();
+  ASSERT_NE(m, nullptr);
+  const fs::path dir = saker::testing::MakeTempDir("saker-ui-process");
+  const QString target = QString::fromStdString((dir / "full.saker").string());
+  MainWindow window;
+  window.show();
+  QSignalSpy finished(&window, &MainWindow::jobFinished);
+  QSignalSpy opened(&window, &MainWindow::missionOpened);
+  window.processVideo(QString::fromStdString(m->video.string()), target, false);
+  ASSERT_TRUE(finished.wait(120000));
+  EXPECT_TRUE(finished.takeFirst().at(1).value<Status>().ok());
+  ASSERT_TRUE(WaitUntil([&] {
+    return window.mission() != nullptr && window.mission()->progress.tiles &&
+           window.mosaicView()->tilesComplete();
+  }));
+  // Reloaded at each committed stage (loads that overlap are merged, so at least twice).
+  EXPECT_GE(opened.count(), 2);
+  EXPECT_FALSE(window.mosaicView()->showingPreview());
+  EXPECT_EQ(window.mission()->tracks.size(), m->loaded.tracks.size());
+}
+
+TEST(MainWindowTest, ExportsWriteValidFilesOfTheShownTracks) {
+  const TestMission* m = SmallMission();
+  ASSERT_NE(m, nullptr);
+  MainWindow window;
+  window.show();
+  ASSERT_TRUE(OpenAndWait(window, *m));
+  const fs::path dir = saker::testing::MakeTempDir("saker-ui-export");
+  QSignalSpy finished(&window, &MainWindow::jobFinished);
+  const auto run = [&](auto export_call, const fs::path& path) {
+    export_call(QString::fromStdString(path.string()));
+    EXPECT_TRUE(finished.wait(60000)) << path;
+    const Status status = finished.takeFirst().at(1).value<Status>();
+    EXPECT_TRUE(status.ok()) << status.ToString();
+    EXPECT_TRUE(fs::exists(path)) << path;
+  };
+  // The menu's actions are there and enabled for a complete mission.
+  for (const QString& text : {QString("Export Activity &Map…"), QString("Export &Tracks…"),
+                              QString("Export Mo&saic (GeoTIFF)…"), QString("Save Mission &As…")}) {
+    bool found = false;
+    for (QAction* a : window.findChildren<QAction*>()) {
+      if (a->text() != text) continue;
+      found = true;
+      EXPECT_TRUE(a->isEnabled()) << text.toStdString();
+    }
+    EXPECT_TRUE(found) << text.toStdString();
+  }
+
+  ColourAction(window, "visit")->trigger();
+  run([&](const QString& p) { window.exportActivityMap(p); }, dir / "map.png");
+  const QImage picture(QString::fromStdString((dir / "map.png").string()));
+  EXPECT_FALSE(picture.isNull());
+  EXPECT_GT(picture.width(), 200);
+
+  // Only the tracks shown are exported: hide the slow ones.
+  const auto& tracks = window.mission()->tracks;
+  std::vector<double> speeds;
+  for (const auto& t : tracks) speeds.push_back(t.speed_mps.value_or(0));
+  std::sort(speeds.begin(), speeds.end());
+  const double median = speeds[speeds.size() / 2];
+  window.mosaicView()->setTrackFilter({std::nullopt, std::nullopt, median, std::nullopt});
+  size_t shown = 0;
+  for (size_t i = 0; i < tracks.size(); ++i) shown += window.mosaicView()->isTrackVisible(i);
+  ASSERT_GT(shown, 0u);
+  ASSERT_LT(shown, tracks.size());
+  run([&](const QString& p) { window.exportTracks(p); }, dir / "tracks.geojson");
+  const auto geojson = nlohmann::json::parse(std::ifstream(dir / "tracks.geojson"));
+  EXPECT_EQ(geojson["type"], "FeatureCollection");
+  EXPECT_EQ(geojson["features"].size(), shown);
+
+  run([&](const QString& p) { window.exportTracks(p); }, dir / "tracks.kml");
+  QFile kml(QString::fromStdString((dir / "tracks.kml").string()));
+  ASSERT_TRUE(kml.open(QIODevice::ReadOnly));
+  QXmlStreamReader xml(&kml);
+  int placemarks = 0;
+  while (!xml.atEnd()) {
+    if (xml.readNext() == QXmlStreamReader::StartElement && xml.name() == QString("Placemark"))
+      ++placemarks;
+  }
+  EXPECT_FALSE(xml.hasError()) << xml.errorString().toStdString();
+  EXPECT_EQ(size_t(placemarks), shown);
+
+  run([&](const QString& p) { window.exportTracks(p); }, dir / "tracks.csv");
+  run([&](const QString& p) { window.exportMosaic(p); }, dir / "mosaic.tif");
+  std::ifstream tif(dir / "mosaic.tif", std::ios::binary);
+  char magic[4] = {};
+  tif.read(magic, 4);
+  EXPECT_TRUE((magic[0] == 'I' && magic[1] == 'I') || (magic[0] == 'M' && magic[1] == 'M'));
+
+  run([&](const QString& p) { window.saveMissionAs(p); }, dir / "copy.saker");
+  const auto copy = mission::MissionStore::Open((dir / "copy.saker").string());
+  ASSERT_TRUE(copy.ok());
+  EXPECT_EQ((*copy)->Load()->tracks.size(), tracks.size());
+}
+
+TEST(MainWindowTest, CorruptMissionGivesAnErrorDialogNamingTheFile) {
+  const fs::path dir = saker::testing::MakeTempDir("saker-ui-corrupt");
+  const fs::path bad = dir / "sortie-12.saker";
+  std::ofstream(bad) << "SQLite format 3 but not really; a damaged file\n";
+  MainWindow window;
+  window.show();
+  QSignalSpy failed(&window, &MainWindow::missionFailed);
+  window.openMission(QString::fromStdString(bad.string()));
+  ASSERT_TRUE(failed.wait(10000));
+  EXPECT_TRUE(failed.takeFirst().at(1).toString().contains("sortie-12.saker"));
+  QMessageBox* box = nullptr;
+  ASSERT_TRUE(WaitUntil([&] {
+    box = window.findChild<QMessageBox*>("errorDialog");
+    return box != nullptr && box->isVisible();
+  }));
+  EXPECT_TRUE(box->text().contains("sortie-12.saker")) << box->text().toStdString();
+  box->accept();
+  EXPECT_EQ(window.mission(), nullptr);
+  // The window is still usable: a good mission opens after it.
+  const TestMission* m = SmallMission();
+  ASSERT_NE(m, nullptr);
+  EXPECT_TRUE(OpenAndWait(window, *m));
+}
+
+TEST(MainWindowTest, AMissionWhoseVideoHasGoneOpensAndOffersToLocateIt) {
+  const TestMission* m = SmallMission();
+  ASSERT_NE(m, nullptr);
+  // A copy of the mission that records a video path that no longer exists.
+  const fs::path dir = saker::testing::MakeTempDir("saker-ui-moved");
+  const fs::path moved = dir / "moved.saker";
+  {
+    auto store = mission::MissionStore::Create(moved.string());
+    ASSERT_TRUE(store.ok()) << store.status().ToString();
+    mission::Mission copy = m->loaded;
+    copy.source.path = (dir / "gone" / "loop.ts").string();
+    ASSERT_TRUE((*store)->Save(copy).ok());
+  }
+  MainWindow window;
+  window.show();
+  QSignalSpy opened(&window, &MainWindow::missionOpened);
+  window.openMission(QString::fromStdString(moved.string()));
+  ASSERT_TRUE(opened.wait(30000));
+  ASSERT_NE(window.mission(), nullptr);
+  EXPECT_EQ(window.mission()->tracks.size(), m->loaded.tracks.size());
+  EXPECT_TRUE(window.videoPath().isEmpty());
+  EXPECT_FALSE(window.framePanel()->videoAvailable());
+  QSignalSpy locate(window.framePanel(), &FramePanel::locateVideoRequested);
+  QPushButton* locate_button = nullptr;
+  for (QPushButton* b : window.framePanel()->findChildren<QPushButton*>()) {
+    if (b->text().contains("Locate")) locate_button = b;
+  }
+  ASSERT_NE(locate_button, nullptr);
+  EXPECT_TRUE(locate_button->isVisible());
+
+  // Located (the dialog's answer): the right video is taken and remembered, another refused.
+  const fs::path other = dir / "other.ts";
+  std::ofstream(other) << "not the same video";
+  EXPECT_FALSE(window.useVideo(QString::fromStdString(other.string())));
+  EXPECT_TRUE(window.useVideo(QString::fromStdString(m->video.string())));
+  EXPECT_TRUE(window.framePanel()->videoAvailable());
+  QSignalSpy shown(window.framePanel(), &FramePanel::frameShown);
+  window.framePanel()->showObservation(0, 0);
+  ASSERT_TRUE(shown.wait(10000));
+  EXPECT_EQ(window.framePanel()->displayedFrame(), m->loaded.tracks[0].points[0].frame);
+
+  // Next time, the remembered location is used without asking.
+  MainWindow again;
+  QSignalSpy again_opened(&again, &MainWindow::missionOpened);
+  again.openMission(QString::fromStdString(moved.string()));
+  ASSERT_TRUE(again_opened.wait(30000));
+  EXPECT_EQ(again.videoPath().toStdString(), fs::absolute(m->video).string());
+}
+
+// Not a check: the user guide's screenshots, of the demo mission, when SAKER_UI_SCREENSHOTS
+// names a folder (docs/user-guide.md says how to remake them).
+TEST(MainWindowScreenshots, DemoMission) {
+  const QString folder = qEnvironmentVariable("SAKER_UI_SCREENSHOTS");
+  const fs::path demo = fs::path(SAKER_SOURCE_DIR) / "demo" / "demo.saker";
+  if (folder.isEmpty() || !fs::exists(demo)) {
+    GTEST_SKIP() << "set SAKER_UI_SCREENSHOTS to a folder, after `saker-cli demo`, to make the "
+                    "user guide's screenshots";
+  }
+  MainWindow window;
+  window.resize(1500, 900);
+  window.show();
+  QSignalSpy opened(&window, &MainWindow::missionOpened);
+  window.openMission(QString::fromStdString(demo.string()));
+  ASSERT_TRUE(opened.wait(30000));
+  MosaicView* view = window.mosaicView();
+  ASSERT_TRUE(WaitUntil([&] { return view->tilesComplete(); }));
+  for (const char* mode : {"speed", "direction", "visit", "time"}) {
+    ColourAction(window, mode)->trigger();
+    QTest::qWait(200);
+    window.grab().save(folder + QString("/main-window-%1.png").arg(mode));
+  }
+  // A click on the middle observation of the longest track, zoomed in around it.
+  ColourAction(window, "speed")->trigger();
+  const auto& tracks = window.mission()->tracks;
+  size_t longest = 0;
+  for (size_t i = 0; i < tracks.size(); ++i) {
+    if (tracks[i].points.size() > tracks[longest].points.size()) longest = i;
+  }
+  const Eigen::Vector2d at = tracks[longest].points[tracks[longest].points.size() / 2].map;
+  view->zoomAt(2.5, view->widgetFromMap(at));
+  ASSERT_TRUE(WaitUntil([&] { return view->tilesComplete(); }));
+  QSignalSpy shown(window.framePanel(), &FramePanel::frameShown);
+  QTest::mouseClick(view, Qt::LeftButton, Qt::NoModifier, view->widgetFromMap(at).toPoint());
+  ASSERT_TRUE(shown.wait(10000));
   QTest::qWait(300);
-  ASSERT_EQ(finished.count(), 1);
-  EXPECT_EQ(finished.at(0).at(0).toString().toStdString(), second.string());
-  EXPECT_TRUE(window.summaryText().contains("none (no KLV data stream)"));
+  window.grab().save(folder + "/recall.png");
 }
 
 }  // namespace
 }  // namespace saker::ui
-
-int main(int argc, char** argv) {
-  // Headless by default, also when CTest lists the tests at build time.
-  if (qEnvironmentVariableIsEmpty("QT_QPA_PLATFORM")) qputenv("QT_QPA_PLATFORM", "offscreen");
-  QApplication app(argc, argv);
-  ::testing::InitGoogleTest(&argc, argv);
-  return RUN_ALL_TESTS();
-}

@@ -1,0 +1,736 @@
+#include "ui/frame_panel.h"
+
+#include "ui/frame_recall.h"
+
+#include <QAction>
+#include <QCoreApplication>
+#include <QDateTime>
+#include <QDir>
+#include <QFileInfo>
+#include <QFontMetrics>
+#include <QGridLayout>
+#include <QHBoxLayout>
+#include <QKeySequence>
+#include <QLabel>
+#include <QPaintEvent>
+#include <QPainter>
+#include <QPainterPath>
+#include <QPushButton>
+#include <QStackedWidget>
+#include <QStyle>
+#include <QTimeZone>
+#include <QTimer>
+#include <QToolButton>
+#include <QVBoxLayout>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace saker::ui {
+
+namespace {
+
+constexpr int kHintDelayMs = 100;  // a decode faster than this shows no "decoding…" hint
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+// The 16 compass points, clockwise from north, each covering 22.5 degrees.
+QString CompassPoint(double degrees) {
+  static const char* const kPoints[16] = {QT_TRANSLATE_NOOP("saker::ui::FramePanel", "N"),
+                                          QT_TRANSLATE_NOOP("saker::ui::FramePanel", "NNE"),
+                                          QT_TRANSLATE_NOOP("saker::ui::FramePanel", "NE"),
+                                          QT_TRANSLATE_NOOP("saker::ui::FramePanel", "ENE"),
+                                          QT_TRANSLATE_NOOP("saker::ui::FramePanel", "E"),
+                                          QT_TRANSLATE_NOOP("saker::ui::FramePanel", "ESE"),
+                                          QT_TRANSLATE_NOOP("saker::ui::FramePanel", "SE"),
+                                          QT_TRANSLATE_NOOP("saker::ui::FramePanel", "SSE"),
+                                          QT_TRANSLATE_NOOP("saker::ui::FramePanel", "S"),
+                                          QT_TRANSLATE_NOOP("saker::ui::FramePanel", "SSW"),
+                                          QT_TRANSLATE_NOOP("saker::ui::FramePanel", "SW"),
+                                          QT_TRANSLATE_NOOP("saker::ui::FramePanel", "WSW"),
+                                          QT_TRANSLATE_NOOP("saker::ui::FramePanel", "W"),
+                                          QT_TRANSLATE_NOOP("saker::ui::FramePanel", "WNW"),
+                                          QT_TRANSLATE_NOOP("saker::ui::FramePanel", "NW"),
+                                          QT_TRANSLATE_NOOP("saker::ui::FramePanel", "NNW")};
+  const double wrapped = std::fmod(std::fmod(degrees, 360.0) + 360.0, 360.0);
+  const int sector = static_cast<int>(std::floor(wrapped / 22.5 + 0.5)) % 16;
+  return QCoreApplication::translate("saker::ui::FramePanel", kPoints[sector]);
+}
+
+// The shortcuts as the platform writes them, for tooltips: "Right, .".
+QString ShortcutText(const QAction* action) {
+  QStringList keys;
+  for (const QKeySequence& key : action->shortcuts()) {
+    keys << key.toString(QKeySequence::NativeText);
+  }
+  return keys.join(QStringLiteral(", "));
+}
+
+}  // namespace
+
+// The frame, scaled to fit and kept in proportion, with the observation's mark painted at display
+// scale on top (so the lines stay crisp however the frame is scaled).
+class FrameCanvas : public QWidget {
+ public:
+  explicit FrameCanvas(QWidget* parent) : QWidget(parent) {
+    setMinimumSize(160, 90);
+    setSizePolicy(QSizePolicy::Expanding, QSizePolicy::Expanding);
+    setFocusPolicy(Qt::StrongFocus);
+  }
+
+  void setImage(const QImage& image) {
+    image_ = image;
+    update();
+  }
+  // The observation to mark, in video frame pixels; nullopt hides the mark.
+  void setMark(std::optional<QPointF> point, QRectF box) {
+    mark_ = point;
+    box_ = box;
+    update();
+  }
+  const std::optional<QPointF>& mark() const { return mark_; }
+  const QString& hint() const { return hint_; }
+  void setPlaceholder(const QString& text) {
+    placeholder_ = text;
+    update();
+  }
+  void setHint(const QString& text) {
+    if (hint_ == text) return;
+    hint_ = text;
+    update();
+  }
+
+  QSize sizeHint() const override { return {480, 270}; }
+
+ protected:
+  void paintEvent(QPaintEvent*) override {
+    QPainter painter(this);
+    painter.fillRect(rect(), QColor(24, 24, 24));
+    if (image_.isNull()) {
+      painter.setPen(QColor(200, 200, 200));
+      painter.drawText(rect().adjusted(12, 12, -12, -12), Qt::AlignCenter | Qt::TextWordWrap,
+                       placeholder_);
+    } else {
+      const QSizeF fitted = QSizeF(image_.size()).scaled(QSizeF(size()), Qt::KeepAspectRatio);
+      const QRectF target(QPointF((width() - fitted.width()) / 2, (height() - fitted.height()) / 2),
+                          fitted);
+      painter.setRenderHint(QPainter::SmoothPixmapTransform);
+      painter.drawImage(target, image_);
+
+      if (mark_) paintMark(painter, target);
+    }
+
+    if (!hint_.isEmpty()) {
+      const QFontMetrics metrics(font());
+      const QRect text = metrics.boundingRect(hint_).adjusted(-6, -3, 6, 3);
+      const QRect box(rect().topRight() + QPoint(-text.width() - 8, 8), text.size());
+      painter.fillRect(box, QColor(0, 0, 0, 170));
+      painter.setPen(Qt::white);
+      painter.drawText(box, Qt::AlignCenter, hint_);
+    }
+  }
+
+ private:
+  // The mark over the image drawn in `target` (widget coordinates).
+  void paintMark(QPainter& painter, const QRectF& target) const {
+    // Pixel centres are at integer coordinates (the engine's convention), so pixel (0, 0) covers
+    // [-0.5, 0.5) and is drawn at [0, scale).
+    const double scale = target.width() / image_.width();
+    auto to_widget = [&](QPointF p) {
+      return target.topLeft() + QPointF((p.x() + 0.5) * scale, (p.y() + 0.5) * scale);
+    };
+    painter.save();
+    painter.setRenderHint(QPainter::Antialiasing);
+    painter.setClipRect(target);
+    const QPointF centre = to_widget(*mark_);
+    const QRectF box = QRectF(to_widget(box_.topLeft()), to_widget(box_.bottomRight()))
+                           .normalized()
+                           .adjusted(-1, -1, 1, 1);
+    // Arms of the cross, with a gap so the object itself stays visible.
+    constexpr double kGap = 4;
+    constexpr double kArm = 11;
+    QPainterPath cross;
+    for (const QPointF direction : {QPointF(1, 0), QPointF(-1, 0), QPointF(0, 1), QPointF(0, -1)}) {
+      cross.moveTo(centre + direction * kGap);
+      cross.lineTo(centre + direction * (kGap + kArm));
+    }
+    // A thin white outline under the red keeps the mark visible on red or dark ground.
+    painter.setBrush(Qt::NoBrush);
+    painter.setPen(QPen(QColor(255, 255, 255, 220), 3.5, Qt::SolidLine, Qt::FlatCap));
+    painter.drawRect(box);
+    painter.drawPath(cross);
+    painter.setPen(QPen(QColor(230, 20, 20), 1.75, Qt::SolidLine, Qt::FlatCap));
+    painter.drawRect(box);
+    painter.drawPath(cross);
+    painter.restore();
+  }
+
+  QImage image_;
+  std::optional<QPointF> mark_;
+  QRectF box_;
+  QString placeholder_;
+  QString hint_;
+};
+
+FramePanel::FramePanel(QWidget* parent)
+    : QWidget(parent), last_recall_ms_(kNaN), last_decode_ms_(kNaN) {
+  recall_ = new FrameRecall(this);
+  connect(recall_, &FrameRecall::frameReady, this, &FramePanel::onFrameReady);
+  connect(recall_, &FrameRecall::failed, this, &FramePanel::onFailed);
+  connect(recall_, &FrameRecall::videoReady, this,
+          [this](const QString& path, qint64 count, double fps, double) {
+            onVideoReady(path, count, fps);
+          });
+  connect(recall_, &FrameRecall::videoFailed, this, &FramePanel::onVideoFailed);
+
+  // The frame, or the message about a missing video.
+  canvas_ = new FrameCanvas(this);
+  canvas_->setObjectName(QStringLiteral("frameCanvas"));
+  auto* missing_page = new QWidget(this);
+  missing_label_ = new QLabel(missing_page);
+  missing_label_->setObjectName(QStringLiteral("missingVideoMessage"));
+  missing_label_->setWordWrap(true);
+  missing_label_->setAlignment(Qt::AlignCenter);
+  missing_label_->setTextInteractionFlags(Qt::TextSelectableByMouse);
+  locate_button_ = new QPushButton(style()->standardIcon(QStyle::SP_DirOpenIcon),
+                                   tr("Locate Video…"), missing_page);
+  locate_button_->setObjectName(QStringLiteral("locateVideoButton"));
+  connect(locate_button_, &QPushButton::clicked, this, &FramePanel::locateVideoRequested);
+  auto* missing_layout = new QVBoxLayout(missing_page);
+  auto* missing_icon = new QLabel(missing_page);
+  missing_icon->setPixmap(style()->standardIcon(QStyle::SP_MessageBoxWarning).pixmap(32, 32));
+  missing_layout->addStretch(1);
+  missing_layout->addWidget(missing_icon, 0, Qt::AlignHCenter);
+  missing_layout->addWidget(missing_label_);
+  missing_layout->addWidget(locate_button_, 0, Qt::AlignHCenter);
+  missing_layout->addStretch(1);
+  stack_ = new QStackedWidget(this);
+  stack_->addWidget(canvas_);
+  stack_->addWidget(missing_page);
+
+  error_label_ = new QLabel(this);
+  error_label_->setObjectName(QStringLiteral("frameError"));
+  error_label_->setWordWrap(true);
+  error_label_->setTextInteractionFlags(Qt::TextSelectableByMouse);
+  error_label_->setStyleSheet(QStringLiteral("color: #c62828;"));
+  error_label_->hide();
+
+  // Stepping and playback: actions carry the shortcuts (active while focus is in the panel, so
+  // the arrow keys keep panning the mosaic elsewhere), tool buttons show them.
+  previous_action_ = new QAction(style()->standardIcon(QStyle::SP_MediaSkipBackward),
+                                 tr("Previous Observation"), this);
+  previous_action_->setShortcuts({QKeySequence(Qt::Key_Left), QKeySequence(Qt::Key_Comma)});
+  next_action_ =
+      new QAction(style()->standardIcon(QStyle::SP_MediaSkipForward), tr("Next Observation"), this);
+  next_action_->setShortcuts({QKeySequence(Qt::Key_Right), QKeySequence(Qt::Key_Period)});
+  play_action_ = new QAction(style()->standardIcon(QStyle::SP_MediaPlay), tr("Play"), this);
+  play_action_->setShortcut(QKeySequence(Qt::Key_Space));
+  connect(previous_action_, &QAction::triggered, this, &FramePanel::previousObservation);
+  connect(next_action_, &QAction::triggered, this, &FramePanel::nextObservation);
+  connect(play_action_, &QAction::triggered, this, &FramePanel::togglePlay);
+  auto* buttons = new QHBoxLayout;
+  buttons->setSpacing(2);
+  const std::pair<QAction*, const char*> tool_buttons[] = {{previous_action_, "previousButton"},
+                                                           {play_action_, "playButton"},
+                                                           {next_action_, "nextButton"}};
+  for (const auto& [action, name] : tool_buttons) {
+    action->setShortcutContext(Qt::WidgetWithChildrenShortcut);
+    addAction(action);
+    auto* button = new QToolButton(this);
+    button->setObjectName(QLatin1String(name));
+    button->setDefaultAction(action);
+    button->setAutoRaise(true);
+    button->setIconSize(QSize(20, 20));
+    // Buttons never take focus: Space must toggle playback, not press the focused button.
+    button->setFocusPolicy(Qt::NoFocus);
+    buttons->addWidget(button);
+  }
+  buttons->addStretch(1);
+
+  // The observation's attributes, two pairs a row to stay compact.
+  auto* info = new QGridLayout;
+  info->setHorizontalSpacing(8);
+  info->setVerticalSpacing(2);
+  auto add = [this, info](int row, int column, const QString& name, const char* object_name,
+                          int span = 1) {
+    auto* key = new QLabel(name, this);
+    key->setForegroundRole(QPalette::PlaceholderText);
+    auto* value = new QLabel(this);
+    value->setObjectName(QLatin1String(object_name));
+    value->setTextInteractionFlags(Qt::TextSelectableByMouse);
+    info->addWidget(key, row, column * 2);
+    info->addWidget(value, row, column * 2 + 1, 1, span);
+    return value;
+  };
+  track_value_ = add(0, 0, tr("Track"), "trackValue");
+  visit_value_ = add(0, 1, tr("Visit"), "visitValue");
+  time_value_ = add(1, 0, tr("Time"), "timeValue");
+  frame_value_ = add(1, 1, tr("Frame"), "frameValue");
+  utc_value_ = add(2, 0, tr("UTC"), "utcValue", 3);
+  speed_value_ = add(3, 0, tr("Speed"), "speedValue");
+  heading_value_ = add(3, 1, tr("Heading"), "headingValue");
+  info->setColumnStretch(1, 1);
+  info->setColumnStretch(3, 1);
+
+  auto* layout = new QVBoxLayout(this);
+  layout->setContentsMargins(4, 4, 4, 4);
+  layout->setSpacing(4);
+  layout->addWidget(stack_, 1);
+  layout->addWidget(error_label_);
+  layout->addLayout(buttons);
+  layout->addLayout(info);
+
+  setFocusPolicy(Qt::StrongFocus);
+  setFocusProxy(canvas_);
+
+  hint_timer_ = new QTimer(this);
+  hint_timer_->setSingleShot(true);
+  connect(hint_timer_, &QTimer::timeout, this, [this] {
+    if (pending_ticket_ != 0) canvas_->setHint(tr("decoding…"));
+  });
+  play_timer_ = new QTimer(this);
+  play_timer_->setSingleShot(true);
+  play_timer_->setTimerType(Qt::PreciseTimer);
+  connect(play_timer_, &QTimer::timeout, this, &FramePanel::presentHeldPlayFrame);
+
+  setMission(nullptr, QString());
+}
+
+FramePanel::~FramePanel() = default;
+
+void FramePanel::setMission(std::shared_ptr<const mission::Mission> mission,
+                            const QString& video_path) {
+  pause();
+  mission_ = std::move(mission);
+  current_.reset();
+  displayed_frame_ = -1;
+  image_ = QImage();
+  canvas_->setImage(QImage());
+  canvas_->setMark(std::nullopt, {});
+  pending_ticket_ = 0;
+  pending_from_click_ = false;
+  hint_timer_->stop();
+  canvas_->setHint(QString());
+  showError(QString());
+  frame_count_ = mission_ ? mission_->source.frame_count : 0;
+  fps_ = mission_ ? mission_->source.frame_rate : 0;
+
+  if (!mission_) {
+    video_path_.clear();
+    video_available_ = false;
+    warm_path_.clear();
+    recall_->setVideo(QString());
+    stack_->setCurrentWidget(canvas_);
+    canvas_->setPlaceholder(tr("No mission is open."));
+  } else {
+    // An empty path means the owner did not find the video: name where the mission says it was.
+    const bool given = !video_path.isEmpty();
+    video_path_ = given ? video_path : QString::fromStdString(mission_->source.path);
+    if (!given || !QFileInfo(video_path_).isFile()) {
+      video_available_ = false;
+      warm_path_.clear();
+      recall_->setVideo(QString());
+      showMissingVideo(tr("The video of this mission is not at %1. Frame recall needs the video.")
+                           .arg(video_path_.isEmpty() ? tr("(no path recorded)")
+                                                      : QDir::toNativeSeparators(video_path_)));
+    } else {
+      video_available_ = true;
+      // Warm up now, while the analyst looks at the mosaic; a mission reloaded on the same video
+      // (processing progress, a new track list) keeps the warm index instead of rebuilding it.
+      if (warm_path_ == video_path_ && recall_->isWarm()) {
+        frame_count_ = warm_frame_count_;
+        if (warm_fps_ > 0) fps_ = warm_fps_;
+      } else {
+        warm_path_.clear();
+        recall_->setVideo(video_path_);
+      }
+      stack_->setCurrentWidget(canvas_);
+      canvas_->setPlaceholder(idlePlaceholder());
+    }
+  }
+  updateInfo();
+  updateActions();
+}
+
+void FramePanel::showObservation(size_t track_index, size_t point_index) {
+  if (!mission_ || track_index >= mission_->tracks.size() ||
+      point_index >= mission_->tracks[track_index].points.size()) {
+    return;
+  }
+  pause();
+  click_timer_.start();
+  const int64_t frame = mission_->tracks[track_index].points[point_index].frame;
+  // Another observation in the frame already on screen: only the mark moves.
+  const bool on_screen = video_available_ && frame == displayed_frame_ && pending_ticket_ == 0;
+  pending_from_click_ = video_available_ && !on_screen;
+  if (pending_from_click_) requestFrame(frame);
+  setObservation(track_index, point_index, true);
+  if (on_screen) {
+    canvas_->repaint();
+    last_recall_ms_ = static_cast<double>(click_timer_.nsecsElapsed()) / 1e6;
+    emit frameShown(frame, last_recall_ms_);
+  }
+}
+
+void FramePanel::clear() {
+  pause();
+  current_.reset();
+  displayed_frame_ = -1;
+  image_ = QImage();
+  canvas_->setImage(QImage());
+  pending_ticket_ = 0;
+  pending_from_click_ = false;
+  hint_timer_->stop();
+  canvas_->setHint(QString());
+  canvas_->setPlaceholder(idlePlaceholder());
+  showError(QString());
+  updateMark();
+  updateInfo();
+  updateActions();
+}
+
+std::optional<std::pair<size_t, size_t>> FramePanel::currentObservation() const { return current_; }
+
+int64_t FramePanel::displayedFrame() const { return displayed_frame_; }
+
+const QImage& FramePanel::displayedImage() const { return image_; }
+
+QPointF FramePanel::markImagePosition() const {
+  const auto& mark = canvas_->mark();
+  return mark ? *mark : QPointF(kNaN, kNaN);
+}
+
+bool FramePanel::markVisible() const { return canvas_->mark().has_value(); }
+
+bool FramePanel::videoAvailable() const { return video_available_; }
+
+QString FramePanel::videoPath() const { return video_path_; }
+
+double FramePanel::lastRecallMs() const { return last_recall_ms_; }
+
+double FramePanel::lastDecodeMs() const { return last_decode_ms_; }
+
+bool FramePanel::isPlaying() const { return playing_; }
+
+QString FramePanel::errorText() const { return error_label_->text(); }
+
+bool FramePanel::decodingHintShown() const { return !canvas_->hint().isEmpty(); }
+
+void FramePanel::previousObservation() {
+  if (!current_ || current_->second == 0) return;
+  showObservation(current_->first, current_->second - 1);
+}
+
+void FramePanel::nextObservation() {
+  if (!current_ || !mission_) return;
+  if (current_->second + 1 >= mission_->tracks[current_->first].points.size()) return;
+  showObservation(current_->first, current_->second + 1);
+}
+
+void FramePanel::togglePlay() {
+  if (playing_) {
+    pause();
+  } else {
+    play();
+  }
+}
+
+void FramePanel::play() {
+  if (playing_ || !video_available_) return;
+  const bool recalling = pending_ticket_ != 0 && pending_from_click_;
+  if (!recalling && (displayed_frame_ < 0 || displayed_frame_ + 1 >= frameCount())) return;
+  playing_ = true;
+  held_frame_ = -1;
+  if (recalling) {
+    play_anchor_frame_ = -1;  // start from the recalled frame when it arrives
+  } else {
+    play_anchor_frame_ = displayed_frame_;
+    play_clock_.start();
+    requestNextPlayFrame();
+  }
+  emit playingChanged(true);
+  updateActions();
+}
+
+void FramePanel::pause() {
+  if (!playing_) return;
+  playing_ = false;
+  play_timer_->stop();
+  held_frame_ = -1;
+  held_image_ = QImage();
+  if (pending_ticket_ != 0 && !pending_from_click_) {
+    pending_ticket_ = 0;  // the next playback frame: its answer is dropped
+    hint_timer_->stop();
+    canvas_->setHint(QString());
+  }
+  emit playingChanged(false);
+  updateInfo();
+  updateActions();
+}
+
+const mission::TrackPoint* FramePanel::currentPoint() const {
+  if (!current_ || !mission_) return nullptr;
+  return &mission_->tracks[current_->first].points[current_->second];
+}
+
+void FramePanel::setObservation(size_t track_index, size_t point_index, bool announce) {
+  const std::pair<size_t, size_t> observation(track_index, point_index);
+  const bool changed = current_ != observation;
+  current_ = observation;
+  updateMark();
+  updateInfo();
+  updateActions();
+  if (announce && changed) emit observationChanged(track_index, point_index);
+}
+
+void FramePanel::requestFrame(int64_t frame_index) {
+  pending_ticket_ = ++next_ticket_;
+  recall_->request(frame_index, pending_ticket_);
+  if (!hint_timer_->isActive()) hint_timer_->start(kHintDelayMs);
+  if (image_.isNull()) {
+    // Nothing on screen yet: say what the wait is for (the first click may come while the video
+    // is still being indexed, which takes seconds on a long video).
+    canvas_->setPlaceholder(
+        recall_->isWarm()
+            ? tr("Decoding frame %1…").arg(frame_index)
+            : tr("Preparing %1 for frame recall (indexing its frames, once per video)…")
+                  .arg(QFileInfo(video_path_).fileName()));
+  }
+}
+
+QString FramePanel::idlePlaceholder() const {
+  return tr(
+      "Click a moving-target track on the mosaic to see the video frame it was observed "
+      "in.");
+}
+
+void FramePanel::onFrameReady(quint64 ticket, int64_t frame_index, const QImage& image,
+                              double decode_ms) {
+  if (ticket != pending_ticket_) return;  // superseded
+  pending_ticket_ = 0;
+  hint_timer_->stop();
+  canvas_->setHint(QString());
+  showError(QString());
+  last_decode_ms_ = decode_ms;
+  if (playing_ && play_anchor_frame_ >= 0) {
+    const double interval_ms = 1000.0 / frameRate();
+    const double due_ms = static_cast<double>(frame_index - play_anchor_frame_) * interval_ms;
+    const double wait_ms = due_ms - static_cast<double>(play_clock_.nsecsElapsed()) / 1e6;
+    if (wait_ms > 1) {
+      held_frame_ = frame_index;
+      held_image_ = image;
+      play_timer_->start(static_cast<int>(std::lround(wait_ms)));
+      return;
+    }
+    if (wait_ms < -2 * interval_ms) {
+      // Decoding fell behind: carry on from here at the frame rate instead of rushing to catch up.
+      play_anchor_frame_ = frame_index;
+      play_clock_.start();
+    }
+    present(frame_index, image);
+    emit frameShown(frame_index, kNaN);
+    requestNextPlayFrame();
+    return;
+  }
+  present(frame_index, image);
+  if (pending_from_click_) {
+    pending_from_click_ = false;
+    last_recall_ms_ = static_cast<double>(click_timer_.nsecsElapsed()) / 1e6;
+    emit frameShown(frame_index, last_recall_ms_);
+  } else {
+    emit frameShown(frame_index, kNaN);
+  }
+  if (playing_) {  // play() was pressed while this recall was pending: start from it
+    play_anchor_frame_ = frame_index;
+    play_clock_.start();
+    requestNextPlayFrame();
+  }
+}
+
+void FramePanel::onFailed(quint64 ticket, const QString& message) {
+  if (ticket != pending_ticket_) return;
+  pending_ticket_ = 0;
+  pending_from_click_ = false;
+  hint_timer_->stop();
+  canvas_->setHint(QString());
+  pause();
+  if (!video_available_) return;  // already explained on the missing-video page
+  if (!QFileInfo(video_path_).isFile()) {
+    video_available_ = false;
+    showMissingVideo(tr("The video of this mission is not at %1 any more. Frame recall needs "
+                        "the video.")
+                         .arg(QDir::toNativeSeparators(video_path_)));
+    updateActions();
+    return;
+  }
+  if (image_.isNull()) canvas_->setPlaceholder(idlePlaceholder());
+  showError(message);
+}
+
+void FramePanel::onVideoReady(const QString& path, qint64 frame_count, double fps) {
+  if (path != video_path_) return;
+  warm_path_ = path;
+  warm_frame_count_ = frame_count;
+  warm_fps_ = fps;
+  frame_count_ = frame_count;
+  if (fps > 0) fps_ = fps;
+  updateActions();
+}
+
+void FramePanel::onVideoFailed(const QString& path, const QString& message) {
+  if (path != video_path_ || !video_available_) return;
+  video_available_ = false;
+  pending_ticket_ = 0;
+  pending_from_click_ = false;
+  hint_timer_->stop();
+  canvas_->setHint(QString());
+  pause();
+  showMissingVideo(tr("%1\nFrame recall needs the video of this mission.").arg(message));
+  updateActions();
+}
+
+void FramePanel::present(int64_t frame_index, const QImage& image) {
+  displayed_frame_ = frame_index;
+  image_ = image;
+  canvas_->setImage(image);
+  if (playing_ && current_ && mission_) {
+    // The mark follows the track: move to its observation in this frame, when it has one.
+    const auto& points = mission_->tracks[current_->first].points;
+    auto it = std::lower_bound(
+        points.begin(), points.end(), frame_index,
+        [](const mission::TrackPoint& point, int64_t frame) { return point.frame < frame; });
+    if (it != points.end() && it->frame == frame_index) {
+      setObservation(current_->first, static_cast<size_t>(it - points.begin()), true);
+    }
+  }
+  updateMark();
+  updateInfo();
+  updateActions();
+  // Paint now rather than at the next event-loop pass, so "on screen" is measured honestly.
+  if (canvas_->isVisible()) canvas_->repaint();
+}
+
+void FramePanel::showMissingVideo(const QString& message) {
+  missing_label_->setText(message);
+  stack_->setCurrentIndex(1);
+  showError(QString());
+}
+
+void FramePanel::showError(const QString& message) {
+  if (error_label_->text() == message) return;  // spares a relayout on every frame
+  error_label_->setText(message);
+  error_label_->setVisible(!message.isEmpty());
+}
+
+void FramePanel::updateMark() {
+  const mission::TrackPoint* point = currentPoint();
+  if (point == nullptr || image_.isNull() || point->frame != displayed_frame_) {
+    canvas_->setMark(std::nullopt, {});
+    return;
+  }
+  canvas_->setMark(QPointF(point->image.x(), point->image.y()),
+                   QRectF(QPointF(point->box_min.x(), point->box_min.y()),
+                          QPointF(point->box_max.x(), point->box_max.y())));
+}
+
+void FramePanel::updateInfo() {
+  const mission::TrackPoint* point = currentPoint();
+  if (point == nullptr) {
+    for (QLabel* label : {track_value_, visit_value_, time_value_, frame_value_, utc_value_,
+                          speed_value_, heading_value_}) {
+      label->setText(QStringLiteral("–"));
+    }
+    return;
+  }
+  const mission::ActivityTrack& track = mission_->tracks[current_->first];
+  track_value_->setText(tr("%1 (observation %2 of %3)")
+                            .arg(track.id)
+                            .arg(current_->second + 1)
+                            .arg(track.points.size()));
+  visit_value_->setText(QString::number(track.visit));
+  if (track.speed_mps) {
+    speed_value_->setText(tr("%1 m/s (%2 km/h)")
+                              .arg(*track.speed_mps, 0, 'f', 1)
+                              .arg(*track.speed_mps * 3.6, 0, 'f', 1));
+  } else {
+    speed_value_->setText(tr("%1 px/s").arg(track.speed, 0, 'f', 1));
+  }
+  const double heading = std::fmod(std::fmod(track.heading_deg, 360.0) + 360.0, 360.0);
+  heading_value_->setText(tr("%1° %2").arg(std::lround(heading) % 360).arg(CompassPoint(heading)));
+
+  // Time and frame: of the observation, unless playback (or a pause after it) shows another frame.
+  const bool recalling = pending_ticket_ != 0 && pending_from_click_;
+  const int64_t frame =
+      (video_available_ && !recalling && displayed_frame_ >= 0) ? displayed_frame_ : point->frame;
+  const mission::FrameRecord* record = nullptr;
+  const auto& frames = mission_->frames;
+  auto it = std::lower_bound(
+      frames.begin(), frames.end(), frame,
+      [](const mission::FrameRecord& r, int64_t index) { return r.index < index; });
+  if (it != frames.end() && it->index == frame) record = &*it;
+  double time_s = point->time_s;
+  if (frame != point->frame) {
+    time_s = record != nullptr ? record->time_s
+                               : static_cast<double>(frame) / std::max(frameRate(), 1e-9);
+  }
+  time_value_->setText(tr("%1 s").arg(time_s, 0, 'f', 2));
+  frame_value_->setText(frame == point->frame ? QString::number(frame)
+                                              : tr("%1 (track not observed)").arg(frame));
+  if (record != nullptr && record->utc_us) {
+    // ISO 8601 with the "Z" designator (Qt 6.4 writes UTC as "+00:00").
+    const QDateTime utc = QDateTime::fromMSecsSinceEpoch(*record->utc_us / 1000, QTimeZone::utc());
+    utc_value_->setText(utc.toString(QStringLiteral("yyyy-MM-dd'T'HH:mm:ss.zzz'Z'")));
+  } else {
+    utc_value_->setText(tr("not in the metadata"));
+  }
+}
+
+void FramePanel::updateActions() {
+  const size_t points = current_ ? mission_->tracks[current_->first].points.size() : 0;
+  previous_action_->setEnabled(current_ && current_->second > 0);
+  next_action_->setEnabled(current_ && current_->second + 1 < points);
+  const bool can_play =
+      playing_ ||
+      (video_available_ && ((displayed_frame_ >= 0 && displayed_frame_ + 1 < frameCount()) ||
+                            (pending_ticket_ != 0 && pending_from_click_)));
+  play_action_->setEnabled(can_play);
+  play_action_->setIcon(
+      style()->standardIcon(playing_ ? QStyle::SP_MediaPause : QStyle::SP_MediaPlay));
+  play_action_->setText(playing_ ? tr("Pause") : tr("Play"));
+  previous_action_->setToolTip(
+      tr("Previous observation of the track (%1)").arg(ShortcutText(previous_action_)));
+  next_action_->setToolTip(
+      tr("Next observation of the track (%1)").arg(ShortcutText(next_action_)));
+  play_action_->setToolTip((playing_ ? tr("Pause (%1)") : tr("Play the video from this frame (%1)"))
+                               .arg(ShortcutText(play_action_)));
+}
+
+void FramePanel::requestNextPlayFrame() {
+  if (!playing_) return;
+  const int64_t next = displayed_frame_ + 1;
+  if (next >= frameCount()) {
+    pause();  // the end of the video
+    return;
+  }
+  requestFrame(next);
+}
+
+void FramePanel::presentHeldPlayFrame() {
+  if (!playing_ || held_frame_ < 0) return;
+  const int64_t frame = held_frame_;
+  const QImage image = held_image_;
+  held_frame_ = -1;
+  held_image_ = QImage();
+  present(frame, image);
+  emit frameShown(frame, kNaN);
+  requestNextPlayFrame();
+}
+
+int64_t FramePanel::frameCount() const {
+  // Unknown before warm-up when the mission does not say: playback then stops at the first frame
+  // the recall reports out of range.
+  return frame_count_ > 0 ? frame_count_ : std::numeric_limits<int64_t>::max();
+}
+
+double FramePanel::frameRate() const { return fps_ > 0 ? fps_ : 25.0; }
+
+}  // namespace saker::ui

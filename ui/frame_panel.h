@@ -1,0 +1,159 @@
+#pragma once
+
+// The click-to-recall frame panel: for a moving-target observation picked on the mosaic it shows
+// the original video frame the observation was made in, decoded from the source video, with the
+// object marked (red cross at the observation, red box around it), and the track's attributes.
+// It steps through the track's observations and plays the video forward from the frame.
+//
+// Decoding runs on a FrameRecall worker; while a decode is pending the previous frame stays on
+// screen. When the mission's video is missing the panel says where it looked and offers to locate
+// it (the owner answers locateVideoRequested with setMission and the new path).
+
+#include "core/mission/mission.h"
+
+#include <QElapsedTimer>
+#include <QImage>
+#include <QPointF>
+#include <QString>
+#include <QWidget>
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <utility>
+
+class QAction;
+class QLabel;
+class QPushButton;
+class QStackedWidget;
+class QTimer;
+class QToolButton;
+
+namespace saker::ui {
+
+class FrameCanvas;
+class FrameRecall;
+
+class FramePanel : public QWidget {
+  Q_OBJECT
+
+ public:
+  explicit FramePanel(QWidget* parent = nullptr);
+  ~FramePanel() override;
+
+  // Shows frames of `mission` decoded from `video_path`, which may differ from
+  // mission->source.path when the video was located elsewhere. An empty path (the owner did not
+  // find the video; the message names source.path) or a missing file shows a message naming the
+  // path and a "Locate Video…" button. Starts warming the video (indexing it in the background)
+  // at once, so the first recall is fast. Clears the observation. A null mission clears all.
+  void setMission(std::shared_ptr<const mission::Mission> mission, const QString& video_path);
+  // Recalls the frame of mission->tracks[track_index].points[point_index]; indices out of range
+  // are ignored. Pauses playback. Emits observationChanged when the observation changes.
+  void showObservation(size_t track_index, size_t point_index);
+  // Forgets the observation and the frame (the video stays open and warm).
+  void clear();
+
+  std::optional<std::pair<size_t, size_t>> currentObservation() const;
+  int64_t displayedFrame() const;        // -1 until a frame is on screen
+  const QImage& displayedImage() const;  // the frame on screen, at the video's size
+  // The red cross's position in video frame pixels, as drawn (pixel centres at integers); NaN
+  // when no mark is drawn (no observation in the displayed frame).
+  QPointF markImagePosition() const;
+  bool markVisible() const;
+  bool videoAvailable() const;
+  QString videoPath() const;    // the path frames are decoded from (or looked for)
+  double lastRecallMs() const;  // showObservation call to frame painted; NaN before the first
+  double lastDecodeMs() const;  // the worker's part of it (seek, decode, colour conversion)
+  bool isPlaying() const;
+  QString errorText() const;       // the decode error shown in the panel, empty when none
+  bool decodingHintShown() const;  // "decoding…" is on screen (a decode pending > 100 ms)
+
+ public slots:
+  void previousObservation();
+  void nextObservation();
+  void play();
+  void pause();
+  void togglePlay();
+
+ signals:
+  // The panel moved to another observation (showObservation, stepping, or playback reaching a
+  // frame with an observation of the track): the view moves its marker.
+  void observationChanged(size_t track_index, size_t point_index);
+  void locateVideoRequested();
+  // A recalled frame is on screen; `recall_ms` from the showObservation call (NaN for frames
+  // shown by playback).
+  void frameShown(int64_t frame_index, double recall_ms);
+  void playingChanged(bool playing);
+
+ private:
+  const mission::TrackPoint* currentPoint() const;
+  void setObservation(size_t track_index, size_t point_index, bool announce);
+  void requestFrame(int64_t frame_index);
+  void onFrameReady(quint64 ticket, int64_t frame_index, const QImage& image, double decode_ms);
+  void onFailed(quint64 ticket, const QString& message);
+  void onVideoReady(const QString& path, qint64 frame_count, double fps);
+  void onVideoFailed(const QString& path, const QString& message);
+  void present(int64_t frame_index, const QImage& image);  // puts a frame on screen
+  void showMissingVideo(const QString& message);
+  void showError(const QString& message);
+  void updateMark();
+  void updateInfo();
+  void updateActions();
+  void requestNextPlayFrame();
+  void presentHeldPlayFrame();
+  QString idlePlaceholder() const;  // the canvas text with no frame and nothing pending
+  int64_t frameCount() const;
+  double frameRate() const;
+
+  // Widgets.
+  QStackedWidget* stack_ = nullptr;  // the canvas, or the missing-video page
+  FrameCanvas* canvas_ = nullptr;
+  QLabel* missing_label_ = nullptr;
+  QPushButton* locate_button_ = nullptr;
+  QLabel* error_label_ = nullptr;
+  QLabel* track_value_ = nullptr;
+  QLabel* visit_value_ = nullptr;
+  QLabel* time_value_ = nullptr;
+  QLabel* frame_value_ = nullptr;
+  QLabel* utc_value_ = nullptr;
+  QLabel* speed_value_ = nullptr;
+  QLabel* heading_value_ = nullptr;
+  QAction* previous_action_ = nullptr;
+  QAction* next_action_ = nullptr;
+  QAction* play_action_ = nullptr;
+  QTimer* hint_timer_ = nullptr;  // shows "decoding…" when a decode takes > 100 ms
+  QTimer* play_timer_ = nullptr;  // holds a decoded playback frame until its time
+
+  // Mission and video.
+  std::shared_ptr<const mission::Mission> mission_;
+  QString video_path_;
+  bool video_available_ = false;
+  qint64 frame_count_ = 0;  // from the warm video, else the mission's source
+  double fps_ = 0;
+  FrameRecall* recall_ = nullptr;
+  QString warm_path_;  // the video the recall has indexed (empty while warming or failed)
+  qint64 warm_frame_count_ = 0;
+  double warm_fps_ = 0;
+
+  // What is shown.
+  std::optional<std::pair<size_t, size_t>> current_;
+  int64_t displayed_frame_ = -1;
+  QImage image_;
+
+  // The request in flight (latest wins: answers to any other ticket are dropped).
+  quint64 next_ticket_ = 0;
+  quint64 pending_ticket_ = 0;  // 0: none
+  QElapsedTimer click_timer_;   // since the showObservation that asked for the pending frame
+  bool pending_from_click_ = false;
+  double last_recall_ms_;
+  double last_decode_ms_;
+
+  // Playback: frame n is due at play_anchor_frame_ + (n - anchor) / fps on play_clock_.
+  bool playing_ = false;
+  int64_t play_anchor_frame_ = 0;
+  QElapsedTimer play_clock_;
+  int64_t held_frame_ = -1;  // decoded, waiting for its time
+  QImage held_image_;
+};
+
+}  // namespace saker::ui

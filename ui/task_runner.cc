@@ -1,0 +1,75 @@
+#include "ui/task_runner.h"
+
+#include <QMetaObject>
+#include <exception>
+
+namespace saker::ui {
+
+TaskRunner::TaskRunner(QObject* parent) : QObject(parent) { qRegisterMetaType<saker::Status>(); }
+
+TaskRunner::~TaskRunner() { cancelAndWait(); }
+
+bool TaskRunner::start(const QString& title, Task task) {
+  if (running_) return false;
+  join();  // the previous job's thread has ended (finished was delivered); reap it
+  running_ = true;
+  title_ = title;
+  auto job = std::make_shared<JobContext>([this](const std::string& stage, double fraction) {
+    {
+      std::lock_guard<std::mutex> lock(progress_mutex_);
+      progress_stage_ = QString::fromStdString(stage);
+      progress_fraction_ = fraction;
+    }
+    if (!progress_posted_.exchange(true)) {
+      QMetaObject::invokeMethod(this, &TaskRunner::postProgress, Qt::QueuedConnection);
+    }
+  });
+  job_ = job;
+  emit started(title);
+  thread_ = std::thread([this, job, task = std::move(task)] {
+    Status status;
+    try {
+      status = task(job.get());
+    } catch (const std::exception& e) {
+      // The engine reports errors as Status; an exception is a bug, but it must not take the
+      // analyst's work down with it.
+      status = IoError(std::string("unexpected error: ") + e.what());
+    }
+    QMetaObject::invokeMethod(
+        this,
+        [this, status] {
+          running_ = false;
+          emit finished(title_, status);
+        },
+        Qt::QueuedConnection);
+  });
+  return true;
+}
+
+void TaskRunner::cancel() {
+  if (job_) job_->RequestCancel();
+}
+
+void TaskRunner::cancelAndWait() {
+  cancel();
+  join();
+  running_ = false;
+}
+
+void TaskRunner::join() {
+  if (thread_.joinable()) thread_.join();
+}
+
+void TaskRunner::postProgress() {
+  progress_posted_ = false;
+  QString stage;
+  double fraction = 0;
+  {
+    std::lock_guard<std::mutex> lock(progress_mutex_);
+    stage = progress_stage_;
+    fraction = progress_fraction_;
+  }
+  if (running_) emit progress(stage, fraction);
+}
+
+}  // namespace saker::ui
