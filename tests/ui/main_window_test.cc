@@ -15,15 +15,23 @@
 #include <nlohmann/json.hpp>
 
 #include <QAction>
+#include <QApplication>
+#include <QDragEnterEvent>
+#include <QDropEvent>
 #include <QElapsedTimer>
 #include <QFile>
 #include <QImage>
+#include <QLabel>
 #include <QMessageBox>
+#include <QMimeData>
 #include <QProgressBar>
 #include <QPushButton>
 #include <QSignalSpy>
+#include <QStatusBar>
 #include <QTest>
+#include <QTextBrowser>
 #include <QTimer>
+#include <QUrl>
 #include <QXmlStreamReader>
 #include <filesystem>
 #include <fstream>
@@ -168,6 +176,62 @@ TEST(MainWindowTest, ClickOnATrackRecallsTheFrameWithTheObjectMarkedWhereTheTrut
   QTest::mouseClick(view, Qt::LeftButton, Qt::NoModifier, QPoint(2, 2));
   EXPECT_FALSE(view->marker().has_value());
   EXPECT_EQ(panel->displayedFrame(), displayed);
+}
+
+TEST(MainWindowTest, DropOpensAMissionAndTheStatusBarShowsWhereTheCursorIs) {
+  const TestMission* m = SmallMission();
+  ASSERT_NE(m, nullptr);
+  MainWindow window;
+  window.show();
+  QSignalSpy opened(&window, &MainWindow::missionOpened);
+  QMimeData data;
+  data.setUrls({QUrl::fromLocalFile(QString::fromStdString(m->mission.string()))});
+  QDragEnterEvent enter(QPoint(50, 50), Qt::CopyAction, &data, Qt::LeftButton, Qt::NoModifier);
+  QApplication::sendEvent(&window, &enter);
+  EXPECT_TRUE(enter.isAccepted());
+  QDropEvent drop(QPointF(50, 50), Qt::CopyAction, &data, Qt::LeftButton, Qt::NoModifier);
+  QApplication::sendEvent(&window, &drop);
+  ASSERT_TRUE(opened.wait(30000));
+  EXPECT_EQ(window.missionPath().toStdString(), fs::absolute(m->mission).string());
+
+  // The cursor over the map: latitude and longitude of the mission's geo-referenced map.
+  MosaicView* view = window.mosaicView();
+  const QPoint centre = view->rect().center();
+  QTest::mouseMove(view, centre);
+  ASSERT_TRUE(WaitUntil(
+      [&] {
+        for (QLabel* label : window.statusBar()->findChildren<QLabel*>()) {
+          if (label->text().contains("° N") || label->text().contains("° S")) return true;
+        }
+        return false;
+      },
+      3000))
+      << "no coordinates in the status bar";
+}
+
+TEST(MainWindowTest, HelpShowsTheUserGuideWithItsPictures) {
+  MainWindow window;
+  window.show();
+  QAction* guide = nullptr;
+  for (QAction* a : window.findChildren<QAction*>()) {
+    if (a->text() == "Saker &User Guide") guide = a;
+  }
+  ASSERT_NE(guide, nullptr);
+  guide->trigger();
+  QTextBrowser* browser = nullptr;
+  ASSERT_TRUE(WaitUntil(
+      [&] {
+        browser = window.findChild<QTextBrowser*>();
+        return browser != nullptr && browser->isVisible();
+      },
+      3000));
+  EXPECT_TRUE(browser->toPlainText().contains("Click to recall"));
+  // Every picture the guide shows is in the resources.
+  const QString markdown = browser->toMarkdown();
+  for (const char* picture : {"images/main-window-speed.png", "images/recall.png"}) {
+    EXPECT_TRUE(markdown.contains(picture)) << picture;
+    EXPECT_TRUE(QFile::exists(QString(":/saker/docs/") + picture)) << picture;
+  }
 }
 
 // Processing runs on the task runner: the event loop keeps turning, the mosaic grows (preview
