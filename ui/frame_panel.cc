@@ -30,6 +30,20 @@ namespace saker::ui {
 
 namespace {
 
+// The video's frame index as the mission stores it (schema 2), or empty when any frame lacks its
+// stream position or the positions are not strictly increasing.
+std::vector<video::FrameIndexEntry> StoredFrameIndex(const mission::Mission& mission) {
+  std::vector<video::FrameIndexEntry> index;
+  index.reserve(mission.frames.size());
+  for (const mission::FrameRecord& f : mission.frames) {
+    if (!f.pts || f.index != int64_t(index.size()) ||
+        (!index.empty() && *f.pts <= index.back().pts))
+      return {};
+    index.push_back({f.index, *f.pts, f.time_s, f.key_frame});
+  }
+  return index;
+}
+
 constexpr int kHintDelayMs = 100;  // a decode faster than this shows no "decoding…" hint
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
@@ -298,7 +312,7 @@ FramePanel::FramePanel(QWidget* parent)
 FramePanel::~FramePanel() = default;
 
 void FramePanel::setMission(std::shared_ptr<const mission::Mission> mission,
-                            const QString& video_path) {
+                            const QString& video_path, bool same_video) {
   pause();
   mission_ = std::move(mission);
   current_.reset();
@@ -341,7 +355,8 @@ void FramePanel::setMission(std::shared_ptr<const mission::Mission> mission,
         if (warm_fps_ > 0) fps_ = warm_fps_;
       } else {
         warm_path_.clear();
-        recall_->setVideo(video_path_);
+        recall_->setVideo(video_path_, same_video ? StoredFrameIndex(*mission_)
+                                                  : std::vector<video::FrameIndexEntry>{});
       }
       stack_->setCurrentWidget(canvas_);
       canvas_->setPlaceholder(idlePlaceholder());

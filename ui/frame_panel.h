@@ -46,7 +46,10 @@ class FramePanel : public QWidget {
   // find the video; the message names source.path) or a missing file shows a message naming the
   // path and a "Locate Video…" button. Starts warming the video (indexing it in the background)
   // at once, so the first recall is fast. Clears the observation. A null mission clears all.
-  void setMission(std::shared_ptr<const mission::Mission> mission, const QString& video_path);
+  // `same_video`: the file is known to be the mission's video (its fingerprint matched), so the
+  // frame positions the mission stores are used and no indexing is needed.
+  void setMission(std::shared_ptr<const mission::Mission> mission, const QString& video_path,
+                  bool same_video = true);
   // Recalls the frame of mission->tracks[track_index].points[point_index]; indices out of range
   // are ignored. Pauses playback. Emits observationChanged when the observation changes.
   void showObservation(size_t track_index, size_t point_index);

@@ -36,9 +36,10 @@ struct FrameRecall::Shared {
   std::condition_variable wake;
   // Written under `mutex`; atomic so the warm-up pass can poll them once per frame without it.
   std::atomic<bool> stop{false};
-  std::atomic<uint64_t> generation{0};  // bumped by every setVideo()
-  std::string path;                     // the video of `generation`
-  std::optional<Request> pending;       // at most one: latest wins
+  std::atomic<uint64_t> generation{0};        // bumped by every setVideo()
+  std::string path;                           // the video of `generation`
+  std::vector<video::FrameIndexEntry> index;  // its frame index when known (else indexed)
+  std::optional<Request> pending;             // at most one: latest wins
   std::atomic<bool> warm{false};
   std::thread thread;
 };
@@ -58,10 +59,11 @@ FrameRecall::~FrameRecall() {
   shared_->thread.join();
 }
 
-void FrameRecall::setVideo(const QString& path) {
+void FrameRecall::setVideo(const QString& path, std::vector<video::FrameIndexEntry> index) {
   {
     std::lock_guard<std::mutex> lock(shared_->mutex);
     shared_->path = path.toStdString();
+    shared_->index = std::move(index);
     shared_->pending.reset();
     shared_->warm = false;
     ++shared_->generation;
@@ -88,6 +90,7 @@ void FrameRecall::run() {
   Shared& shared = *shared_;
   uint64_t open_generation = 0;  // generation 0 is "no video"
   std::string path;
+  std::vector<video::FrameIndexEntry> known_index;
   std::unique_ptr<video::VideoReader> reader;  // random access, on the complete index
   QString open_error;                          // why `reader` is null once an open was tried
 
@@ -105,6 +108,20 @@ void FrameRecall::run() {
   auto warm_up = [&]() -> bool {
     QElapsedTimer timer;
     timer.start();
+    video::ReaderOptions recall_options;
+    recall_options.want_bgr = true;
+    if (!known_index.empty()) {
+      auto opened = video::OpenWithIndex(path, std::move(known_index), recall_options);
+      if (opened.ok()) {
+        reader = std::move(opened).value();
+        const auto count = static_cast<qint64>(reader->frame_index().size());
+        const double fps = reader->info().fps, ms = MillisecondsSince(timer);
+        const QString qpath = QString::fromStdString(path);
+        post([this, qpath, count, fps, ms] { emit videoReady(qpath, count, fps, ms); });
+        return true;
+      }
+      // Not this file's index after all: index the file as if none had been given.
+    }
     video::ReaderOptions scan_options;
     scan_options.want_bgr = false;
     scan_options.want_grey = false;
@@ -128,8 +145,6 @@ void FrameRecall::run() {
       return false;
     }
     const double fps = (*scan)->info().fps;
-    video::ReaderOptions recall_options;
-    recall_options.want_bgr = true;
     auto opened = video::OpenWithIndex(path, (*scan)->frame_index(), recall_options);
     if (!opened.ok()) {
       open_error = QString::fromStdString(opened.status().message());
@@ -154,6 +169,8 @@ void FrameRecall::run() {
       if (shared.generation != open_generation) {
         open_generation = shared.generation;
         path = shared.path;
+        known_index = std::move(shared.index);
+        shared.index.clear();
         lock.unlock();
         reader.reset();
         open_error.clear();

@@ -10,11 +10,14 @@
 // starts is dropped, so stepping or scrubbing quickly never builds a queue. Results arrive as
 // queued signals on the thread that owns the FrameRecall (the GUI thread).
 
+#include "core/video/video_reader.h"
+
 #include <QImage>
 #include <QObject>
 #include <QString>
 #include <cstdint>
 #include <memory>
+#include <vector>
 
 namespace saker::ui {
 
@@ -31,7 +34,10 @@ class FrameRecall : public QObject {
 
   // Closes the previous video and warms `path` on the worker (an empty path only closes). A
   // pending request for the previous video is dropped. Emits videoReady or videoFailed.
-  void setVideo(const QString& path);
+  // `index`, when given, is the video's frame index as a reader made it (a mission stores it):
+  // the video is then opened on it at once, without the indexing pass (which remains the
+  // fallback should the index not fit the file).
+  void setVideo(const QString& path, std::vector<video::FrameIndexEntry> index = {});
   QString video() const;
 
   // Asks for frame `frame_index` (0-based, presentation order). Latest wins: a request not yet

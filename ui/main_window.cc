@@ -713,7 +713,8 @@ bool MainWindow::useVideo(const QString& path, bool force) {
   }
   video_path_ = QFileInfo(path).absoluteFilePath();
   video_problem_.clear();
-  frame_panel_->setMission(mission_, video_path_);
+  frame_panel_->setMission(mission_, video_path_,
+                           /*same_video=*/*fingerprint == mission_->source.fingerprint);
   if (selected_) frame_panel_->showObservation(selected_->first, selected_->second);
   updateMissionFacts();
   return true;

@@ -355,6 +355,8 @@ StatusOr<FrontEndResult> RunFrontEnd(const std::string& path, const FrontEndOpti
     FrameResult fr;
     fr.index = frame->index;
     fr.time_s = frame->time_s;
+    fr.pts = frame->pts;
+    fr.key_frame = frame->key_frame;
 
     auto start = Clock::now();
     tracker.Process(frame->index, frame->grey);

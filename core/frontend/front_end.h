@@ -75,6 +75,8 @@ struct FrontEndOptions {
 struct FrameResult {
   int64_t index = 0;
   double time_s = 0;
+  int64_t pts = 0;             // in the video stream's time base, as video::Frame::pts
+  bool key_frame = false;      // a key frame of the video stream (random access seeks to these)
   bool homography_ok = false;  // current_from_previous is valid (never for a segment's first frame)
   Eigen::Matrix3d current_from_previous = Eigen::Matrix3d::Identity();
   track::HomographyCovariance covariance = track::HomographyCovariance::Zero();

@@ -22,7 +22,9 @@
 namespace saker::mission {
 
 // Version of the mission file's schema. A file with a newer version is refused, never written.
-inline constexpr int kSchemaVersion = 1;
+// Version 2 added the frames' presentation time stamps and key-frame flags; a version 1 file is
+// read as it is and upgraded in place when it is opened for writing.
+inline constexpr int kSchemaVersion = 2;
 
 using Covariance8 = Eigen::Matrix<double, 8, 8>;
 
@@ -51,6 +53,11 @@ struct FrameRecord {
   // to the frame's metadata, when it has them.
   std::optional<std::array<Eigen::Vector2d, 4>> metadata_corners;
   std::optional<geo::Wgs84> sensor;  // sensor position from the metadata
+  // Where the frame is in the video stream (video::FrameIndexEntry: pts in the stream's time base
+  // and whether it is a key frame), so frame recall can seek without indexing the video again.
+  // Absent in missions of schema version 1.
+  std::optional<int64_t> pts;
+  bool key_frame = false;
 };
 
 struct KeyFrameRecord {

@@ -37,7 +37,7 @@ constexpr int kCornerValues = 8;  // four (x, y) pairs
 constexpr int kMaxPyramidLevels = 32;
 constexpr int kMaxTileSize = 1 << 16;
 
-// Schema v1 (docs/mission-file.md). REAL columns are nullable on purpose: SQLite stores NaN as
+// Schema v2 (docs/mission-file.md). REAL columns are nullable on purpose: SQLite stores NaN as
 // NULL.
 constexpr const char* kSchemaSql = R"sql(
 CREATE TABLE meta (
@@ -63,7 +63,9 @@ CREATE TABLE frames (
   metadata_corners BLOB,
   sensor_latitude_deg REAL,
   sensor_longitude_deg REAL,
-  sensor_height_m REAL
+  sensor_height_m REAL,
+  pts INTEGER,
+  key_frame INTEGER
 );
 CREATE TABLE key_frames (
   ordinal INTEGER PRIMARY KEY,
@@ -732,8 +734,9 @@ void RemoveDatabaseFiles(const std::string& path) {
 struct MissionStore::Impl {
   std::string path;
   OpenMode mode = OpenMode::kReadOnly;
-  DbHandle db;          // destroyed last: after the statements below
-  Statement read_tile;  // cached: tiles are read one by one while the map is panned
+  mutable int schema = kSchemaVersion;  // of the file, once CheckIdentity has read it
+  DbHandle db;                          // destroyed last: after the statements below
+  Statement read_tile;                  // cached: tiles are read one by one while the map is panned
   Statement count_tiles;
 
   Status Error(int rc, const std::string& what) const {
@@ -790,6 +793,7 @@ struct MissionStore::Impl {
   Status CheckIdentity() const;
   StatusOr<int> ReadSchemaVersion() const;
   Status SetWriteOptions();
+  Status Upgrade();  // to kSchemaVersion, in one transaction
   Status SaveInTransaction(const Mission& mission, unsigned parts);
   Status WriteHeader(const Mission& mission);
   Status WriteFrames(const std::vector<FrameRecord>& frames);
@@ -881,6 +885,7 @@ Status MissionStore::Impl::CheckIdentity() const {
     return UnsupportedError(path + ": written by a newer Saker: schema " + std::to_string(newest) +
                             ", this version reads up to " + std::to_string(kSchemaVersion));
   }
+  schema = schema_version;
   if (user_version != schema_version) {
     return InvalidDataError(path + ": inconsistent schema version (user_version " +
                             std::to_string(user_version) + ", meta " +
@@ -908,6 +913,25 @@ Status MissionStore::Impl::SetWriteOptions() {
   // transaction and Load checks the relation, so enforcing it per row (a third slower track
   // save) buys nothing here.
   return Exec("PRAGMA foreign_keys = OFF", "configuring foreign keys");
+}
+
+// Version 1 -> 2: the frames' stream positions (NULL: unknown, as for any frame without them).
+Status MissionStore::Impl::Upgrade() {
+  Transaction transaction(db.get(), path);
+  SAKER_RETURN_IF_ERROR(transaction.Begin(/*write=*/true));
+  if (schema < 2) {
+    SAKER_RETURN_IF_ERROR(
+        Exec("ALTER TABLE frames ADD COLUMN pts INTEGER; "
+             "ALTER TABLE frames ADD COLUMN key_frame INTEGER",
+             "upgrading the mission to schema 2"));
+  }
+  const std::string version = std::to_string(kSchemaVersion);
+  const std::string sql = "UPDATE meta SET value = " + version + " WHERE key = '" +
+                          kKeySchemaVersion + "'; PRAGMA user_version = " + version;
+  SAKER_RETURN_IF_ERROR(Exec(sql.c_str(), "upgrading the mission's schema version"));
+  SAKER_RETURN_IF_ERROR(transaction.Commit());
+  schema = kSchemaVersion;
+  return Status::Ok();
 }
 
 Status MissionStore::Impl::Checkpoint() {
@@ -996,8 +1020,8 @@ Status MissionStore::Impl::WriteFrames(const std::vector<FrameRecord>& frames) {
   SAKER_ASSIGN_OR_RETURN(
       Statement stmt,
       Prepare("INSERT INTO frames (frame_index, time_s, utc_us, map_from_frame, metadata_corners, "
-              "sensor_latitude_deg, sensor_longitude_deg, sensor_height_m) "
-              "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8)",
+              "sensor_latitude_deg, sensor_longitude_deg, sensor_height_m, pts, key_frame) "
+              "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10)",
               "saving table frames"));
   uint8_t matrix[kMatrix3Values * 8];
   uint8_t corners[kCornerValues * 8];
@@ -1031,6 +1055,12 @@ Status MissionStore::Impl::WriteFrames(const std::vector<FrameRecord>& frames) {
       b.Null(6);
       b.Null(7);
       b.Null(8);
+    }
+    b.OptionalInt64(9, f.pts);
+    if (f.pts) {
+      b.Int64(10, f.key_frame ? 1 : 0);
+    } else {
+      b.Null(10);
     }
     SAKER_RETURN_IF_ERROR(Run(stmt.get(), b, "saving table frames"));
   }
@@ -1241,9 +1271,13 @@ Status MissionStore::Impl::LoadSource(SourceVideo* s) const {
 Status MissionStore::Impl::LoadFrames(std::vector<FrameRecord>* frames) const {
   SAKER_ASSIGN_OR_RETURN(
       Statement stmt,
-      Prepare("SELECT frame_index, time_s, utc_us, map_from_frame, metadata_corners, "
-              "sensor_latitude_deg, sensor_longitude_deg, sensor_height_m "
-              "FROM frames ORDER BY frame_index",
+      Prepare(schema >= 2
+                  ? "SELECT frame_index, time_s, utc_us, map_from_frame, metadata_corners, "
+                    "sensor_latitude_deg, sensor_longitude_deg, sensor_height_m, pts, key_frame "
+                    "FROM frames ORDER BY frame_index"
+                  : "SELECT frame_index, time_s, utc_us, map_from_frame, metadata_corners, "
+                    "sensor_latitude_deg, sensor_longitude_deg, sensor_height_m, NULL, NULL "
+                    "FROM frames ORDER BY frame_index",
               "loading table frames"));
   RowReader row(stmt.get(), path, "frames");
   int rc;
@@ -1270,6 +1304,8 @@ Status MissionStore::Impl::LoadFrames(std::vector<FrameRecord>* frames) const {
     if (!row.IsNull(5) || !row.IsNull(6) || !row.IsNull(7)) {
       f.sensor = geo::Wgs84{row.Real(5), row.Real(6), row.Real(7)};
     }
+    f.pts = row.OptionalInt64(8);
+    if (f.pts) f.key_frame = row.Bool(9);
     SAKER_RETURN_IF_ERROR(row.status());
     frames->push_back(std::move(f));
   }
@@ -1459,6 +1495,7 @@ StatusOr<std::unique_ptr<MissionStore>> MissionStore::Open(const std::string& pa
     SAKER_RETURN_IF_ERROR(impl->OpenConnection(SQLITE_OPEN_READWRITE));
     SAKER_RETURN_IF_ERROR(impl->CheckIdentity());
     SAKER_RETURN_IF_ERROR(impl->SetWriteOptions());
+    if (impl->schema < kSchemaVersion) SAKER_RETURN_IF_ERROR(impl->Upgrade());
   }
   return std::unique_ptr<MissionStore>(new MissionStore(std::move(impl)));
 }

@@ -134,6 +134,8 @@ std::vector<mission::FrameRecord> FrameRecords(const frontend::FrontEndResult& f
     mission::FrameRecord f;
     f.index = front.frames[i].index;
     f.time_s = front.frames[i].time_s;
+    f.pts = front.frames[i].pts;
+    f.key_frame = front.frames[i].key_frame;
     if (mosaic && i < mosaic->in_between.map_from_frame.size()) {
       f.map_from_frame = mosaic->in_between.map_from_frame[i];
     }

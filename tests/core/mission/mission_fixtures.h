@@ -90,6 +90,8 @@ inline bool MissionsEqual(const Mission& a, const Mission& b, std::string* why) 
       return differ("metadata_corners");
     }
     if (!SameOptional(fa.sensor, fb.sensor, same_wgs84)) return differ("sensor");
+    if (!SameOptional(fa.pts, fb.pts, same_int64)) return differ("pts");
+    if (fa.pts && fa.key_frame != fb.key_frame) return differ("key_frame");
     out.str("");
   }
 
@@ -213,6 +215,10 @@ inline Mission MakeFullMission() {
           Eigen::Vector2d(31.75, -5.5), Eigen::Vector2d(-11.0625, -6.5 * i)};
     }
     if (all || i == 4) f.sensor = geo::Wgs84{51.5 + 0.001 * i, -1.25 - 0.002 * i, 1500.5 + i};
+    if (all || i == 1) {
+      f.pts = 3600 * f.index - 7;  // may be negative
+      f.key_frame = i == 0;
+    }
     m.frames.push_back(f);
   }
 

@@ -133,6 +133,37 @@ TEST_F(MissionStoreTest, RoundTripKeepsEveryField) {
   EXPECT_SAME_MISSION(*loaded, original);
 }
 
+// A mission of schema 1 (before the frames' stream positions): read as it is, upgraded in place
+// when opened for writing, and then saves and loads everything.
+TEST_F(MissionStoreTest, SchemaOneFileIsReadAndUpgradedForWriting) {
+  const fs::path path = File("v1.saker");
+  const Mission full = MakeFullMission();
+  WriteMissionFile(path, full);
+  ExecSql(path,
+          "ALTER TABLE frames DROP COLUMN pts; ALTER TABLE frames DROP COLUMN key_frame; "
+          "UPDATE meta SET value = 1 WHERE key = 'schema_version'; PRAGMA user_version = 1");
+  {
+    auto store = MissionStore::Open(path.string());
+    ASSERT_TRUE(store.ok()) << store.status().ToString();
+    auto m = (*store)->Load();
+    ASSERT_TRUE(m.ok()) << m.status().ToString();
+    EXPECT_EQ(m->schema_version, 1);
+    ASSERT_EQ(m->frames.size(), full.frames.size());
+    for (const FrameRecord& f : m->frames) EXPECT_FALSE(f.pts.has_value());
+  }
+  {
+    auto store = MissionStore::Open(path.string(), OpenMode::kReadWrite);
+    ASSERT_TRUE(store.ok()) << store.status().ToString();
+    ASSERT_TRUE((*store)->Save(full).ok());
+  }
+  auto store = MissionStore::Open(path.string());
+  ASSERT_TRUE(store.ok()) << store.status().ToString();
+  auto m = (*store)->Load();
+  ASSERT_TRUE(m.ok()) << m.status().ToString();
+  EXPECT_EQ(m->schema_version, kSchemaVersion);
+  EXPECT_SAME_MISSION(*m, full);
+}
+
 TEST_F(MissionStoreTest, ComparisonHelperSeesSmallDifferences) {
   // The round trips above are only as strong as the comparison.
   const Mission a = MakeFullMission();
@@ -506,7 +537,7 @@ TEST_F(MissionStoreTest, CreateReplacesAMissionWithAnUncheckpointedLog) {
 TEST_F(MissionStoreTest, CreateNeverReplacesANewerOrCorruptMission) {
   const fs::path newer = File("newer.saker");
   WriteMissionFile(newer, MakeFullMission());
-  ExecSql(newer, "UPDATE meta SET value = 3 WHERE key = 'schema_version'; PRAGMA user_version = 3");
+  ExecSql(newer, "UPDATE meta SET value = 9 WHERE key = 'schema_version'; PRAGMA user_version = 9");
   const fs::path corrupt = File("corrupt.saker");
   WriteMissionFile(corrupt, MakeFullMission());
   std::vector<uint8_t> bytes = ReadBytes(corrupt);
@@ -590,11 +621,11 @@ TEST_F(MissionStoreTest, OpenRefusesBadFilesWithoutTouchingThem) {
   cases.push_back({"no_links.saker", StatusCode::kInvalidData});
   // Newer schema, in meta only and in both places.
   WriteMissionFile(File("newer.saker"), MakeFullMission());
-  ExecSql(File("newer.saker"), "UPDATE meta SET value = 3 WHERE key = 'schema_version'");
+  ExecSql(File("newer.saker"), "UPDATE meta SET value = 9 WHERE key = 'schema_version'");
   cases.push_back({"newer.saker", StatusCode::kUnsupported});
   WriteMissionFile(File("newer2.saker"), MakeFullMission());
   ExecSql(File("newer2.saker"),
-          "UPDATE meta SET value = 2 WHERE key = 'schema_version'; PRAGMA user_version = 2");
+          "UPDATE meta SET value = 9 WHERE key = 'schema_version'; PRAGMA user_version = 9");
   cases.push_back({"newer2.saker", StatusCode::kUnsupported});
 
   for (const BadFile& c : cases) {
@@ -616,8 +647,9 @@ TEST_F(MissionStoreTest, OpenRefusesBadFilesWithoutTouchingThem) {
     }
   }
   auto newer = MissionStore::Open(File("newer.saker").string());
-  EXPECT_NE(newer.status().message().find("written by a newer Saker: schema 3, this version "
-                                          "reads up to 1"),
+  EXPECT_NE(newer.status().message().find("written by a newer Saker: schema 9, this version "
+                                          "reads up to " +
+                                          std::to_string(kSchemaVersion)),
             std::string::npos)
       << newer.status().message();
 }
