@@ -12,6 +12,7 @@ set(CPACK_DEBIAN_PACKAGE_SHLIBDEPS ON)
 set(CPACK_STRIP_FILES ON)
 
 install(FILES ${PROJECT_SOURCE_DIR}/packaging/saker.desktop DESTINATION share/applications)
+install(FILES ${PROJECT_SOURCE_DIR}/packaging/saker-mission.xml DESTINATION share/mime/packages)
 install(FILES ${PROJECT_SOURCE_DIR}/resources/icons/saker.svg
         DESTINATION share/icons/hicolor/scalable/apps)
 include(CPack)

@@ -448,6 +448,11 @@ void MainWindow::missionLoaded(const Loaded& loaded) {
   video_path_ = loaded.video;
   video_problem_ = loaded.problem;
   track_index_ = std::make_unique<activity::TrackIndex>(&mission_->tracks);
+  plane_.reset();
+  if (mission_->map.geo_referenced && mission_->map.origin) {
+    if (auto plane = geo::LocalTangentPlane::Create(*mission_->map.origin); plane.ok())
+      plane_ = std::move(plane).value();
+  }
   if (selected_ && (selected_->first >= mission_->tracks.size() ||
                     selected_->second >= mission_->tracks[selected_->first].points.size()))
     selected_.reset();
@@ -830,16 +835,8 @@ void MainWindow::updateCursor(const std::optional<Eigen::Vector2d>& map_point) {
     cursor_label_->clear();
     return;
   }
-  if (mission_->map.geo_referenced && mission_->map.origin) {
-    static thread_local std::optional<std::pair<geo::Wgs84, geo::LocalTangentPlane>> plane;
-    const geo::Wgs84& origin = *mission_->map.origin;
-    if (!plane || plane->first.latitude_deg != origin.latitude_deg ||
-        plane->first.longitude_deg != origin.longitude_deg) {
-      StatusOr<geo::LocalTangentPlane> made = geo::LocalTangentPlane::Create(origin);
-      if (!made.ok()) return;
-      plane.emplace(origin, std::move(made).value());
-    }
-    const geo::Wgs84 p = plane->second.LatLonFromMap(*map_point);
+  if (plane_) {
+    const geo::Wgs84 p = plane_->LatLonFromMap(*map_point);
     cursor_label_->setText(LatLonText(p.latitude_deg, p.longitude_deg));
   } else {
     cursor_label_->setText(

@@ -8,6 +8,7 @@
 
 #include "core/activity/activity.h"
 #include "core/activity/colours.h"
+#include "core/geo/local_tangent_plane.h"
 #include "core/mission/mission.h"
 #include "core/util/job_context.h"
 #include "core/util/status.h"
@@ -128,6 +129,7 @@ class MainWindow : public QMainWindow {
   QString video_path_;
   QString video_problem_;  // why the video is not available, for the frame panel
   std::unique_ptr<activity::TrackIndex> track_index_;
+  std::optional<geo::LocalTangentPlane> plane_;  // map -> latitude, longitude (geo-referenced)
   std::optional<std::pair<size_t, size_t>> selected_;
 
   MosaicView* view_ = nullptr;
