@@ -377,6 +377,8 @@ void MainWindow::openMission(const QString& path) {
     view_->clearPreview();
     view_->setMission(nullptr, QString());
     frame_panel_->clear();
+    mission_path_ = absolute;
+    resetFilter();
   }
   mission_path_ = absolute;
   updateMissionFacts();
@@ -508,7 +510,7 @@ void MainWindow::processVideo(const QString& video, const QString& mission_path,
   mission_path_ = QFileInfo(mission_path).absoluteFilePath();
   processing_video_ = video;
   setWindowTitle(tr("%1 — Saker").arg(QFileInfo(mission_path_).fileName()));
-  updateMissionFacts();
+  resetFilter();
 
   pipeline::ProcessOptions options;
   options.replace = replace;
@@ -530,6 +532,7 @@ void MainWindow::processVideo(const QString& video, const QString& mission_path,
   startJob(tr("Processing"), [video_path, target, options](JobContext* job) -> Status {
     return pipeline::ProcessVideo(video_path, target, options, job).status();
   });
+  updateMissionFacts();
 }
 
 void MainWindow::jobEnded(const QString& title, const Status& status) {
@@ -812,6 +815,8 @@ void MainWindow::resetFilter() {
   min_speed_->setValue(0);
   max_speed_->setValue(std::max(fastest, 1.0));
   speed_unit_->setText(geo ? tr("m/s") : tr("px/s"));
+  const bool has_tracks = mission_ && !mission_->tracks.empty();
+  for (QDoubleSpinBox* box : {from_s_, to_s_, min_speed_, max_speed_}) box->setEnabled(has_tracks);
   filter_updating_ = false;
   applyFilter();
 }

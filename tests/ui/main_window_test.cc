@@ -497,6 +497,17 @@ TEST(MainWindowScreenshots, DemoMission) {
   ASSERT_TRUE(shown.wait(10000));
   QTest::qWait(300);
   window.grab().save(folder + "/recall.png");
+
+  // Processing a video: the key-frame preview growing, the stage and Cancel in the status bar.
+  const fs::path temp = saker::testing::MakeTempDir("saker-ui-shots");
+  QSignalSpy finished(&window, &MainWindow::jobFinished);
+  window.processVideo(QString::fromStdString((demo.parent_path() / "demo.ts").string()),
+                      QString::fromStdString((temp / "processing.saker").string()), false);
+  ASSERT_TRUE(WaitUntil([&] { return view->previewKeyFrameCount() >= 6; }, 120000));
+  QTest::qWait(300);
+  window.grab().save(folder + "/processing.png");
+  window.taskRunner()->cancel();
+  ASSERT_TRUE(finished.wait(60000));
 }
 
 }  // namespace
