@@ -20,8 +20,10 @@
 #include <QDropEvent>
 #include <QElapsedTimer>
 #include <QFile>
+#include <QFileDialog>
 #include <QImage>
 #include <QLabel>
+#include <QLineEdit>
 #include <QMessageBox>
 #include <QMimeData>
 #include <QProgressBar>
@@ -385,6 +387,47 @@ TEST(MainWindowTest, ExportsWriteValidFilesOfTheShownTracks) {
   const auto copy = mission::MissionStore::Open((dir / "copy.saker").string());
   ASSERT_TRUE(copy.ok());
   EXPECT_EQ((*copy)->Load()->tracks.size(), tracks.size());
+}
+
+// The whole menu path: File > Export Activity Map…, the file dialog answered as a person would.
+TEST(MainWindowTest, ExportActivityMapFromTheFileMenu) {
+  const TestMission* m = SmallMission();
+  ASSERT_NE(m, nullptr);
+  MainWindow window;
+  window.show();
+  ASSERT_TRUE(OpenAndWait(window, *m));
+  ColourAction(window, "direction")->trigger();
+  const fs::path dir = saker::testing::MakeTempDir("saker-ui-menu");
+  const QString target = QString::fromStdString((dir / "from-menu.png").string());
+  QAction* action = nullptr;
+  for (QAction* a : window.findChildren<QAction*>()) {
+    if (a->text() == "Export Activity &Map…") action = a;
+  }
+  ASSERT_NE(action, nullptr);
+  // The dialog is modal: answer it from the event loop once it is up.
+  bool answered = false;
+  QTimer answer;
+  QObject::connect(&answer, &QTimer::timeout, [&] {
+    auto* dialog = qobject_cast<QFileDialog*>(QApplication::activeModalWidget());
+    if (dialog == nullptr) return;
+    answer.stop();
+    EXPECT_TRUE(dialog->selectedFiles().value(0).endsWith("-activity-direction.png"))
+        << dialog->selectedFiles().value(0).toStdString();
+    // Typed into the file name box, then Save.
+    auto* name = dialog->findChild<QLineEdit*>("fileNameEdit");
+    ASSERT_NE(name, nullptr);
+    name->setText(target);
+    QMetaObject::invokeMethod(dialog, "accept");
+    answered = true;
+  });
+  answer.start(20);
+  QSignalSpy finished(&window, &MainWindow::jobFinished);
+  action->trigger();
+  EXPECT_TRUE(answered);
+  ASSERT_TRUE(!finished.isEmpty() || finished.wait(60000));
+  EXPECT_TRUE(finished.at(0).at(1).value<Status>().ok());
+  const QImage picture(target);
+  EXPECT_FALSE(picture.isNull()) << target.toStdString();
 }
 
 TEST(MainWindowTest, CorruptMissionGivesAnErrorDialogNamingTheFile) {
