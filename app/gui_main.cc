@@ -5,16 +5,25 @@
 
 #include <QApplication>
 #include <QCommandLineParser>
+#include <QCoreApplication>
+#include <QStringList>
+#include <iostream>
 
-int main(int argc, char** argv) {
-  QApplication app(argc, argv);
-  QApplication::setApplicationName("Saker");
-  QApplication::setOrganizationName("Saker");
-  QApplication::setApplicationVersion(SAKER_VERSION);
+namespace {
 
+void SetIdentity() {
+  QCoreApplication::setApplicationName("Saker");
+  QCoreApplication::setOrganizationName("Saker");
+  QCoreApplication::setApplicationVersion(SAKER_VERSION);
+}
+
+// Parses the command line; --help, --version and errors print and exit here.
+QStringList ParseArguments(const QCoreApplication& app) {
   QCommandLineParser parser;
   parser.setApplicationDescription(
-      "Saker: analyst workstation for airborne video with STANAG 4609 metadata.");
+      "Saker: analyst workstation for airborne video with STANAG 4609 metadata.\n"
+      "Opens a mission, or processes a video into one; docs/user-guide.md describes the window.\n"
+      "On a machine without a display, use saker-cli (or run this under xvfb-run).");
   parser.addHelpOption();
   parser.addVersionOption();
   parser.addPositionalArgument(
@@ -22,12 +31,37 @@ int main(int argc, char** argv) {
       "A mission (.saker) to open, or a video (MPEG-TS, MPG, MP4) to process into a mission.",
       "[file]");
   parser.process(app);
+  return parser.positionalArguments();
+}
+
+bool HasDisplay() {
+  return !qEnvironmentVariableIsEmpty("DISPLAY") ||
+         !qEnvironmentVariableIsEmpty("WAYLAND_DISPLAY") ||
+         !qEnvironmentVariableIsEmpty("QT_QPA_PLATFORM");
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  // Help and version need no display: they are answered before the GUI starts.
+  QStringList files;
+  {
+    QCoreApplication console(argc, argv);
+    SetIdentity();
+    files = ParseArguments(console);
+  }
+  if (!HasDisplay()) {
+    std::cerr << "saker: no display to open the window on (neither DISPLAY nor WAYLAND_DISPLAY "
+                 "is set). On a headless machine use saker-cli, or run `xvfb-run -a saker`.\n";
+    return 1;
+  }
+  QApplication app(argc, argv);
+  SetIdentity();
 
   // Damage is reported in the window; FFmpeg's own stderr chatter is noise here.
   saker::video::SetFfmpegLogVerbose(false);
   saker::ui::MainWindow window;
   window.show();
-  if (!parser.positionalArguments().isEmpty())
-    window.openPath(parser.positionalArguments().front());
+  if (!files.isEmpty()) window.openPath(files.front());
   return app.exec();
 }

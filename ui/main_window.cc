@@ -214,7 +214,7 @@ void MainWindow::createDocks() {
   mission_dock->setObjectName("missionDock");
   mission_dock->setWidget(side);
   addDockWidget(Qt::LeftDockWidgetArea, mission_dock);
-  resizeDocks({mission_dock, frame_dock}, {240, 560}, Qt::Horizontal);
+  resizeDocks({mission_dock, frame_dock}, {220, 400}, Qt::Horizontal);
 }
 
 void MainWindow::createActions() {
