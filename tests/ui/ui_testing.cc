@@ -3,6 +3,7 @@
 #include "core/mission/mission_store.h"
 #include "core/pipeline/process.h"
 #include "core/sim/simulator.h"
+#include "tests/testing/small_loop.h"
 #include "tests/testing/test_data.h"
 
 #include <fcntl.h>
@@ -51,17 +52,7 @@ std::unique_ptr<TestMission> MakeSmallMission() {
   made->video = dir / "loop.ts";
   made->mission = dir / "loop.saker";
 
-  sim::SimulationOptions options;
-  options.output = made->video;
-  options.scenario = sim::Scenario::kRoundaboutLoop;
-  options.camera.width = 640;
-  options.camera.height = 360;
-  options.flight.altitude_m = 200;
-  options.fps = 12.5;
-  options.world.loop_length_m = 500;
-  options.targets.cars = 6;
-  options.targets.vans = 0;
-  options.targets.people = 4;
+  const sim::SimulationOptions options = saker::testing::SmallLoopOptions(made->video);
   made->truth = options.TruthPath();
   const std::string stamp_text = options.ToJson().dump() + " " + __DATE__ + " " + __TIME__;
   const std::filesystem::path stamp = dir / "stamp";

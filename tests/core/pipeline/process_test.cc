@@ -4,6 +4,7 @@
 #include "core/pipeline/evaluate.h"
 #include "core/pipeline/export_mission.h"
 #include "core/sim/simulator.h"
+#include "tests/testing/small_loop.h"
 #include "tests/testing/test_data.h"
 
 #include <fcntl.h>
@@ -22,23 +23,12 @@
 namespace saker::pipeline {
 namespace {
 
-// A small revisiting flight: the roundabout loop at 640x360, 12.5 frames per second, with KLV
-// metadata, cars and people (as the mosaic tests make it).
+// A small revisiting flight (tests/testing/small_loop.h), simulated once for the suite.
 class ProcessTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
     dir_ = new std::filesystem::path(testing::MakeTempDir("saker-process"));
-    sim::SimulationOptions options;
-    options.output = *dir_ / "loop.ts";
-    options.scenario = sim::Scenario::kRoundaboutLoop;
-    options.camera.width = 640;
-    options.camera.height = 360;
-    options.flight.altitude_m = 200;
-    options.fps = 12.5;
-    options.world.loop_length_m = 500;
-    options.targets.cars = 6;
-    options.targets.vans = 0;
-    options.targets.people = 4;
+    const sim::SimulationOptions options = saker::testing::SmallLoopOptions(*dir_ / "loop.ts");
     const auto summary = sim::Simulate(options);
     ASSERT_TRUE(summary.ok()) << summary.status().ToString();
     truth_path_ = new std::filesystem::path(options.TruthPath());
