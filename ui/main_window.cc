@@ -575,13 +575,13 @@ void MainWindow::exportFiles(const QString& what, const QString& path, const QSt
   }
   const bool filtered = shown.size() != mission_->tracks.size();
   const std::string source = mission_path_.toStdString();
-  startJob(what, [source, request, shown, filtered](JobContext* job) -> Status {
+  // The mission shown is immutable and already loaded: the worker reads only the tiles.
+  startJob(what, [source, loaded = mission_, request, shown, filtered](JobContext* job) -> Status {
     SAKER_ASSIGN_OR_RETURN(const std::unique_ptr<mission::MissionStore> store,
                            mission::MissionStore::Open(source));
-    SAKER_ASSIGN_OR_RETURN(mission::Mission m, store->Load());
-    if (filtered) {
-      std::erase_if(m.tracks, [&](const mission::ActivityTrack& t) { return !shown.count(t.id); });
-    }
+    if (!filtered) return pipeline::ExportMission(*loaded, *store, request, job).status();
+    mission::Mission m = *loaded;
+    std::erase_if(m.tracks, [&](const mission::ActivityTrack& t) { return !shown.count(t.id); });
     return pipeline::ExportMission(m, *store, request, job).status();
   });
   statusBar()->showMessage(tr("Writing %1…").arg(path));

@@ -47,10 +47,18 @@ const QColor kPanel(16, 17, 20, 205);
 const QColor kPanelText(245, 245, 245);
 // Opaque: a translucent wide pen makes Qt stroke each polyline into a path first (3x slower).
 const QColor kTrackOutline(12, 12, 14);
+
 const QColor kOutlineColour(120, 200, 255, 170);
 const QColor kEllipseColour(255, 196, 40, 220);
 
 QColor ToQColor(const activity::Rgb& c) { return QColor(c.r, c.g, c.b); }
+
+// The dark rounded panel under every overlay (legend, scale bar, north arrow, preview label).
+void FillPanel(QPainter& painter, const QRectF& rect, double radius = 5) {
+  painter.setPen(Qt::NoPen);
+  painter.setBrush(kPanel);
+  painter.drawRoundedRect(rect, radius, radius);
+}
 
 // h (x, y, 1); nullopt when the point maps to or beyond infinity.
 std::optional<QPointF> Project(const Eigen::Matrix3d& h, double x, double y) {
@@ -892,9 +900,7 @@ void MosaicView::paintLegend(QPainter& painter) {
 
   painter.save();
   painter.setRenderHint(QPainter::Antialiasing);
-  painter.setPen(Qt::NoPen);
-  painter.setBrush(kPanel);
-  painter.drawRoundedRect(panel, 5, 5);
+  FillPanel(painter, panel);
   const double left = panel.left() + kPanelPadding;
   double y = panel.top() + kPanelPadding;
   painter.setPen(kPanelText);
@@ -960,9 +966,7 @@ void MosaicView::paintScaleBar(QPainter& painter) {
                      content_width + 2 * kPanelPadding, content_height + 2 * kPanelPadding);
   painter.save();
   painter.setRenderHint(QPainter::Antialiasing);
-  painter.setPen(Qt::NoPen);
-  painter.setBrush(kPanel);
-  painter.drawRoundedRect(panel, 5, 5);
+  FillPanel(painter, panel);
   const double right = panel.right() - kPanelPadding;
   const double top = panel.top() + kPanelPadding;
   painter.setPen(kPanelText);
@@ -983,9 +987,7 @@ void MosaicView::paintScaleBar(QPainter& painter) {
     // North is +y on a geo-referenced map, drawn straight up.
     const double side = metrics.height() + 30;
     const QRectF north(width() - kPanelMargin - side, kPanelMargin, side, side + 6);
-    painter.setPen(Qt::NoPen);
-    painter.setBrush(kPanel);
-    painter.drawRoundedRect(north, 5, 5);
+    FillPanel(painter, north);
     const double cx = north.center().x();
     const double arrow_top = north.top() + 6;
     const double arrow_bottom = north.bottom() - metrics.height() - 4;
@@ -1018,9 +1020,7 @@ void MosaicView::paintPreviewLabel(QPainter& painter) {
                      metrics.height() + 8);
   painter.save();
   painter.setRenderHint(QPainter::Antialiasing);
-  painter.setPen(Qt::NoPen);
-  painter.setBrush(kPanel);
-  painter.drawRoundedRect(panel, 4, 4);
+  FillPanel(painter, panel, 4);
   painter.setPen(QColor(230, 230, 230));
   painter.drawText(panel, Qt::AlignCenter, label);
   painter.restore();

@@ -25,7 +25,6 @@ bool TaskRunner::start(const QString& title, Task task) {
     }
   });
   job_ = job;
-  emit started(title);
   thread_ = std::thread([this, job, task = std::move(task)] {
     Status status;
     try {

@@ -41,7 +41,6 @@ class TaskRunner : public QObject {
   void cancelAndWait();
 
  signals:
-  void started(const QString& title);
   // The stage's name and fraction done in [0, 1].
   void progress(const QString& stage, double fraction);
   // `status` is the job's; cancelled jobs end with StatusCode::kCancelled.
