@@ -19,6 +19,7 @@ struct EvaluateCommand::State {
   std::string video;
   std::filesystem::path truth;
   bool json = false;
+  bool details = false;
   bool no_metadata = false;
   bool no_change = false;
   std::string adjust = "decomposed";
@@ -41,6 +42,9 @@ EvaluateCommand::EvaluateCommand(CLI::App& app) : state_(std::make_unique<State>
   s.command->add_option("VIDEO", s.video, "Simulated video (saker-cli simulate)")->required();
   s.command->add_option("--truth", s.truth, "Its truth file (default: VIDEO with .truth.json)");
   s.command->add_flag("--json", s.json, "Print the figures as JSON");
+  s.command->add_flag("--details", s.details,
+                      "Also list the missed target sightings and the false tracks, with the track "
+                      "or target each was paired with most");
   s.command->add_flag("--no-metadata", s.no_metadata,
                       "Build the mosaic without the metadata corners");
   s.command->add_option("--gate", s.evaluation.gate_px, "Pairing distance, pixels")
@@ -143,7 +147,7 @@ int EvaluateCommand::Run() const {
     }
     std::cout << j.dump(2) << "\n";
   } else {
-    std::cout << frontend::EvaluationToText(*evaluation);
+    std::cout << frontend::EvaluationToText(*evaluation, s.details);
     std::cout << mosaic::MosaicAccuracyToText(*mosaic_accuracy);
     std::cout << pipeline::ActivityAccuracyToText(*activity_accuracy);
     if (experiment.ok()) std::cout << mosaic::MetadataExperimentToText(*experiment);

@@ -160,24 +160,47 @@ DetectionAccuracy EvaluateTargets(const FrontEndResult& result, const sim::Truth
       }
       if (mover_frames < options.min_mover_frames) continue;
       ++a.truth_targets;
+      SightingOutcome outcome{considered[t]->id, considered[t]->target_class, begin, end,
+                              mover_frames};
       for (size_t k = 0; k < result.targets.size(); ++k) {
         const auto it = track_truth_pairs.find({k, t});
         if (it == track_truth_pairs.end()) continue;
         const std::vector<int64_t>& paired = it->second;
         const auto first = std::lower_bound(paired.begin(), paired.end(), begin);
         const auto last = std::lower_bound(paired.begin(), paired.end(), end);
-        if (2 * (last - first) >= mover_frames) {
+        if (last == first) continue;
+        ++outcome.tracks_paired;
+        if (last - first > outcome.best_track_frames) {
+          outcome.best_track_frames = int(last - first);
+          outcome.best_track = int64_t(result.targets[k].id);
+        }
+        if (!outcome.found && 2 * (last - first) >= mover_frames) {
+          outcome.found = true;
           ++a.found_targets;
           latencies.push_back(double(std::max<int64_t>(0, *first - first_mover)) / fps);
-          break;
         }
       }
+      a.sightings.push_back(std::move(outcome));
     }
   }
   for (size_t k = 0; k < result.targets.size(); ++k) {
+    const track::TargetTrack& track = result.targets[k];
     ++a.detected_tracks;
-    if (2 * track_paired_frames[k] >= int(result.targets[k].observations.size()))
-      ++a.correct_tracks;
+    TrackOutcome outcome;
+    outcome.track_id = int64_t(track.id);
+    outcome.first_frame = track.observations.front().frame;
+    outcome.last_frame = track.observations.back().frame;
+    outcome.observations = int64_t(track.observations.size());
+    outcome.from_features = track.max_features > 0;
+    outcome.correct = 2 * track_paired_frames[k] >= int(track.observations.size());
+    for (const auto& [key, frames_paired] : track_truth_pairs) {
+      if (key.first == k && int(frames_paired.size()) > outcome.best_target_frames) {
+        outcome.best_target_frames = int(frames_paired.size());
+        outcome.best_target = considered[key.second]->id;
+      }
+    }
+    if (outcome.correct) ++a.correct_tracks;
+    a.tracks.push_back(outcome);
   }
   a.track_recall = a.truth_targets > 0 ? double(a.found_targets) / double(a.truth_targets) : 1.0;
   a.track_precision =
@@ -202,6 +225,35 @@ nlohmann::json DetectionToJson(const DetectionAccuracy& a) {
           {"frame_recall", a.frame_recall},
           {"frame_precision", a.frame_precision},
           {"median_latency_s", a.median_latency_s}};
+}
+
+// The figures, plus every sighting and every track.
+nlohmann::json DetectionOutcomesToJson(const DetectionAccuracy& a) {
+  nlohmann::json j = DetectionToJson(a);
+  j["sightings"] = nlohmann::json::array();
+  for (const SightingOutcome& s : a.sightings) {
+    j["sightings"].push_back({{"target", s.target_id},
+                              {"class", s.target_class},
+                              {"begin_frame", s.begin},
+                              {"end_frame", s.end},
+                              {"mover_frames", s.mover_frames},
+                              {"found", s.found},
+                              {"best_track", s.best_track},
+                              {"best_track_frames", s.best_track_frames},
+                              {"tracks_paired", s.tracks_paired}});
+  }
+  j["tracks"] = nlohmann::json::array();
+  for (const TrackOutcome& t : a.tracks) {
+    j["tracks"].push_back({{"track", t.track_id},
+                           {"first_frame", t.first_frame},
+                           {"last_frame", t.last_frame},
+                           {"observations", t.observations},
+                           {"from_features", t.from_features},
+                           {"correct", t.correct},
+                           {"best_target", t.best_target},
+                           {"best_target_frames", t.best_target_frames}});
+  }
+  return j;
 }
 
 }  // namespace
@@ -236,14 +288,14 @@ nlohmann::json EvaluationToJson(const Evaluation& e) {
             {"mean_px", e.homography.mean_px},
             {"p95_px", e.homography.p95_px},
             {"max_px", e.homography.max_px}}},
-          {"targets", DetectionToJson(e.targets)},
+          {"targets", DetectionOutcomesToJson(e.targets)},
           {"vehicles", DetectionToJson(e.vehicles)},
           {"people", DetectionToJson(e.people)},
           {"key_frames", e.key_frames},
           {"chain_breaks", e.chain_breaks}};
 }
 
-std::string EvaluationToText(const Evaluation& e) {
+std::string EvaluationToText(const Evaluation& e, bool details) {
   std::ostringstream out;
   out.setf(std::ios::fixed);
   out.precision(3);
@@ -265,6 +317,30 @@ std::string EvaluationToText(const Evaluation& e) {
       << e.people.truth_targets << " found (recall " << e.people.track_recall
       << "), per frame recall " << e.people.frame_recall << "\n";
   out << "Key frames: " << e.key_frames << ", chain breaks: " << e.chain_breaks << "\n";
+  if (details) {
+    for (const SightingOutcome& s : e.targets.sightings) {
+      if (s.found) continue;
+      out << "  missed: target " << s.target_id << " (" << s.target_class << "), frames " << s.begin
+          << "-" << s.end - 1 << ", moving in " << s.mover_frames << "; ";
+      if (s.best_track == 0) {
+        out << "no track near it\n";
+      } else {
+        out << "best track " << s.best_track << " in " << s.best_track_frames << " frames, "
+            << s.tracks_paired << " track(s) paired with it\n";
+      }
+    }
+    for (const TrackOutcome& t : e.targets.tracks) {
+      if (t.correct) continue;
+      out << "  false: track " << t.track_id << " ("
+          << (t.from_features ? "features" : "change detection") << "), frames " << t.first_frame
+          << "-" << t.last_frame << ", " << t.observations << " observations; ";
+      if (t.best_target == 0) {
+        out << "paired with no target\n";
+      } else {
+        out << "paired with target " << t.best_target << " in " << t.best_target_frames << "\n";
+      }
+    }
+  }
   return out.str();
 }
 

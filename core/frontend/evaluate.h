@@ -27,6 +27,7 @@
 #include <nlohmann/json.hpp>
 
 #include <string>
+#include <vector>
 
 namespace saker::frontend {
 
@@ -43,6 +44,29 @@ struct HomographyAccuracy {
   double median_px = 0, mean_px = 0, p95_px = 0, max_px = 0;  // corner transfer error
 };
 
+// How one truth sighting fared: the track paired with it most, and in how many of its frames.
+struct SightingOutcome {
+  int target_id = 0;
+  std::string target_class;
+  int64_t begin = 0, end = 0;  // frames [begin, end)
+  int mover_frames = 0;
+  bool found = false;
+  int64_t best_track = 0;  // id of the track paired with it most (0: none)
+  int best_track_frames = 0;
+  int tracks_paired = 0;  // distinct tracks paired with it in the sighting
+};
+
+// How one detected track fared: the truth target it was paired with most.
+struct TrackOutcome {
+  int64_t track_id = 0;
+  int64_t first_frame = 0, last_frame = 0;
+  int64_t observations = 0;
+  bool from_features = true;  // false: found by change detection alone
+  bool correct = false;
+  int best_target = 0;  // truth target id paired with it most (0: none)
+  int best_target_frames = 0;
+};
+
 struct DetectionAccuracy {
   int64_t truth_targets = 0;  // sightings of movers long enough to count
   int64_t found_targets = 0;
@@ -54,6 +78,10 @@ struct DetectionAccuracy {
   int64_t paired = 0;
   double frame_recall = 0, frame_precision = 0;
   double median_latency_s = 0;
+  // Per sighting and per track, for finding out why a target was missed or a track is false
+  // (saker-cli evaluate --details).
+  std::vector<SightingOutcome> sightings;
+  std::vector<TrackOutcome> tracks;
 };
 
 struct Evaluation {
@@ -71,6 +99,7 @@ StatusOr<Evaluation> Evaluate(const FrontEndResult& result, const sim::Truth& tr
                               const EvaluationOptions& options = {});
 
 nlohmann::json EvaluationToJson(const Evaluation& evaluation);
-std::string EvaluationToText(const Evaluation& evaluation);
+// With `details`, also the missed sightings and the false tracks, one a line.
+std::string EvaluationToText(const Evaluation& evaluation, bool details = false);
 
 }  // namespace saker::frontend

@@ -10,6 +10,9 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <string>
+
 namespace saker::frontend {
 namespace {
 
@@ -88,6 +91,43 @@ TEST_F(FrontEndTest, MovingVehiclesAreFound) {
   EXPECT_GE(evaluation_->vehicles.track_recall, 0.5);
   EXPECT_GE(evaluation_->vehicles.frame_recall, 0.35);
   EXPECT_GE(evaluation_->targets.frame_precision, 0.6);
+}
+
+// The per-sighting and per-track outcomes (saker-cli evaluate --details) agree with the figures,
+// and name real tracks and targets.
+TEST_F(FrontEndTest, OutcomesAgreeWithTheFigures) {
+  ASSERT_NE(evaluation_, nullptr);
+  const DetectionAccuracy& a = evaluation_->targets;
+  ASSERT_EQ(int64_t(a.sightings.size()), a.truth_targets);
+  ASSERT_EQ(int64_t(a.tracks.size()), a.detected_tracks);
+  int64_t found = 0, correct = 0;
+  for (const SightingOutcome& s : a.sightings) {
+    found += s.found;
+    EXPECT_LT(s.begin, s.end);
+    EXPECT_GE(s.mover_frames, 25);
+    EXPECT_LE(s.best_track_frames, s.end - s.begin);
+    // Found means one track covered at least half of the moving frames: the best one did.
+    EXPECT_EQ(s.found, 2 * s.best_track_frames >= s.mover_frames && s.best_track != 0);
+    EXPECT_EQ(s.best_track == 0, s.tracks_paired == 0);
+  }
+  for (const TrackOutcome& t : a.tracks) {
+    correct += t.correct;
+    EXPECT_LE(t.first_frame, t.last_frame);
+    EXPECT_LE(t.best_target_frames, t.observations);
+    const auto it = std::find_if(result_->targets.begin(), result_->targets.end(),
+                                 [&](const auto& r) { return int64_t(r.id) == t.track_id; });
+    EXPECT_NE(it, result_->targets.end()) << "track " << t.track_id;
+  }
+  EXPECT_EQ(found, a.found_targets);
+  EXPECT_EQ(correct, a.correct_tracks);
+  const std::string text = EvaluationToText(*evaluation_, /*details=*/true);
+  const auto lines = [&](const std::string& start) {
+    int64_t n = 0;
+    for (size_t p = text.find(start); p != std::string::npos; p = text.find(start, p + 1)) ++n;
+    return n;
+  };
+  EXPECT_EQ(lines("  missed: "), a.truth_targets - a.found_targets);
+  EXPECT_EQ(lines("  false: "), a.detected_tracks - a.correct_tracks);
 }
 
 // Change detection runs on its own thread and its answers are applied at a fixed lag: however the
