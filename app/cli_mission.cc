@@ -8,6 +8,7 @@
 #include "core/pipeline/export_mission.h"
 #include "core/pipeline/process.h"
 #include "core/render/activity_map.h"
+#include "core/util/memory.h"
 
 #include <nlohmann/json.hpp>
 #include <unistd.h>
@@ -73,6 +74,13 @@ ProcessCommand::ProcessCommand(CLI::App& app) : state_(std::make_unique<State>()
                    "visit")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
+  s.options.front_end.max_memory_mib = DefaultMemoryLimitMiB();
+  s.command
+      ->add_option("--max-memory", s.options.front_end.max_memory_mib,
+                   "Stop with an error, naming the frame reached, when Saker's memory exceeds this "
+                   "many MiB (default: three quarters of this machine's memory; 0: no limit)")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
 }
 
 ProcessCommand::~ProcessCommand() = default;

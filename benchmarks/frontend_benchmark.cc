@@ -3,15 +3,17 @@
 // memory.
 //
 //   saker-bench-frontend [--seconds S] [--json]
-//   saker-bench-frontend --memory-minutes M
+//   saker-bench-frontend --memory-minutes M [--memory-height H]
 //
-// --memory-minutes measures memory instead: it simulates M minutes of 1280x720 video once (the
+// --memory-minutes measures memory instead: it simulates M minutes of video once (1280x720, or
+// 16:9 at --memory-height; the
 // figure-of-eight scenario, in a temporary directory it removes afterwards), runs the front end
 // over it, and prints the resident memory after 1, 2, 5, 10, ... minutes of video and the peak,
 // with what the result keeps, so that growth per minute is visible.
 
 #include "core/frontend/front_end.h"
 #include "core/sim/simulator.h"
+#include "core/util/memory.h"
 #include "core/video/video_reader.h"
 
 #include <CLI/CLI.hpp>
@@ -41,19 +43,12 @@ double PeakRssMb() {
   return double(usage.ru_maxrss) / 1024.0;
 }
 
-// A "VmRSS:"-style field of /proc/self/status, megabytes; -1 when absent.
-double ProcStatusMb(const std::string& field) {
-  std::ifstream status("/proc/self/status");
-  std::string line;
-  while (std::getline(status, line)) {
-    if (line.rfind(field + ":", 0) == 0)
-      return std::strtod(line.c_str() + field.size() + 1, nullptr) / 1024.0;
-  }
-  return -1;
-}
+double ResidentMb() { return double(saker::ResidentMemoryBytes()) / 1e6; }
+double PeakMb() { return double(saker::PeakResidentMemoryBytes()) / 1e6; }
 
 // Memory on a long video: see the file comment.
-int MeasureMemory(double minutes) {
+int MeasureMemory(double minutes, int height) {
+  const int width = height * 16 / 9;
   std::string pattern = (fs::temp_directory_path() / "saker-bench-memory-XXXXXX").string();
   if (mkdtemp(pattern.data()) == nullptr) {
     std::cerr << "cannot make a temporary directory\n";
@@ -70,15 +65,16 @@ int MeasureMemory(double minutes) {
 
   saker::sim::SimulationOptions sim;
   sim.output = dir / "long.ts";
-  sim.camera.width = 1280;
-  sim.camera.height = 720;
+  sim.camera.width = width;
+  sim.camera.height = height;
   sim.duration_s = minutes * 60;
   // The paper's figure of eight over the town (504 s with its 75 key frames), sized to last a
   // little longer than asked for.
   sim.scenario = saker::sim::Scenario::kFigureEight;
   sim.flight.figure_eight_key_frames =
       std::max(8, int(std::ceil(75 * sim.duration_s / 504 * 1.05)));
-  std::printf("simulating %g minutes of 1280x720 video (figure of eight)...\n", minutes);
+  std::printf("simulating %g minutes of %dx%d video (figure of eight)...\n", minutes, width,
+              height);
   std::fflush(stdout);
   auto start = Clock::now();
   if (auto simulated = saker::sim::Simulate(sim); !simulated.ok()) {
@@ -94,7 +90,7 @@ int MeasureMemory(double minutes) {
   std::ofstream clear_refs("/proc/self/clear_refs");
   clear_refs << "5" << std::flush;
   const bool peak_reset = bool(clear_refs);
-  const double rss_start = ProcStatusMb("VmRSS");
+  const double rss_start = ResidentMb();
   std::printf("before the front end: RSS %.0f MB%s\n", rss_start,
               peak_reset ? "" : " (the peak could not be reset: it includes the simulation)");
 
@@ -109,13 +105,12 @@ int MeasureMemory(double minutes) {
   start = Clock::now();
   saker::JobContext job([&](const std::string&, double fraction) {
     while (next < checkpoints.size() && fraction * minutes >= checkpoints[next] - 1e-9) {
-      const double rss = ProcStatusMb("VmRSS");
+      const double rss = ResidentMb();
       std::printf(
           "  after %3g min of video (%4.0f s): RSS %4.0f MB (+%3.0f MB; %+5.1f MB per minute "
           "since the last checkpoint), peak %4.0f MB\n",
           checkpoints[next], std::chrono::duration<double>(Clock::now() - start).count(), rss,
-          rss - rss_start, (rss - previous_rss) / (checkpoints[next] - previous_minutes),
-          ProcStatusMb("VmHWM"));
+          rss - rss_start, (rss - previous_rss) / (checkpoints[next] - previous_minutes), PeakMb());
       std::fflush(stdout);
       previous_minutes = checkpoints[next], previous_rss = rss;
       ++next;
@@ -126,7 +121,7 @@ int MeasureMemory(double minutes) {
     std::cerr << result.status().message() << "\n";
     return 1;
   }
-  const double rss_end = ProcStatusMb("VmRSS"), peak = ProcStatusMb("VmHWM");
+  const double rss_end = ResidentMb(), peak = PeakMb();
   std::printf(
       "front end done: %lld frames in %.0f s (%.1f fps); with its result: RSS %.0f MB (+%.0f MB), "
       "peak %.0f MB (+%.0f MB)\n",
@@ -166,13 +161,12 @@ int MeasureMemory(double minutes) {
   // What each part really occupies (heap included): the memory returned by freeing it, once what
   // the finished threads freed has gone back to the system.
   malloc_trim(0);
-  std::printf("  RSS once the front end's threads and buffers are gone: %.0f MB\n",
-              ProcStatusMb("VmRSS"));
+  std::printf("  RSS once the front end's threads and buffers are gone: %.0f MB\n", ResidentMb());
   const auto released = [&](const char* what, auto&& free_it) {
-    const double before = ProcStatusMb("VmRSS");
+    const double before = ResidentMb();
     free_it();
     malloc_trim(0);
-    std::printf("  freeing %s returns %.1f MB\n", what, before - ProcStatusMb("VmRSS"));
+    std::printf("  freeing %s returns %.1f MB\n", what, before - ResidentMb());
   };
   released("the KLV packets (decoded sets and items)",
            [&] { decltype(result->scan.packets)().swap(result->scan.packets); });
@@ -212,11 +206,16 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_flag("--json", json, "Print JSON");
   app.add_option("--memory-minutes", memory_minutes,
-                 "Instead: memory of the front end on a video this many minutes long (1280x720), "
-                 "at checkpoints")
+                 "Instead: memory of the front end on a video this many minutes long, at "
+                 "checkpoints")
       ->check(CLI::NonNegativeNumber);
+  int memory_height = 720;
+  app.add_option("--memory-height", memory_height,
+                 "--memory-minutes: the video's height (16:9), e.g. 1080 for 1920x1080")
+      ->capture_default_str()
+      ->check(CLI::Range(144, 2160));
   CLI11_PARSE(app, argc, argv);
-  if (memory_minutes > 0) return MeasureMemory(memory_minutes);
+  if (memory_minutes > 0) return MeasureMemory(memory_minutes, memory_height);
 
   const fs::path dir = fs::temp_directory_path() / "saker-bench-frontend";
   fs::create_directories(dir);

@@ -4,6 +4,7 @@
 #include "core/mission/mission_store.h"
 #include "core/pipeline/export_mission.h"
 #include "core/pipeline/process.h"
+#include "core/util/memory.h"
 #include "ui/frame_panel.h"
 #include "ui/mosaic_view.h"
 #include "ui/task_runner.h"
@@ -515,6 +516,8 @@ void MainWindow::processVideo(const QString& video, const QString& mission_path,
   pipeline::ProcessOptions options;
   options.replace = replace;
   options.saker_version = SAKER_VERSION;
+  // A video too long for this machine stops with a message instead of exhausting its memory.
+  options.front_end.max_memory_mib = DefaultMemoryLimitMiB();
   // Both callbacks run on the worker; the runner is joined before this window is destroyed.
   options.on_commit = [this](const std::string& stage) {
     if (stage == "source" || stage == "cancelled") return;  // nothing to show yet

@@ -1,6 +1,7 @@
 #include "core/frontend/front_end.h"
 
 #include "core/util/check.h"
+#include "core/util/memory.h"
 
 #include <Eigen/LU>
 #include <opencv2/imgproc.hpp>
@@ -12,6 +13,7 @@
 #include <limits>
 #include <mutex>
 #include <optional>
+#include <sstream>
 #include <thread>
 #include <unordered_set>
 
@@ -26,6 +28,8 @@ using Clock = std::chrono::steady_clock;
 // evidence of frame m reaches the targets after frame m + longest baseline + this lag (20 frames
 // with the default baseline of 12: still within the 25 frames a target lives on unseen).
 constexpr int64_t kChangeLagFrames = 8;
+// How often the memory limit is checked: reading /proc costs about 10 us.
+constexpr int64_t kMemoryCheckFrames = 25;
 
 double MillisecondsSince(Clock::time_point start) {
   return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
@@ -239,6 +243,9 @@ Status FrontEndOptions::Validate() const {
   if (change_queue_frames < 1 || change_queue_frames > 256) {
     return InvalidArgumentError("front end: the change detection queue must hold 1..256 frames");
   }
+  if (max_memory_mib < 0) {
+    return InvalidArgumentError("front end: the memory limit must be >= 0 MiB (0: none)");
+  }
   if (key_frame_image_width < 0) {
     return InvalidArgumentError("front end: the key frame image width must be >= 0");
   }
@@ -352,6 +359,19 @@ StatusOr<FrontEndResult> RunFrontEnd(const std::string& path, const FrontEndOpti
   Eigen::Matrix3d preview_from_current = Eigen::Matrix3d::Identity();
   while (std::optional<video::Frame> frame = queue.Pop()) {
     if (job != nullptr && job->IsCancelled()) return CancelledError("front end: cancelled");
+    if (options.max_memory_mib > 0 && frame->index % kMemoryCheckFrames == 0) {
+      const int64_t resident_mib = ResidentMemoryBytes() / (1024 * 1024);
+      if (resident_mib > options.max_memory_mib) {
+        std::ostringstream message;
+        message.setf(std::ios::fixed);
+        message.precision(1);
+        message << path << ": processing stopped at frame " << frame->index << " (" << frame->time_s
+                << " s): Saker is using " << resident_mib << " MiB, over its memory limit of "
+                << options.max_memory_mib
+                << " MiB. Process a shorter part of the video or raise the limit (--max-memory).";
+        return ResourceExhaustedError(message.str());
+      }
+    }
     FrameResult fr;
     fr.index = frame->index;
     fr.time_s = frame->time_s;

@@ -66,6 +66,11 @@ struct FrontEndOptions {
                                  // answers are taken 8 frames late: more than 8 changes nothing)
   int key_frame_image_width = 640;  // width of the grey copy kept per key frame (0: none)
   int decoder_threads = 0;          // 0 = automatic
+  // The process's resident memory allowed while the front end runs, MiB (0: no limit; the
+  // pipeline and saker-cli default to util's DefaultMemoryLimitMiB). Beyond it the front end stops
+  // with a ResourceExhausted error that names the video and the frame, rather than let the
+  // machine run out of memory. Checked every 25 frames.
+  int64_t max_memory_mib = 0;
   // Called on the calling thread with each new key frame (needs key_frame_image_width > 0).
   std::function<void(const KeyFramePreview&)> on_key_frame;
   Status Validate() const;

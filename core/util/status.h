@@ -16,13 +16,14 @@ namespace saker {
 // Broad class of an expected failure, so callers can react without parsing text.
 enum class StatusCode {
   kOk = 0,
-  kInvalidArgument,  // The caller passed something unusable (bad option, bad index).
-  kNotFound,         // A file, stream or item does not exist.
-  kInvalidData,      // Input exists but is malformed (corrupt packet, not a video).
-  kUnsupported,      // Valid input that this build cannot handle.
-  kIoError,          // The operating system or a library failed to read or write.
-  kCancelled,        // The job was cancelled by the user.
-  kOutOfRange,       // Seek or lookup past the end.
+  kInvalidArgument,    // The caller passed something unusable (bad option, bad index).
+  kNotFound,           // A file, stream or item does not exist.
+  kInvalidData,        // Input exists but is malformed (corrupt packet, not a video).
+  kUnsupported,        // Valid input that this build cannot handle.
+  kIoError,            // The operating system or a library failed to read or write.
+  kCancelled,          // The job was cancelled by the user.
+  kOutOfRange,         // Seek or lookup past the end.
+  kResourceExhausted,  // A configured limit (memory, size) would be exceeded.
 };
 
 const char* StatusCodeName(StatusCode code);
@@ -56,6 +57,9 @@ inline Status UnsupportedError(std::string m) { return {StatusCode::kUnsupported
 inline Status IoError(std::string m) { return {StatusCode::kIoError, std::move(m)}; }
 inline Status CancelledError(std::string m) { return {StatusCode::kCancelled, std::move(m)}; }
 inline Status OutOfRangeError(std::string m) { return {StatusCode::kOutOfRange, std::move(m)}; }
+inline Status ResourceExhaustedError(std::string m) {
+  return {StatusCode::kResourceExhausted, std::move(m)};
+}
 
 // A value or the Status explaining why there is none.
 template <typename T>

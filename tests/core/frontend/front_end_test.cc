@@ -130,6 +130,28 @@ TEST_F(FrontEndTest, OutcomesAgreeWithTheFigures) {
   EXPECT_EQ(lines("  false: "), a.detected_tracks - a.correct_tracks);
 }
 
+// Over its memory limit the front end stops at once with a message naming the video and the
+// frame, instead of letting the machine run out of memory; under it, nothing changes.
+TEST_F(FrontEndTest, MemoryLimitStopsWithAClearMessage) {
+  ASSERT_NE(result_, nullptr);
+  const std::string video = (*dir_ / "town.ts").string();
+  FrontEndOptions options;
+  options.max_memory_mib = 1;  // below any process's resident memory
+  const StatusOr<FrontEndResult> stopped = RunFrontEnd(video, options);
+  ASSERT_FALSE(stopped.ok());
+  EXPECT_EQ(stopped.status().code(), StatusCode::kResourceExhausted);
+  EXPECT_NE(stopped.status().message().find(video), std::string::npos);
+  EXPECT_NE(stopped.status().message().find("stopped at frame 0"), std::string::npos);
+  EXPECT_NE(stopped.status().message().find("memory limit of 1 MiB"), std::string::npos);
+
+  options.max_memory_mib = 1 << 20;  // 1 TiB
+  const StatusOr<FrontEndResult> run = RunFrontEnd(video, options);
+  ASSERT_TRUE(run.ok()) << run.status().ToString();
+  EXPECT_EQ(run->frames.size(), result_->frames.size());
+  options.max_memory_mib = -1;
+  EXPECT_EQ(RunFrontEnd(video, options).status().code(), StatusCode::kInvalidArgument);
+}
+
 // Change detection runs on its own thread and its answers are applied at a fixed lag: however the
 // threads run, the result is the same. Queues of one frame make the three threads wait for each
 // other all the time; the default ones let them drift apart.
