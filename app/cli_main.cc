@@ -1,6 +1,6 @@
 // saker-cli: the headless client of the Saker engine. Everything the GUI can
 // do is reachable from here: `probe`, `klv`, `simulate`, `evaluate`, `mosaic`,
-// `process`, `export`, `info` and `demo`.
+// `process`, `export`, `copy`, `info` and `demo`.
 
 #include "app/cli_evaluate.h"
 #include "app/cli_mission.h"
@@ -124,6 +124,7 @@ int main(int argc, char** argv) {
   saker::app::MosaicCommand mosaic(app);
   saker::app::ProcessCommand process(app);
   saker::app::ExportCommand export_command(app);
+  saker::app::CopyCommand copy(app);
   saker::app::InfoCommand info(app);
 
   try {
@@ -143,6 +144,7 @@ int main(int argc, char** argv) {
     if (mosaic.parsed()) return mosaic.Run();
     if (process.parsed()) return process.Run();
     if (export_command.parsed()) return export_command.Run();
+    if (copy.parsed()) return copy.Run();
     if (info.parsed()) return info.Run();
     if (demo.parsed()) {
       // The main job: the demo video processed into a mission, and its activity map.

@@ -215,6 +215,41 @@ int ExportCommand::WriteActivityMap(const std::string& mission, const std::strin
 }
 
 // ---------------------------------------------------------------------------------------------
+struct CopyCommand::State {
+  CLI::App* command = nullptr;
+  std::string from, to;
+  bool replace = false;
+};
+
+CopyCommand::CopyCommand(CLI::App& app) : state_(std::make_unique<State>()) {
+  State& s = *state_;
+  s.command = app.add_subcommand(
+      "copy",
+      "Copy a mission to a new file, tiles included (the GUI's Save As). The copy is built\n"
+      "beside the target and renamed into place, so an interruption leaves either no copy or a\n"
+      "complete one, and never touches the original.");
+  s.command->add_option("MISSION", s.from, "Mission file to copy (.saker)")->required();
+  s.command->add_option("NEW", s.to, "The copy (.saker)")->required();
+  s.command->add_flag("--replace", s.replace,
+                      "Replace an existing mission file (never a file that is not a mission)");
+}
+
+CopyCommand::~CopyCommand() = default;
+bool CopyCommand::parsed() const { return state_->command->parsed(); }
+
+int CopyCommand::Run() const {
+  const State& s = *state_;
+  JobContext job;
+  const Status copied = [&] {
+    const ScopedInterrupt interrupt(&job);
+    return pipeline::CopyMission(s.from, s.to, s.replace, &job);
+  }();
+  if (!copied.ok()) return Fail(copied);
+  std::cout << "wrote " << s.to << "\n";
+  return kExitOk;
+}
+
+// ---------------------------------------------------------------------------------------------
 struct InfoCommand::State {
   CLI::App* command = nullptr;
   std::string mission;

@@ -2,7 +2,8 @@
 
 // The mission subcommands of saker-cli: `process` (a video into a mission file, Ctrl-C cancels
 // cleanly and keeps what completed), `export` (activity map picture, GeoTIFF mosaic, tracks as
-// GeoJSON / KML / CSV) and `info` (what a mission holds, and whether its video is still there).
+// GeoJSON / KML / CSV), `copy` (Save As) and `info` (what a mission holds, and whether its video
+// is still there).
 
 #include <CLI/CLI.hpp>
 
@@ -33,6 +34,19 @@ class ExportCommand {
   int Run() const;
   // The demo's activity map: `mission` drawn to `png`, coloured by speed.
   int WriteActivityMap(const std::string& mission, const std::string& png);
+
+ private:
+  struct State;
+  std::unique_ptr<State> state_;
+};
+
+// `copy`: the GUI's Save As. The copy is complete or absent (built beside the target, renamed).
+class CopyCommand {
+ public:
+  explicit CopyCommand(CLI::App& app);
+  ~CopyCommand();
+  bool parsed() const;
+  int Run() const;
 
  private:
   struct State;

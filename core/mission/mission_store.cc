@@ -1,6 +1,7 @@
 #include "core/mission/mission_store.h"
 
 #include <fcntl.h>
+#include <signal.h>
 #include <sqlite3.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -12,6 +13,7 @@
 #include <cinttypes>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <initializer_list>
@@ -1500,6 +1502,46 @@ StatusOr<std::unique_ptr<MissionStore>> MissionStore::Open(const std::string& pa
   return std::unique_ptr<MissionStore>(new MissionStore(std::move(impl)));
 }
 
+void MissionStore::RemoveStaleTemporaries(const std::string& path) {
+  const std::filesystem::path target(path);
+  std::filesystem::path directory = target.parent_path();
+  if (directory.empty()) directory = ".";
+  const std::string name = target.filename().string();
+  // Create's ".NAME.new-PID-N" and CopyMission's "NAME.part-PID", each with its -wal / -shm.
+  const std::string prefixes[] = {"." + name + ".new-", name + ".part-"};
+  std::error_code error;
+  for (std::filesystem::directory_iterator it(directory, error), end; !error && it != end;
+       it.increment(error)) {
+    const std::string file = it->path().filename().string();
+    for (const std::string& prefix : prefixes) {
+      if (file.compare(0, prefix.size(), prefix) != 0) continue;
+      const std::string rest = file.substr(prefix.size());
+      const size_t digits = rest.find_first_not_of("0123456789");
+      if (digits == 0 || rest.empty()) continue;
+      const long pid = std::strtol(rest.substr(0, digits).c_str(), nullptr, 10);
+      // Only a dead job's: a live one (this process or another) may be building it now.
+      if (pid <= 0 || ::kill(pid_t(pid), 0) == 0 || errno != ESRCH) continue;
+      std::error_code ignored;
+      std::filesystem::remove(it->path(), ignored);
+    }
+  }
+}
+
+Status MissionStore::FoldLog(const std::string& path) {
+  struct stat st;
+  if (::stat(path.c_str(), &st) != 0) {
+    const int err = errno;
+    if (err != ENOENT) return IoError(path + ": " + std::strerror(err));
+    // A log or journal without its database (a writer was killed, then the file alone deleted)
+    // would be replayed onto the next file to take the name.
+    for (const char* suffix : {"-wal", "-shm", "-journal"}) ::unlink((path + suffix).c_str());
+    return Status::Ok();
+  }
+  // Fold the mission's write-ahead log into it; the log goes when the last connection closes.
+  SAKER_ASSIGN_OR_RETURN(std::unique_ptr<MissionStore> old, Open(path, OpenMode::kReadWrite));
+  return old->impl_->Checkpoint();
+}
+
 StatusOr<std::unique_ptr<MissionStore>> MissionStore::Create(const std::string& path,
                                                              bool replace) {
   struct stat st;
@@ -1520,14 +1562,11 @@ StatusOr<std::unique_ptr<MissionStore>> MissionStore::Create(const std::string& 
         return Status(probe.status().code(), probe.status().message() + " (not replaced)");
       }
     }
-    // Fold the old file's write-ahead log into it and remove the log, so no stale log can be
-    // replayed onto the new file once it takes the name.
-    auto old = Open(path, OpenMode::kReadWrite);
-    if (!old.ok()) {
-      return Status(old.status().code(), old.status().message() + " (not replaced)");
-    }
-    SAKER_RETURN_IF_ERROR((*old)->impl_->Checkpoint());
-  }  // the old file's last connection closes here
+  }
+  if (Status folded = FoldLog(path); !folded.ok()) {
+    return Status(folded.code(), folded.message() + " (not replaced)");
+  }
+  RemoveStaleTemporaries(path);
 
   // Build the new file beside the target under a unique name.
   const std::filesystem::path target(path);

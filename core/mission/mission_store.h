@@ -59,6 +59,17 @@ class MissionStore {
   // Replacing a mission that another process has open fails with IoError.
   static StatusOr<std::unique_ptr<MissionStore>> Create(const std::string& path,
                                                         bool replace = false);
+  // To be called just before a file built elsewhere is renamed over `path`: if a mission is
+  // there, folds its write-ahead log into it (opening it for writing: it must be a mission this
+  // version reads), so that no log is left to be replayed onto the new file; if nothing is there,
+  // removes any orphaned log, shared-memory or journal file of a deleted mission. Create does this
+  // itself; pipeline::CopyMission calls it.
+  static Status FoldLog(const std::string& path);
+  // Removes the temporary files that jobs killed while building a file for `path` left beside
+  // it (Create's and CopyMission's, named after their process: only those of processes that no
+  // longer exist). Best effort; Create does this itself; CopyMission calls it.
+  static void RemoveStaleTemporaries(const std::string& path);
+
   // Opens an existing mission. NotFound when missing; InvalidData for a zero-byte, truncated,
   // corrupt or non-SQLite file or an SQLite database that is not a Saker mission; Unsupported for
   // a newer schema version. A file that is refused is never written. Read-only stores work while

@@ -101,6 +101,7 @@ Status CopyMission(const std::string& from, const std::string& to, bool replace,
     // Only a mission is ever overwritten (as MissionStore::Create with replace).
     SAKER_RETURN_IF_ERROR(mission::MissionStore::Open(to).status());
   }
+  mission::MissionStore::RemoveStaleTemporaries(to);
   SAKER_ASSIGN_OR_RETURN(const std::unique_ptr<mission::MissionStore> source,
                          mission::MissionStore::Open(from));
   SAKER_ASSIGN_OR_RETURN(const mission::Mission mission, source->Load());
@@ -144,6 +145,8 @@ Status CopyMission(const std::string& from, const std::string& to, bool replace,
       SAKER_RETURN_IF_ERROR(target->WriteTiles(batch));
     }
   }  // closed: the WAL is checkpointed into the file
+  // A log of the mission being replaced (or an orphaned one) must not be replayed onto the copy.
+  SAKER_RETURN_IF_ERROR(mission::MissionStore::FoldLog(to));
   fs::rename(part, to, error);
   if (error) return IoError(to + ": cannot move the copy into place: " + error.message());
   remover.keep = true;

@@ -171,3 +171,52 @@ TEST(CliMosaicTest, BadInputsNameTheProblem) {
   EXPECT_NE(run.out.find("/nonexistent/folder"), std::string::npos) << run.out;
   EXPECT_EQ(RunCli("mosaic x.ts").exit_code, 2);  // no -o
 }
+
+namespace {
+
+// process, then copy (Save As): the copy holds the same mission; the original is never the
+// target, a file that is not a mission is never replaced, and an existing mission only with
+// --replace.
+TEST(CliMissionTest, CopyMakesTheSameMissionAndRefusesWhatItMustNot) {
+  const std::filesystem::path dir = saker::testing::MakeTempDir("saker-cli-copy");
+  const std::string video = (dir / "flight.ts").string();
+  ASSERT_EQ(RunCli("simulate --scenario straight -o '" + video + "' " + kSmallSimulation).exit_code,
+            0);
+  const std::string mission = (dir / "flight.saker").string();
+  CliRun run = RunCli("process -q '" + video + "' -o '" + mission + "'");
+  ASSERT_EQ(run.exit_code, 0) << run.out;
+  const std::string copy = (dir / "copy.saker").string();
+  run = RunCli("copy '" + mission + "' '" + copy + "'");
+  ASSERT_EQ(run.exit_code, 0) << run.out;
+  const auto info = [&](const std::string& path) {
+    const CliRun i = RunCli("info --json '" + path + "'");
+    EXPECT_EQ(i.exit_code, 0) << i.out;
+    nlohmann::json j = nlohmann::json::parse(i.out, nullptr, /*allow_exceptions=*/false);
+    j.erase("path");
+    j.erase("mission");
+    return j;
+  };
+  const nlohmann::json original = info(mission), copied = info(copy);
+  EXPECT_FALSE(original.is_discarded());
+  EXPECT_EQ(original.dump(), copied.dump());
+
+  run = RunCli("copy '" + mission + "' '" + mission + "' --replace");
+  EXPECT_EQ(run.exit_code, 1);
+  EXPECT_NE(run.out.find("being copied"), std::string::npos) << run.out;
+  run = RunCli("copy '" + mission + "' '" + copy + "'");
+  EXPECT_EQ(run.exit_code, 1);
+  EXPECT_NE(run.out.find("already there"), std::string::npos) << run.out;
+  EXPECT_EQ(RunCli("copy '" + mission + "' '" + copy + "' --replace").exit_code, 0);
+  const std::string text = (dir / "notes.saker").string();
+  std::FILE* file = std::fopen(text.c_str(), "w");
+  ASSERT_NE(file, nullptr);
+  std::fputs("not a mission\n", file);
+  std::fclose(file);
+  run = RunCli("copy '" + mission + "' '" + text + "' --replace");
+  EXPECT_EQ(run.exit_code, 1);
+  EXPECT_NE(run.out.find("notes.saker"), std::string::npos) << run.out;
+  EXPECT_EQ(std::filesystem::file_size(text), 14u);
+  std::filesystem::remove_all(dir);
+}
+
+}  // namespace
