@@ -1507,8 +1507,9 @@ void MissionStore::RemoveStaleTemporaries(const std::string& path) {
   std::filesystem::path directory = target.parent_path();
   if (directory.empty()) directory = ".";
   const std::string name = target.filename().string();
-  // Create's ".NAME.new-PID-N" and CopyMission's "NAME.part-PID", each with its -wal / -shm.
-  const std::string prefixes[] = {"." + name + ".new-", name + ".part-"};
+  // Create's ".NAME.new-PID-N", CopyMission's "NAME.part-PID" and the file Create builds for
+  // that one, ".NAME.part-PID.new-PID-N", each with its -wal / -shm.
+  const std::string prefixes[] = {"." + name + ".new-", name + ".part-", "." + name + ".part-"};
   std::error_code error;
   for (std::filesystem::directory_iterator it(directory, error), end; !error && it != end;
        it.increment(error)) {

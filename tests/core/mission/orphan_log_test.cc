@@ -125,9 +125,9 @@ TEST(OrphanLogTest, TemporariesOfDeadJobsAreRemoved) {
   if (child == 0) ::_exit(0);
   ASSERT_EQ(::waitpid(child, nullptr, 0), child);
   const std::string dead = std::to_string(child), live = std::to_string(::getpid());
-  const std::vector<std::string> stale = {".m.saker.new-" + dead + "-0",
-                                          ".m.saker.new-" + dead + "-0-wal", "m.saker.part-" + dead,
-                                          "m.saker.part-" + dead + "-shm"};
+  const std::vector<std::string> stale = {
+      ".m.saker.new-" + dead + "-0", ".m.saker.new-" + dead + "-0-wal", "m.saker.part-" + dead,
+      "m.saker.part-" + dead + "-shm", ".m.saker.part-" + dead + ".new-" + dead + "-3"};
   const std::vector<std::string> kept = {".m.saker.new-" + live + "-7", "m.saker.part-" + live,
                                          "other.saker.part-" + dead, "m.saker.part-notes"};
   for (const auto& names : {stale, kept}) {
