@@ -5,10 +5,26 @@ target_compile_options(saker_compile_options INTERFACE
   -Wall -Wextra -Wpedantic -Wshadow -Wnon-virtual-dtor -Wcast-align
   -Woverloaded-virtual -Wimplicit-fallthrough)
 
+if(SAKER_SANITIZE AND SAKER_SANITIZE_THREAD)
+  # The runtimes of ASan and TSan cannot share one process.
+  message(FATAL_ERROR "SAKER_SANITIZE and SAKER_SANITIZE_THREAD are mutually exclusive")
+endif()
 if(SAKER_SANITIZE)
   target_compile_options(saker_compile_options INTERFACE
     -fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=undefined)
   target_link_options(saker_compile_options INTERFACE -fsanitize=address,undefined)
+  # Eigen stops trusting malloc's 16-byte alignment when it sees __SANITIZE_ADDRESS__ and then
+  # offsets its blocks by hand, while the prebuilt Ceres frees the Eigen matrices it receives
+  # with plain free(): a bad-free in every covariance. glibc's and ASan's malloc both align to
+  # 16 bytes on x86-64, so tell Eigen so and match Ceres's build.
+  target_compile_definitions(saker_compile_options INTERFACE EIGEN_MALLOC_ALREADY_ALIGNED=1)
+endif()
+if(SAKER_SANITIZE_THREAD)
+  # Only our code is instrumented (Qt, OpenCV and FFmpeg are not): what they synchronise
+  # internally with their own atomics TSan cannot see; tests/sanitizers/tsan.supp lists the
+  # few such reports, each with its reason.
+  target_compile_options(saker_compile_options INTERFACE -fsanitize=thread -fno-omit-frame-pointer)
+  target_link_options(saker_compile_options INTERFACE -fsanitize=thread)
 endif()
 
 find_program(CCACHE_PROGRAM ccache)

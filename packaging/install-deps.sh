@@ -12,8 +12,9 @@ packages=(
   qt6-base-dev qt6-svg-dev libopencv-dev libeigen3-dev libceres-dev libgeographiclib-dev
   libavformat-dev libavcodec-dev libswscale-dev libavutil-dev ffmpeg
   libgdal-dev nlohmann-json3-dev libsqlite3-dev libtbb-dev libcli11-dev
-  # Tests, benchmarks and headless GUI runs
-  libgtest-dev libgmock-dev libbenchmark-dev xvfb xauth
+  # Tests, benchmarks and headless GUI runs; clang and its runtimes for the fuzzers that
+  # tests/run-all.sh runs (gcc's ASan, UBSan and TSan runtimes come with g++)
+  libgtest-dev libgmock-dev libbenchmark-dev xvfb xauth clang libclang-rt-14-dev
 )
 if [[ "${1:-}" == "--sanitizers" ]]; then
   packages+=(clang libclang-rt-14-dev)

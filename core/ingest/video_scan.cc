@@ -9,6 +9,10 @@ namespace saker::ingest {
 
 Status ScanOptions::Validate() const {
   SAKER_RETURN_IF_ERROR(reader.Validate());
+  if (max_frames < 0) {
+    return InvalidArgumentError("ScanOptions.max_frames must be >= 0 (0 = no limit), got " +
+                                std::to_string(max_frames));
+  }
   return alignment.Validate();
 }
 
@@ -124,15 +128,10 @@ void InferMissingTimes(VideoScan* scan) {
   }
 }
 
-}  // namespace
-
-StatusOr<VideoScan> ScanVideo(const std::string& path, const ScanOptions& options,
-                              JobContext* context, const FrameCallback& on_frame) {
-  SAKER_RETURN_IF_ERROR(options.Validate());
-  auto opened = video::VideoReader::Open(path, options.reader);
-  if (!opened.ok()) return opened.status();
-  video::VideoReader& reader = **opened;
-
+// The scan proper, on an opened reader; `path` names the input in messages.
+StatusOr<VideoScan> ScanReader(video::VideoReader& reader, const std::string& path,
+                               const ScanOptions& options, JobContext* context,
+                               const FrameCallback& on_frame) {
   VideoScan scan;
   scan.info = reader.info();
   std::map<int, KlvStreamSummary> summaries;
@@ -166,6 +165,12 @@ StatusOr<VideoScan> ScanVideo(const std::string& path, const ScanOptions& option
       DecodeDataPacket(d, &it->second, &scan, &suppressed);
     }
     if (!*more) break;
+    if (options.max_frames > 0 && static_cast<int64_t>(scan.frames.size()) >= options.max_frames) {
+      // Not subject to the warning cap: a reader of the scan must know it is partial.
+      scan.warnings.push_back(path + ": scan stopped after " + std::to_string(options.max_frames) +
+                              " frames (max_frames); the rest of the video was not read");
+      break;
+    }
     FrameRecord record;
     record.index = frame.index;
     record.time_s = frame.time_s;
@@ -208,11 +213,38 @@ StatusOr<VideoScan> ScanVideo(const std::string& path, const ScanOptions& option
       << scan.stats.decode_errors << " undecodable frames";
     scan.warnings.insert(scan.warnings.begin(), m.str());
   }
+  if (scan.stats.timestamp_discontinuities > 0) {
+    std::ostringstream m;
+    m << path << ": the timestamps jump back " << scan.stats.timestamp_discontinuities
+      << (scan.stats.timestamp_discontinuities == 1 ? " time" : " times")
+      << " (a spliced or restarted recording); the frames and metadata after each jump are timed "
+         "to follow on";
+    scan.warnings.push_back(m.str());
+  }
   if (suppressed > 0) {
     scan.warnings.push_back("... and " + std::to_string(suppressed) + " more warnings");
   }
   if (context != nullptr) context->ReportProgress("scan", 1.0);
   return scan;
+}
+
+}  // namespace
+
+StatusOr<VideoScan> ScanVideo(const std::string& path, const ScanOptions& options,
+                              JobContext* context, const FrameCallback& on_frame) {
+  SAKER_RETURN_IF_ERROR(options.Validate());
+  auto opened = video::VideoReader::Open(path, options.reader);
+  if (!opened.ok()) return opened.status();
+  return ScanReader(**opened, path, options, context, on_frame);
+}
+
+StatusOr<VideoScan> ScanVideoMemory(std::vector<uint8_t> bytes, const std::string& name,
+                                    const ScanOptions& options, JobContext* context,
+                                    const FrameCallback& on_frame) {
+  SAKER_RETURN_IF_ERROR(options.Validate());
+  auto opened = video::VideoReader::OpenMemory(std::move(bytes), name, options.reader);
+  if (!opened.ok()) return opened.status();
+  return ScanReader(**opened, (*opened)->info().path, options, context, on_frame);
 }
 
 }  // namespace saker::ingest

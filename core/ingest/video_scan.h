@@ -30,6 +30,9 @@ struct ScanOptions {
     return r;
   }();
   AlignmentOptions alignment;  // how frames are tied to metadata
+  // Stop after this many frames (0: no limit), e.g. to look at the start of a long flight or to
+  // bound the work on untrusted input; a warning then says the scan stopped early.
+  int64_t max_frames = 0;
 
   Status Validate() const;
 };
@@ -103,5 +106,11 @@ using FrameCallback = std::function<void(const video::Frame& frame)>;
 StatusOr<VideoScan> ScanVideo(const std::string& path, const ScanOptions& options,
                               JobContext* context = nullptr,
                               const FrameCallback& on_frame = nullptr);
+
+// The same for a whole video file held in memory (video::VideoReader::OpenMemory); `name` stands
+// for the path in VideoInfo::path and in every message.
+StatusOr<VideoScan> ScanVideoMemory(std::vector<uint8_t> bytes, const std::string& name,
+                                    const ScanOptions& options, JobContext* context = nullptr,
+                                    const FrameCallback& on_frame = nullptr);
 
 }  // namespace saker::ingest

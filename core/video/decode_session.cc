@@ -6,7 +6,10 @@ extern "C" {
 
 #include "core/video/mpegts_pmt.h"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <limits>
 #include <map>
@@ -18,11 +21,20 @@ namespace {
 // Reads or decodes in a row that make no progress before a session gives up.
 constexpr int kMaxConsecutiveFailures = 10000;
 
+// Size of the AVIOContext buffer for in-memory input (FFmpeg's own default for files).
+constexpr int kMemoryIoBufferSize = 32768;
+
 // "file:x.ts" -> "x.ts"; empty for URLs of other protocols.
 std::string LocalPath(const std::string& path) {
   if (path.rfind("file:", 0) == 0) return path.substr(5);
   if (path.find("://") != std::string::npos) return {};
   return path;
+}
+
+// SessionConfig::max_pixels as FFmpeg's AVCodecContext::max_pixels (an int option).
+int64_t DecoderMaxPixels(int64_t max_pixels) {
+  return max_pixels > 0 ? std::min<int64_t>(max_pixels, std::numeric_limits<int>::max())
+                        : std::numeric_limits<int>::max();
 }
 
 // Plain-language errors for what the file system can tell before FFmpeg is involved.
@@ -143,6 +155,47 @@ std::string AvErrorText(int error) {
   return buffer;
 }
 
+namespace {
+
+// AVIOContext callbacks over MemoryCursor: a plain read-only file in memory.
+int ReadMemory(void* opaque, uint8_t* buffer, int buffer_size) {
+  auto* cursor = static_cast<MemoryCursor*>(opaque);
+  const auto size = static_cast<int64_t>(cursor->bytes->size());
+  if (buffer_size <= 0) return 0;
+  if (cursor->position >= size) return AVERROR_EOF;
+  const int64_t count = std::min<int64_t>(buffer_size, size - cursor->position);
+  std::memcpy(buffer, cursor->bytes->data() + cursor->position, static_cast<size_t>(count));
+  cursor->position += count;
+  return static_cast<int>(count);
+}
+
+int64_t SeekMemory(void* opaque, int64_t offset, int whence) {
+  auto* cursor = static_cast<MemoryCursor*>(opaque);
+  const auto size = static_cast<int64_t>(cursor->bytes->size());
+  whence &= ~AVSEEK_FORCE;
+  if (whence == AVSEEK_SIZE) return size;
+  int64_t base = 0;
+  switch (whence) {
+    case SEEK_SET:
+      base = 0;
+      break;
+    case SEEK_CUR:
+      base = cursor->position;
+      break;
+    case SEEK_END:
+      base = size;
+      break;
+    default:
+      return AVERROR(EINVAL);
+  }
+  // Only positions inside [0, size]; written so that no hostile offset can overflow.
+  if (offset < 0 ? offset < -base : offset > size - base) return AVERROR(EINVAL);
+  cursor->position = base + offset;
+  return cursor->position;
+}
+
+}  // namespace
+
 StatusOr<std::unique_ptr<DecodeSession>> DecodeSession::Open(const std::string& path,
                                                              const SessionConfig& config) {
   std::unique_ptr<DecodeSession> session(new DecodeSession());
@@ -157,13 +210,26 @@ Status DecodeSession::OpenImpl(const std::string& path, const SessionConfig& con
   config_ = config;
   info_.path = path;
   if (path.empty()) return InvalidArgumentError("empty video path");
-  SAKER_RETURN_IF_ERROR(CheckLocalFile(path));
+  if (config.memory) {
+    if (config.memory->empty()) return InvalidDataError(path + ": empty (0 bytes), not a video");
+  } else {
+    SAKER_RETURN_IF_ERROR(CheckLocalFile(path));
+  }
 
   AVFormatContext* raw_format = nullptr;
-  int ret = avformat_open_input(&raw_format, path.c_str(), nullptr, nullptr);
+  int ret = OpenInput(&raw_format);
   if (ret < 0) return OpenError(path, ret);
   format_.reset(raw_format);
-  ret = avformat_find_stream_info(format_.get(), nullptr);
+  // Probing decodes a few pictures: FFmpeg's own limit keeps a stream that declares an absurd
+  // size from allocating it before the check below can refuse it.
+  std::vector<AVDictionary*> probe_options(format_->nb_streams, nullptr);
+  const std::string max_pixels = std::to_string(DecoderMaxPixels(config.max_pixels));
+  for (AVDictionary*& options : probe_options) {
+    av_dict_set(&options, "max_pixels", max_pixels.c_str(), 0);
+  }
+  ret = avformat_find_stream_info(format_.get(),
+                                  probe_options.empty() ? nullptr : probe_options.data());
+  for (AVDictionary*& options : probe_options) av_dict_free(&options);
   if (ret < 0) {
     return InvalidDataError(path + ": cannot read the stream layout (FFmpeg: " + AvErrorText(ret) +
                             ")");
@@ -198,10 +264,19 @@ Status DecodeSession::OpenImpl(const std::string& path, const SessionConfig& con
   info_.video_codec = avcodec_get_name(parameters.codec_id);
   info_.width = parameters.width;
   info_.height = parameters.height;
+  // FFmpeg opens a single picture (PNG, JPEG, ... through its image demuxers) as a video of one
+  // frame. No recording is one picture: refuse it plainly rather than make an empty mission.
+  if (info_.container == "image2" || info_.container.ends_with("_pipe")) {
+    return InvalidDataError(path + ": is a still picture (" + info_.video_codec + "), not a video");
+  }
   if (info_.width <= 0 || info_.height <= 0) {
+    // FFmpeg also leaves the size unset when the header declares one it refuses (beyond its own
+    // limits or max_pixels), so say both.
     return InvalidDataError(path + " has no video stream that can be decoded: its " +
                             info_.video_codec +
-                            " stream has no picture header (declared but empty, or damaged)");
+                            " stream has no valid picture size (no picture header, a damaged "
+                            "one, or a declared picture size beyond max_pixels = " +
+                            std::to_string(config.max_pixels) + ")");
   }
   const int64_t pixels = static_cast<int64_t>(info_.width) * info_.height;
   if (pixels > config.max_pixels) {
@@ -219,12 +294,16 @@ Status DecodeSession::OpenImpl(const std::string& path, const SessionConfig& con
   // Streams. PIDs are only meaningful for transport streams.
   const bool is_mpegts = info_.container == "mpegts";
   std::map<int, int> pmt_stream_types;
-  const std::string local = LocalPath(path);
+  const std::string local = config.memory ? std::string() : LocalPath(path);
   bool klv_present = false;
   for (unsigned i = 0; i < format->nb_streams; ++i) {
     klv_present |= format->streams[i]->codecpar->codec_id == AV_CODEC_ID_SMPTE_KLV;
   }
-  if (config.probe_klv_sync && is_mpegts && klv_present && !local.empty()) {
+  if (config.probe_klv_sync && is_mpegts && klv_present && config.memory) {
+    // As ScanPmtStreamTypesInFile does for a file: the PMTs are at the start.
+    pmt_stream_types =
+        ScanPmtStreamTypes(config.memory->data(), std::min<size_t>(config.memory->size(), 4 << 20));
+  } else if (config.probe_klv_sync && is_mpegts && klv_present && !local.empty()) {
     auto types = ScanPmtStreamTypesInFile(local);
     if (types.ok()) pmt_stream_types = std::move(types).value();
   }
@@ -267,12 +346,34 @@ Status DecodeSession::OpenImpl(const std::string& path, const SessionConfig& con
   }
   decoder_->pkt_timebase = video_->time_base;
   decoder_->thread_count = config.decoder_threads;
+  decoder_->max_pixels = DecoderMaxPixels(config.max_pixels);  // a size change mid-stream too
   ret = avcodec_open2(decoder_.get(), codec, nullptr);
   if (ret < 0) {
     return UnsupportedError(path + ": cannot open the " + info_.video_codec +
                             " decoder (FFmpeg: " + AvErrorText(ret) + ")");
   }
   return Status::Ok();
+}
+
+int DecodeSession::OpenInput(AVFormatContext** format) {
+  if (!config_.memory) return avformat_open_input(format, path_.c_str(), nullptr, nullptr);
+  memory_cursor_ = std::make_unique<MemoryCursor>();
+  memory_cursor_->bytes = config_.memory;
+  auto* buffer = static_cast<uint8_t*>(av_malloc(kMemoryIoBufferSize));
+  if (buffer == nullptr) return AVERROR(ENOMEM);
+  io_.reset(avio_alloc_context(buffer, kMemoryIoBufferSize, /*write_flag=*/0, memory_cursor_.get(),
+                               &ReadMemory, nullptr, &SeekMemory));
+  if (!io_) {
+    av_free(buffer);
+    return AVERROR(ENOMEM);
+  }
+  *format = avformat_alloc_context();
+  if (*format == nullptr) return AVERROR(ENOMEM);
+  // A caller-owned pb: avformat_close_input leaves it to io_ (AVFMT_FLAG_CUSTOM_IO), and on
+  // failure avformat_open_input frees the format context itself.
+  (*format)->pb = io_.get();
+  (*format)->flags |= AVFMT_FLAG_CUSTOM_IO;
+  return avformat_open_input(format, path_.c_str(), nullptr, nullptr);
 }
 
 double DecodeSession::SecondsFromStart(int64_t pts) const {
@@ -284,7 +385,8 @@ int64_t DecodeSession::RawTimestamp() const {
   return frame_->pts != AV_NOPTS_VALUE ? frame_->pts : frame_->best_effort_timestamp;
 }
 
-void DecodeSession::AppendDataPacket(const AVPacket& packet, std::vector<DataPacket>* data) const {
+void DecodeSession::AppendDataPacket(const AVPacket& packet, int64_t offset,
+                                     std::vector<DataPacket>* data) const {
   DataPacket out;
   out.stream_index = packet.stream_index;
   out.pts = packet.pts;  // AV_NOPTS_VALUE is INT64_MIN
@@ -293,10 +395,73 @@ void DecodeSession::AppendDataPacket(const AVPacket& packet, std::vector<DataPac
     out.time_s = std::numeric_limits<double>::quiet_NaN();
   } else {
     const AVStream* stream = format_->streams[packet.stream_index];
-    out.time_s = SecondsFromStart(av_rescale_q(packet.pts, stream->time_base, video_->time_base));
+    if (offset != 0) out.pts += av_rescale_q(offset, video_->time_base, stream->time_base);
+    out.time_s =
+        SecondsFromStart(av_rescale_q(packet.pts, stream->time_base, video_->time_base) + offset);
   }
   out.bytes.assign(packet.data, packet.data + packet.size);
   data->push_back(std::move(out));
+}
+
+int64_t DecodeSession::VideoTicks(const AVPacket& packet) const {
+  const int64_t pts = packet.pts != AV_NOPTS_VALUE ? packet.pts : packet.dts;
+  if (pts == AV_NOPTS_VALUE) return AV_NOPTS_VALUE;
+  return av_rescale_q(pts, format_->streams[packet.stream_index]->time_base, video_->time_base);
+}
+
+void DecodeSession::HoldDataPacket(const AVPacket& packet) {
+  HeldPacket held;
+  held.packet.reset(av_packet_clone(&packet));
+  if (!held.packet) return;  // out of memory: lose this metadata packet, not the video
+  held.raw = VideoTicks(packet);
+  held_.push_back(std::move(held));
+}
+
+void DecodeSession::ReleaseHeldData(int64_t old_offset, int64_t new_offset, int64_t old_last_raw,
+                                    int64_t new_first_raw, std::vector<DataPacket>* data,
+                                    ReadStats* stats) {
+  for (const HeldPacket& held : held_) {
+    // A packet that arrived just before the jump belongs with the pictures nearest in raw time:
+    // encoders send metadata just before its picture, so the new recording's first packets
+    // precede its first picture.
+    int64_t offset = new_offset;
+    if (old_offset != new_offset && held.raw != AV_NOPTS_VALUE) {
+      const bool nearer_new =
+          std::llabs(held.raw - new_first_raw) < std::llabs(held.raw - old_last_raw);
+      offset = nearer_new ? new_offset : old_offset;
+    }
+    if (data != nullptr) {
+      AppendDataPacket(*held.packet, offset, data);
+      if (stats != nullptr) ++stats->data_packets;
+    }
+  }
+  held_.clear();
+}
+
+void DecodeSession::JoinDiscontinuity(AVPacket* packet, std::vector<DataPacket>* data,
+                                      ReadStats* stats) {
+  const int64_t raw = VideoTicks(*packet);
+  const int64_t old_offset = offset_;
+  const int64_t old_last_raw = last_video_raw_;
+  if (raw != AV_NOPTS_VALUE) {
+    // Further back than pictures are ever reordered (H.264 allows 16 frames; at very slow rates
+    // that is many seconds) and than one second: the timestamps restarted. Carry on one frame
+    // after the latest picture.
+    const int64_t one_second = std::max<int64_t>(1, std::llround(1.0 / av_q2d(video_->time_base)));
+    const int64_t reordering = std::max(one_second, 16 * std::max<int64_t>(frame_step_, 1));
+    if (max_video_pts_ != AV_NOPTS_VALUE && raw + offset_ < max_video_pts_ - reordering) {
+      offset_ = max_video_pts_ + frame_step_ - raw;
+      if (stats != nullptr) ++stats->timestamp_discontinuities;
+    }
+    max_video_pts_ =
+        max_video_pts_ == AV_NOPTS_VALUE ? raw + offset_ : std::max(max_video_pts_, raw + offset_);
+    last_video_raw_ = raw;
+  }
+  ReleaseHeldData(old_offset, offset_, old_last_raw, raw, data, stats);
+  if (offset_ != 0) {  // the packet is the video stream's: offset_ is in its time base
+    if (packet->pts != AV_NOPTS_VALUE) packet->pts += offset_;
+    if (packet->dts != AV_NOPTS_VALUE) packet->dts += offset_;
+  }
 }
 
 StatusOr<bool> DecodeSession::DecodeNext(std::vector<DataPacket>* data, ReadStats* stats) {
@@ -363,6 +528,7 @@ StatusOr<bool> DecodeSession::DecodeNext(std::vector<DataPacket>* data, ReadStat
       }
       avcodec_send_packet(decoder, nullptr);  // enter draining mode
       demux_finished_ = true;
+      ReleaseHeldData(offset_, offset_, 0, 0, data, stats);
       continue;
     }
     failures = 0;
@@ -374,6 +540,7 @@ StatusOr<bool> DecodeSession::DecodeNext(std::vector<DataPacket>* data, ReadStat
         // After a seek, pictures before the first key frame cannot be reconstructed.
       } else {
         awaiting_key_packet_ = false;
+        if (config_.join_discontinuities) JoinDiscontinuity(packet, data, stats);
         ret = avcodec_send_packet(decoder, packet);
         if (ret == AVERROR(EAGAIN)) {
           av_packet_move_ref(pending_.get(), packet);
@@ -386,8 +553,10 @@ StatusOr<bool> DecodeSession::DecodeNext(std::vector<DataPacket>* data, ReadStat
                static_cast<size_t>(stream_index) < is_klv_.size() && is_klv_[stream_index]) {
       if ((packet->flags & AV_PKT_FLAG_CORRUPT) != 0) {
         if (stats != nullptr) ++stats->corrupt_packets;
+      } else if (config_.join_discontinuities) {
+        HoldDataPacket(*packet);
       } else {
-        AppendDataPacket(*packet, data);
+        AppendDataPacket(*packet, 0, data);
         if (stats != nullptr) ++stats->data_packets;
       }
     }

@@ -39,11 +39,30 @@ struct FrameFreer {
   void operator()(AVFrame* frame) const { av_frame_free(&frame); }
 };
 
+struct IoContextFreer {
+  void operator()(AVIOContext* context) const {
+    if (context != nullptr) av_freep(&context->buffer);
+    avio_context_free(&context);
+  }
+};
+
+// The read position in an in-memory input, for the AVIOContext callbacks.
+struct MemoryCursor {
+  std::shared_ptr<const std::vector<uint8_t>> bytes;
+  int64_t position = 0;
+};
+
 struct SessionConfig {
+  // When set, the container is read from these bytes (VideoReader::OpenMemory) through a custom
+  // AVIOContext, and the session's path is only the name used in messages.
+  std::shared_ptr<const std::vector<uint8_t>> memory;
   bool keep_klv = true;        // demux KLV streams and hand them out (sequential pass only)
   bool probe_klv_sync = true;  // read the MPEG-TS PMT to tell synchronous KLV streams
   int decoder_threads = 0;     // AVCodecContext::thread_count
   int64_t max_pixels = 0;      // refuse larger pictures
+  // Sequential pass: when the video's timestamps jump back (a spliced or restarted recording),
+  // shift every later packet so the pictures carry on and the KLV stays beside them.
+  bool join_discontinuities = false;
 };
 
 class DecodeSession {
@@ -76,11 +95,30 @@ class DecodeSession {
  private:
   DecodeSession() = default;
   Status OpenImpl(const std::string& path, const SessionConfig& config);
-  void AppendDataPacket(const AVPacket& packet, std::vector<DataPacket>* data) const;
+  // avformat_open_input on the file or URL, or on config_.memory.
+  int OpenInput(AVFormatContext** format);
+
+  // `offset` (video time base) is added to the packet's timestamp.
+  void AppendDataPacket(const AVPacket& packet, int64_t offset,
+                        std::vector<DataPacket>* data) const;
+  // A packet's pts (else dts) in the video time base, AV_NOPTS_VALUE when it has neither.
+  int64_t VideoTicks(const AVPacket& packet) const;
+  // Timestamp discontinuities (config_.join_discontinuities): KLV packets wait for the next
+  // video packet, which tells whether the timestamps jumped back; then each gets the offset of
+  // the recording it is nearest to in raw time.
+  void HoldDataPacket(const AVPacket& packet);
+  void ReleaseHeldData(int64_t old_offset, int64_t new_offset, int64_t old_last_raw,
+                       int64_t new_first_raw, std::vector<DataPacket>* data, ReadStats* stats);
+  // Detects a jump back of the video packet's timestamp, updates offset_, releases the held KLV
+  // and shifts the packet's pts and dts by offset_.
+  void JoinDiscontinuity(AVPacket* packet, std::vector<DataPacket>* data, ReadStats* stats);
 
   std::string path_;
   SessionConfig config_;
   VideoInfo info_;
+  // Declared before format_ so they outlive it: FFmpeg reads through them until it is closed.
+  std::unique_ptr<MemoryCursor> memory_cursor_;
+  std::unique_ptr<AVIOContext, IoContextFreer> io_;
   std::unique_ptr<AVFormatContext, FormatCloser> format_;
   std::unique_ptr<AVCodecContext, CodecContextFreer> decoder_;
   std::unique_ptr<AVPacket, PacketFreer> packet_;
@@ -94,6 +132,15 @@ class DecodeSession {
   bool demux_finished_ = false;       // flush packet sent to the decoder
   bool awaiting_key_packet_ = false;  // after a seek: drop video packets until a key packet
   Status deferred_error_;             // a fatal read error, reported once the decoder is drained
+  // Timestamp discontinuities, all in the video time base.
+  struct HeldPacket {
+    std::unique_ptr<AVPacket, PacketFreer> packet;
+    int64_t raw = 0;  // its timestamp before any offset, AV_NOPTS_VALUE when it has none
+  };
+  std::vector<HeldPacket> held_;  // KLV packets waiting for the next video packet
+  int64_t offset_ = 0;            // added to every packet timestamp since the last jump back
+  int64_t max_video_pts_ = AV_NOPTS_VALUE;   // latest video timestamp so far, offset included
+  int64_t last_video_raw_ = AV_NOPTS_VALUE;  // raw timestamp of the latest video packet
 };
 
 // Converts decoded pictures to BGR and grey cv::Mat, caching the swscale contexts.

@@ -92,6 +92,7 @@ Status ReaderOptions::Validate() const {
 
 struct VideoReader::Impl {
   std::string path;
+  std::shared_ptr<const std::vector<uint8_t>> memory;  // OpenMemory's bytes, else null
   ReaderOptions options;
   VideoInfo info;
 
@@ -113,10 +114,12 @@ struct VideoReader::Impl {
 
   SessionConfig Config(bool sequential_pass) const {
     SessionConfig config;
+    config.memory = memory;
     config.keep_klv = sequential_pass;
     config.probe_klv_sync = sequential_pass;
     config.decoder_threads = options.decoder_threads;
     config.max_pixels = options.max_pixels;
+    config.join_discontinuities = sequential_pass;
     return config;
   }
 
@@ -333,6 +336,19 @@ StatusOr<std::unique_ptr<VideoReader>> VideoReader::Open(const std::string& path
   EnsureNetworkInit(path_or_url);
   auto impl = std::make_unique<Impl>();
   impl->path = path_or_url;
+  impl->options = options;
+  SAKER_RETURN_IF_ERROR(impl->OpenSequential());
+  impl->info = impl->sequential->info();
+  return std::unique_ptr<VideoReader>(new VideoReader(std::move(impl)));
+}
+
+StatusOr<std::unique_ptr<VideoReader>> VideoReader::OpenMemory(std::vector<uint8_t> bytes,
+                                                               const std::string& name,
+                                                               const ReaderOptions& options) {
+  SAKER_RETURN_IF_ERROR(options.Validate());
+  auto impl = std::make_unique<Impl>();
+  impl->path = name.empty() ? std::string("<memory>") : name;
+  impl->memory = std::make_shared<const std::vector<uint8_t>>(std::move(bytes));
   impl->options = options;
   SAKER_RETURN_IF_ERROR(impl->OpenSequential());
   impl->info = impl->sequential->info();

@@ -85,7 +85,11 @@ struct ReaderOptions {
   bool want_grey = false;   // also (or only) give an 8-bit grey image (Frame::grey); with neither,
                             // frames carry only index and time (fast scans)
   int decoder_threads = 0;  // 0 = FFmpeg chooses (one per core); at most 64
-  int64_t max_pixels = 16384LL * 16384;  // refuse absurd declared sizes with a clear error
+  // Largest picture (width x height) accepted, declared or decoded: a larger one is refused
+  // with an error naming the file before any picture of that size is allocated (FFmpeg's
+  // decoder checks it too). 8192 x 8192 admits 8K video; a hostile header can otherwise make
+  // FFmpeg allocate about 400 MB per picture (docs/reliability.md, "Hostile inputs").
+  int64_t max_pixels = 8192LL * 8192;
   Status Validate() const;
 };
 
@@ -95,6 +99,10 @@ struct ReadStats {
   int64_t corrupt_packets = 0;  // packets the demuxer flagged corrupt (skipped) or could not read
   int64_t decode_errors = 0;    // packets the decoder rejected, frames it flagged as damaged
   int64_t data_packets = 0;     // KLV packets handed out
+  // Times the video's timestamps jumped back by more than a second (a spliced or restarted
+  // recording). The pass carries on one frame interval after the latest picture, and the KLV
+  // packets of the new part are shifted with it, so they stay beside their pictures.
+  int64_t timestamp_discontinuities = 0;
 };
 
 struct FrameIndexEntry {
@@ -110,6 +118,14 @@ class VideoReader {
   // InvalidData (empty, unrecognised, no video stream, absurd size), Unsupported (no decoder).
   static StatusOr<std::unique_ptr<VideoReader>> Open(const std::string& path_or_url,
                                                      const ReaderOptions& options = {});
+  // Opens a video file held in memory (the whole file: MPEG-TS, MP4, ...), read through an FFmpeg
+  // custom I/O context instead of a file. `name` stands for the path in VideoInfo::path and in
+  // every message (and its extension, if any, is a hint for the container format). The reader
+  // keeps the bytes for random access and Rewind(). Same errors as Open(); empty bytes are
+  // InvalidData. Everything else, byte_pos included (offsets into `bytes`), is as for a file.
+  static StatusOr<std::unique_ptr<VideoReader>> OpenMemory(std::vector<uint8_t> bytes,
+                                                           const std::string& name,
+                                                           const ReaderOptions& options = {});
   ~VideoReader();
   VideoReader(const VideoReader&) = delete;
   VideoReader& operator=(const VideoReader&) = delete;

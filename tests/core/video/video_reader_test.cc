@@ -430,8 +430,12 @@ TEST(HostileInputTest, AbsurdSizeIsRefusedByMaxPixels) {
   auto reader = VideoReader::Open(path.string(), options);
   ASSERT_FALSE(reader.ok());
   EXPECT_EQ(reader.status().code(), StatusCode::kInvalidData);
-  EXPECT_NE(reader.status().message().find("64x48"), std::string::npos);
-  EXPECT_NE(reader.status().message().find("max_pixels"), std::string::npos);
+  // FFmpeg's probe is given the limit too (so that it never allocates an absurd picture), so it
+  // refuses the declared size itself and the size is not known: the message names the file and
+  // the limit.
+  EXPECT_NE(reader.status().message().find(path.string()), std::string::npos);
+  EXPECT_NE(reader.status().message().find("max_pixels = 3071"), std::string::npos)
+      << reader.status().message();
 }
 
 TEST(HostileInputTest, KlvOnlyStreamHasNoVideoStream) {
