@@ -20,6 +20,7 @@
 
 #include "core/mission/mission_store.h"
 #include "core/sim/simulator.h"
+#include "tests/testing/small_loop.h"
 
 #include <CLI/CLI.hpp>
 #include <fcntl.h>
@@ -247,17 +248,8 @@ int main(int argc, char** argv) {
   } remover{dir, keep};
   if (keep) std::printf("working in %s\n", dir.c_str());
 
-  saker::sim::SimulationOptions sim;
-  sim.output = dir / "loop.ts";
-  sim.scenario = saker::sim::Scenario::kRoundaboutLoop;
-  sim.camera.width = 640;
-  sim.camera.height = 360;
-  sim.flight.altitude_m = 200;
-  sim.fps = 12.5;
-  sim.world.loop_length_m = 500;
-  sim.targets.cars = 6;
-  sim.targets.vans = 0;
-  sim.targets.people = 4;
+  // The pipeline and GUI tests' flight (header only, shared with the tests).
+  const saker::sim::SimulationOptions sim = saker::testing::SmallLoopOptions(dir / "loop.ts");
   std::printf("simulating the small loop (640x360)...\n");
   std::fflush(stdout);
   if (auto simulated = saker::sim::Simulate(sim); !simulated.ok()) {
