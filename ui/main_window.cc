@@ -268,10 +268,8 @@ void MainWindow::createActions() {
   }
   colour_group_->actions().front()->setChecked(true);
   view->addSeparator();
-  // Explicit captures: with [&], GCC 12's UBSan (asan preset, -O1) reports a misaligned `this`
-  // inside this lambda (every MainWindow test); the code is the same either way.
-  const auto toggle = [this, view](const QString& label, const QString& shortcut, bool on,
-                                   void (MosaicView::*slot)(bool)) {
+  const auto toggle = [&](const QString& label, const QString& shortcut, bool on,
+                          void (MosaicView::*slot)(bool)) {
     QAction* action = view->addAction(label);
     action->setCheckable(true);
     action->setChecked(on);
