@@ -19,7 +19,6 @@
 #include <CLI/CLI.hpp>
 #include <malloc.h>
 #include <nlohmann/json.hpp>
-#include <sys/resource.h>
 
 #include <algorithm>
 #include <chrono>
@@ -36,12 +35,6 @@ namespace {
 
 namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
-
-double PeakRssMb() {
-  rusage usage{};
-  getrusage(RUSAGE_SELF, &usage);
-  return double(usage.ru_maxrss) / 1024.0;
-}
 
 double ResidentMb() { return double(saker::ResidentMemoryBytes()) / 1e6; }
 double PeakMb() { return double(saker::PeakResidentMemoryBytes()) / 1e6; }
@@ -232,7 +225,7 @@ int main(int argc, char** argv) {
     if (!saker::sim::Simulate(sim).ok()) return 1;
 
     const double decode_fps = DecodeOnlyFps(sim.output.string());
-    const double rss_before = PeakRssMb();
+    const double rss_before = PeakMb();
     auto result = saker::frontend::RunFrontEnd(sim.output.string(), {});
     if (!result.ok()) {
       std::cerr << result.status().message() << "\n";
@@ -255,7 +248,7 @@ int main(int argc, char** argv) {
                      {"change_tracks_ms", t.change_tracks_ms},
                      {"change_wait_ms", t.change_wait_ms},
                      {"key_frames_ms", t.key_frames_ms},
-                     {"peak_rss_mb", PeakRssMb()},
+                     {"peak_rss_mb", PeakMb()},
                      {"peak_rss_before_mb", rss_before}});
     } else {
       std::printf(
@@ -266,7 +259,7 @@ int main(int argc, char** argv) {
           "%.2f ms; peak RSS %.0f MB\n",
           w, h, static_cast<long long>(t.frames), front_fps, decode_fps, decode_fps / front_fps,
           t.decode_ms, t.track_ms, t.homography_ms, t.segment_ms, t.change_ms, t.change_tracks_ms,
-          t.change_wait_ms, t.key_frames_ms, PeakRssMb());
+          t.change_wait_ms, t.key_frames_ms, PeakMb());
     }
   }
   if (json) std::cout << out.dump(2) << "\n";
