@@ -48,6 +48,8 @@ struct KeyFramePreview {
   Eigen::Matrix3d preview_from_frame = Eigen::Matrix3d::Identity();
 };
 
+struct FrontEndCheckpoint;
+
 struct FrontEndOptions {
   track::TrackerOptions tracker;
   track::SegmentationOptions segmentation;
@@ -73,6 +75,15 @@ struct FrontEndOptions {
   int64_t max_memory_mib = 0;
   // Called on the calling thread with each new key frame (needs key_frame_image_width > 0).
   std::function<void(const KeyFramePreview&)> on_key_frame;
+  // Checkpoints (FrontEndCheckpoint): at a key frame once this many seconds have passed since
+  // the previous checkpoint (0: at every key frame), and at the end. An error returned by
+  // `on_checkpoint` (a full disk) stops the front end with that error.
+  double checkpoint_interval_s = 30;
+  std::function<Status(const FrontEndCheckpoint&)> on_checkpoint;
+  // A resumed run starts tracking this many frames before the checkpoint's key frame, so that
+  // the feature tracks, the moving-target test and the change detector are as warm there as in
+  // a run that never stopped.
+  int resume_warmup_frames = 100;
   Status Validate() const;
 };
 
@@ -117,9 +128,43 @@ struct FrontEndResult {
   FrontEndTiming timing;
 };
 
+// What the front end has done by a key frame, so that an interrupted job resumes from there
+// rather than starting again (docs/reliability.md, "Resume"). The front end hands out each
+// checkpoint as what is new since its previous one (`frames` ... `change_targets`, to be appended
+// in order) plus its open targets and state, which replace the previous ones; Append() merges the
+// deliveries into the whole checkpoint that RunFrontEnd resumes from.
+struct FrontEndCheckpoint {
+  int64_t through_frame = -1;  // frames [0, through_frame] are done; a key frame unless complete
+  bool complete = false;       // the whole video is done; `targets` are the final ones then
+  std::vector<FrameResult> frames;
+  std::vector<track::KeyFrame> key_frames;
+  std::vector<KeyFramePreview> key_frame_images;  // in key frame order; may be empty
+  std::vector<track::SequentialLink> links;
+  std::vector<track::ChainBreak> breaks;
+  std::vector<track::TargetTrack> targets;         // finished ones found by feature tracks
+  std::vector<track::TargetTrack> change_targets;  // finished ones found by change detection
+  // Replaced at every checkpoint: the confirmed targets still followed at `through_frame`, cut
+  // there (a resumed run joins them to its own continuations), and the last frame whose change
+  // evidence had been applied.
+  std::vector<track::TargetTrack> open_targets;
+  std::vector<track::TargetTrack> open_change_targets;
+  int64_t change_through_frame = -1;
+
+  // Appends the next delivery of the same run (or of its resumption).
+  void Append(FrontEndCheckpoint next);
+  // InvalidArgument unless the parts fit together: frames 0..through_frame in order, key frame
+  // ids 0, 1, ... on those frames, links and images between known key frames.
+  Status Validate() const;
+};
+
 // Runs the front end over a whole video. Fails when the video cannot be opened or decoded;
 // frames without a usable homography are chain breaks, not errors. `job` may cancel.
+// `resume`: carry on from this checkpoint of an earlier run on the same video with the same
+// options. The video is decoded from its start again (the KLV scan needs every frame) but
+// frames before the checkpoint are only decoded, apart from the warm-up; the result is that of
+// one run, up to the seam at the checkpoint's key frame (docs/reliability.md).
 StatusOr<FrontEndResult> RunFrontEnd(const std::string& path, const FrontEndOptions& options,
-                                     JobContext* job = nullptr);
+                                     JobContext* job = nullptr,
+                                     const FrontEndCheckpoint* resume = nullptr);
 
 }  // namespace saker::frontend

@@ -22,9 +22,10 @@
 namespace saker::mission {
 
 // Version of the mission file's schema. A file with a newer version is refused, never written.
-// Version 2 added the frames' presentation time stamps and key-frame flags; a version 1 file is
-// read as it is and upgraded in place when it is opened for writing.
-inline constexpr int kSchemaVersion = 2;
+// Version 2 added the frames' presentation time stamps and key-frame flags, version 3 the table of
+// processing checkpoints; an older file is read as it is and upgraded in place when it is opened
+// for writing.
+inline constexpr int kSchemaVersion = 3;
 
 using Covariance8 = Eigen::Matrix<double, 8, 8>;
 

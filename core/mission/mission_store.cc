@@ -39,7 +39,8 @@ constexpr int kCornerValues = 8;  // four (x, y) pairs
 constexpr int kMaxPyramidLevels = 32;
 constexpr int kMaxTileSize = 1 << 16;
 
-// Schema v2 (docs/mission-file.md). REAL columns are nullable on purpose: SQLite stores NaN as
+// Schema v3 (docs/mission-file.md): the tables of version 2 here, the checkpoint table (new in
+// version 3) below. REAL columns are nullable on purpose: SQLite stores NaN as
 // NULL.
 constexpr const char* kSchemaSql = R"sql(
 CREATE TABLE meta (
@@ -121,6 +122,17 @@ CREATE TABLE tiles (
   data BLOB NOT NULL,
   PRIMARY KEY (level, x, y)
 );
+)sql";
+
+// The processing checkpoints of an unfinished job: opaque records that pipeline/checkpoint.h
+// gives a meaning to. Added in schema version 3.
+constexpr const char* kCheckpointSql = R"sql(
+CREATE TABLE checkpoint (
+  kind TEXT NOT NULL,
+  key INTEGER NOT NULL,
+  data BLOB NOT NULL,
+  PRIMARY KEY (kind, key)
+) WITHOUT ROWID;
 )sql";
 
 constexpr const char* kTables[] = {"meta",  "source", "frames",       "key_frames",
@@ -898,6 +910,9 @@ Status MissionStore::Impl::CheckIdentity() const {
       return InvalidDataError(path + ": not a Saker mission (no table " + table + ")");
     }
   }
+  if (schema >= 3 && tables.count("checkpoint") == 0) {
+    return InvalidDataError(path + ": not a Saker mission (no table checkpoint)");
+  }
   return Status::Ok();
 }
 
@@ -927,6 +942,7 @@ Status MissionStore::Impl::Upgrade() {
              "ALTER TABLE frames ADD COLUMN key_frame INTEGER",
              "upgrading the mission to schema 2"));
   }
+  if (schema < 3) SAKER_RETURN_IF_ERROR(Exec(kCheckpointSql, "upgrading the mission to schema 3"));
   const std::string version = std::to_string(kSchemaVersion);
   const std::string sql = "UPDATE meta SET value = " + version + " WHERE key = '" +
                           kKeySchemaVersion + "'; PRAGMA user_version = " + version;
@@ -1594,6 +1610,9 @@ StatusOr<std::unique_ptr<MissionStore>> MissionStore::Create(const std::string& 
     impl.path = temp;
     impl.mode = OpenMode::kReadWrite;
     SAKER_RETURN_IF_ERROR(impl.OpenConnection(SQLITE_OPEN_READWRITE));
+    // Space freed when a finished job drops its checkpoints goes back to the file system
+    // (ClearCheckpoint); only settable while the database is empty, before the switch to WAL.
+    SAKER_RETURN_IF_ERROR(impl.Exec("PRAGMA auto_vacuum = INCREMENTAL", "setting auto-vacuum"));
     SAKER_RETURN_IF_ERROR(impl.SetWriteOptions());
     const std::string pragmas = "PRAGMA application_id = " + std::to_string(kMissionApplicationId) +
                                 "; PRAGMA user_version = " + std::to_string(kSchemaVersion);
@@ -1602,6 +1621,7 @@ StatusOr<std::unique_ptr<MissionStore>> MissionStore::Create(const std::string& 
       SAKER_RETURN_IF_ERROR(transaction.Begin(/*write=*/true));
       SAKER_RETURN_IF_ERROR(impl.Exec(pragmas.c_str(), "setting the file identity"));
       SAKER_RETURN_IF_ERROR(impl.Exec(kSchemaSql, "creating the schema"));
+      SAKER_RETURN_IF_ERROR(impl.Exec(kCheckpointSql, "creating the schema"));
       SAKER_RETURN_IF_ERROR(transaction.Commit());
     }
     SAKER_RETURN_IF_ERROR(impl.SaveInTransaction(Mission{}, kSaveAll));
@@ -1699,6 +1719,89 @@ Status MissionStore::ClearTiles() {
   SAKER_RETURN_IF_ERROR(transaction.Begin(/*write=*/true));
   SAKER_RETURN_IF_ERROR(impl_->Exec("DELETE FROM tiles", "clearing tiles"));
   return transaction.Commit();
+}
+
+Status MissionStore::WriteCheckpoint(const std::vector<CheckpointRecord>& records,
+                                     const std::vector<std::string>& replace_kinds) {
+  if (impl_->mode != OpenMode::kReadWrite) {
+    return InvalidArgumentError(impl_->path +
+                                ": cannot write a checkpoint: the mission is open read-only");
+  }
+  Transaction transaction(impl_->db.get(), impl_->path);
+  SAKER_RETURN_IF_ERROR(transaction.Begin(/*write=*/true));
+  if (!replace_kinds.empty()) {
+    SAKER_ASSIGN_OR_RETURN(Statement clear, impl_->Prepare("DELETE FROM checkpoint WHERE kind = ?1",
+                                                           "writing the checkpoint"));
+    for (const std::string& kind : replace_kinds) {
+      Binder b(clear.get());
+      b.Text(1, kind);
+      SAKER_RETURN_IF_ERROR(impl_->Run(clear.get(), b, "writing the checkpoint"));
+    }
+  }
+  SAKER_ASSIGN_OR_RETURN(
+      Statement stmt,
+      impl_->Prepare("INSERT OR REPLACE INTO checkpoint (kind, key, data) VALUES (?1, ?2, ?3)",
+                     "writing the checkpoint"));
+  for (const CheckpointRecord& record : records) {
+    Binder b(stmt.get());
+    b.Text(1, record.kind);
+    b.Int64(2, record.key);
+    b.Blob(3, record.bytes.data(), record.bytes.size());
+    SAKER_RETURN_IF_ERROR(impl_->Run(stmt.get(), b, "writing the checkpoint"));
+  }
+  return transaction.Commit();
+}
+
+StatusOr<std::vector<CheckpointRecord>> MissionStore::ReadCheckpoint() const {
+  std::vector<CheckpointRecord> records;
+  if (impl_->schema < 3) return records;  // older files have no checkpoints
+  Transaction transaction(impl_->db.get(), impl_->path);
+  SAKER_RETURN_IF_ERROR(transaction.Begin(/*write=*/false));
+  SAKER_ASSIGN_OR_RETURN(Statement stmt,
+                         impl_->Prepare("SELECT kind, key, data FROM checkpoint ORDER BY kind, key",
+                                        "reading the checkpoint"));
+  const std::string where = impl_->path + ": table checkpoint";
+  int rc;
+  try {
+    while ((rc = sqlite3_step(stmt.get())) == SQLITE_ROW) {
+      if (sqlite3_column_type(stmt.get(), 0) != SQLITE_TEXT ||
+          sqlite3_column_type(stmt.get(), 1) != SQLITE_INTEGER ||
+          sqlite3_column_type(stmt.get(), 2) != SQLITE_BLOB) {
+        return InvalidDataError(where +
+                                ": a row of the wrong types (kind text, key integer, "
+                                "data blob)");
+      }
+      CheckpointRecord record;
+      const auto* kind = reinterpret_cast<const char*>(sqlite3_column_text(stmt.get(), 0));
+      record.kind.assign(kind != nullptr ? kind : "", size_t(sqlite3_column_bytes(stmt.get(), 0)));
+      record.key = sqlite3_column_int64(stmt.get(), 1);
+      const auto* data = static_cast<const uint8_t*>(sqlite3_column_blob(stmt.get(), 2));
+      const int size = sqlite3_column_bytes(stmt.get(), 2);
+      if (data == nullptr && size > 0) return IoError(where + ": out of memory");
+      if (size > 0) record.bytes.assign(data, data + size);
+      records.push_back(std::move(record));
+    }
+  } catch (const std::bad_alloc&) {
+    return IoError(where + ": out of memory");
+  }
+  if (rc != SQLITE_DONE) return impl_->Error(rc, "reading the checkpoint");
+  SAKER_RETURN_IF_ERROR(transaction.Commit());
+  return records;
+}
+
+Status MissionStore::ClearCheckpoint() {
+  if (impl_->mode != OpenMode::kReadWrite) {
+    return InvalidArgumentError(impl_->path +
+                                ": cannot clear the checkpoint: the mission is open read-only");
+  }
+  {
+    Transaction transaction(impl_->db.get(), impl_->path);
+    SAKER_RETURN_IF_ERROR(transaction.Begin(/*write=*/true));
+    SAKER_RETURN_IF_ERROR(impl_->Exec("DELETE FROM checkpoint", "clearing the checkpoint"));
+    SAKER_RETURN_IF_ERROR(transaction.Commit());
+  }
+  // Gives the freed pages back to the file system (a no-op in files made without auto-vacuum).
+  return impl_->Exec("PRAGMA incremental_vacuum", "clearing the checkpoint");
 }
 
 StatusOr<std::optional<std::vector<uint8_t>>> MissionStore::ReadTile(int level, int x,

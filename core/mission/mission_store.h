@@ -47,6 +47,14 @@ struct EncodedTile {
   std::vector<uint8_t> bytes;  // PNG or JPEG; opaque to the store
 };
 
+// One record of a processing checkpoint: opaque bytes under (kind, key), which the processing
+// pipeline defines (pipeline/checkpoint.h).
+struct CheckpointRecord {
+  std::string kind;
+  int64_t key = 0;
+  std::vector<uint8_t> bytes;
+};
+
 // An open mission file. Errors are returned as Status naming the file (and, for bad content,
 // the table); nothing throws across this interface.
 class MissionStore {
@@ -96,6 +104,18 @@ class MissionStore {
   // InvalidData naming the file and the table when the content is inconsistent (a blob of the
   // wrong size, a value of the wrong type, an unknown link kind, a missing row).
   StatusOr<Mission> Load() const;
+
+  // The checkpoint of an unfinished processing job, so that it can resume (docs/reliability.md).
+  // WriteCheckpoint, in one transaction, first removes every record of the kinds in
+  // `replace_kinds`, then inserts `records`, replacing those with the same (kind, key).
+  // InvalidArgument on a read-only store.
+  Status WriteCheckpoint(const std::vector<CheckpointRecord>& records,
+                         const std::vector<std::string>& replace_kinds = {});
+  // Every record, sorted by kind and key, read in one transaction (empty for a file of schema
+  // version 2 or older).
+  StatusOr<std::vector<CheckpointRecord>> ReadCheckpoint() const;
+  // Removes every record (a job that completed) and gives the space back where the file allows.
+  Status ClearCheckpoint();
 
   // Stores tiles of the mosaic pyramid in one transaction, replacing tiles with the same
   // (level, x, y). InvalidArgument on a read-only store or for a negative level or position.

@@ -8,9 +8,11 @@
 #include "core/sim/truth.h"
 #include "tests/testing/test_data.h"
 
+#include <Eigen/Geometry>
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <iostream>
 #include <string>
 
 namespace saker::frontend {
@@ -184,6 +186,149 @@ TEST_F(FrontEndTest, TheResultDoesNotDependOnHowTheThreadsRun) {
   }
   EXPECT_GT(with_change, 0) << "the change evidence is compared too";
   EXPECT_GT(result_->timing.change_ms, 0);
+}
+
+// Checkpoints are handed out as the run goes without changing its result, and merged they are
+// that result. A run interrupted after the checkpoint nearest the middle and resumed from it gives
+// the result of one run, up to the seam at that checkpoint's key frame.
+TEST_F(FrontEndTest, ResumesFromACheckpointAsIfNeverStopped) {
+  ASSERT_NE(result_, nullptr);
+  const std::string video = (*dir_ / "town.ts").string();
+  std::vector<FrontEndCheckpoint> deliveries;
+  FrontEndOptions options;
+  options.checkpoint_interval_s = 0;  // at every key frame
+  options.on_checkpoint = [&](const FrontEndCheckpoint& c) {
+    deliveries.push_back(c);
+    return Status::Ok();
+  };
+  StatusOr<FrontEndResult> full = RunFrontEnd(video, options);
+  ASSERT_TRUE(full.ok()) << full.status().ToString();
+  ASSERT_EQ(full->targets.size(), result_->targets.size());
+  ASSERT_EQ(full->key_frames.size(), result_->key_frames.size());
+  ASSERT_GE(deliveries.size(), 4u);
+  ASSERT_TRUE(deliveries.back().complete);
+  FrontEndCheckpoint all;
+  for (const FrontEndCheckpoint& d : deliveries) all.Append(d);
+  ASSERT_TRUE(all.Validate().ok()) << all.Validate().ToString();
+  EXPECT_EQ(all.frames.size(), full->frames.size());
+  EXPECT_EQ(all.key_frames.size(), full->key_frames.size());
+  EXPECT_EQ(all.key_frame_images.size(), full->key_frame_images.size());
+  EXPECT_EQ(all.links.size(), full->links.size());
+  EXPECT_EQ(all.targets.size(), full->targets.size());
+
+  // Interrupted after the checkpoint nearest the middle.
+  FrontEndCheckpoint half;
+  for (const FrontEndCheckpoint& d : deliveries) {
+    if (d.complete) break;
+    half.Append(d);
+    if (2 * half.through_frame >= int64_t(full->frames.size())) break;
+  }
+  ASSERT_FALSE(half.complete);
+  const int64_t seam = half.through_frame;
+  ASSERT_GT(seam, 50);
+  ASSERT_LT(seam, int64_t(full->frames.size()) - 50);
+  std::vector<FrontEndCheckpoint> resumed_deliveries;
+  options.on_checkpoint = [&](const FrontEndCheckpoint& c) {
+    resumed_deliveries.push_back(c);
+    return Status::Ok();
+  };
+  StatusOr<FrontEndResult> resumed = RunFrontEnd(video, options, nullptr, &half);
+  ASSERT_TRUE(resumed.ok()) << resumed.status().ToString();
+  std::cout << "resumed at frame " << seam << " of " << full->frames.size() << "; "
+            << full->key_frames.size() << " -> " << resumed->key_frames.size() << " key frames, "
+            << full->targets.size() << " -> " << resumed->targets.size() << " targets\n";
+
+  // The frames: the checkpoint's up to the seam; after it the ground motion agrees (the image
+  // centre moves to within 0.3 px of where the uninterrupted run put it).
+  ASSERT_EQ(resumed->frames.size(), full->frames.size());
+  EXPECT_EQ(resumed->scan.frames.size(), full->scan.frames.size());
+  int after = 0, agree = 0;
+  const Eigen::Vector3d centre(320, 180, 1);
+  for (size_t i = size_t(seam) + 1; i < full->frames.size(); ++i) {
+    const FrameResult& a = full->frames[i];
+    const FrameResult& b = resumed->frames[i];
+    ASSERT_EQ(b.index, int64_t(i));
+    ++after;
+    if (a.homography_ok != b.homography_ok) continue;
+    const Eigen::Vector3d pa = a.current_from_previous * centre;
+    const Eigen::Vector3d pb = b.current_from_previous * centre;
+    agree += (pa.hnormalized() - pb.hnormalized()).norm() < 0.3;
+  }
+  EXPECT_GE(agree, after * 95 / 100) << agree << " of " << after << " frames after the seam";
+
+  // The chain carries on through the seam: no break, every key frame linked to the next.
+  EXPECT_EQ(resumed->breaks.size(), full->breaks.size());
+  ASSERT_GT(resumed->key_frames.size(), half.key_frames.size());
+  EXPECT_NEAR(double(resumed->key_frames.size()), double(full->key_frames.size()),
+              0.15 * double(full->key_frames.size()) + 1);
+  for (size_t k = 0; k < resumed->key_frames.size(); ++k) {
+    EXPECT_EQ(int64_t(resumed->key_frames[k].id), int64_t(k));
+    if (k < half.key_frames.size()) {
+      EXPECT_EQ(resumed->key_frames[k].frame_index, full->key_frames[k].frame_index);
+    }
+  }
+  ASSERT_EQ(resumed->links.size(), resumed->key_frames.size() - 1 - resumed->breaks.size());
+  for (size_t l = 0; l < resumed->links.size(); ++l) {
+    EXPECT_EQ(int64_t(resumed->links[l].to), int64_t(resumed->links[l].from) + 1);
+  }
+  ASSERT_EQ(resumed->key_frame_images.size(), resumed->key_frames.size());
+
+  // The targets: as good against the truth as the uninterrupted run's.
+  StatusOr<sim::Truth> truth = sim::ReadTruth(SmallOptions(*dir_ / "town.ts", 12).TruthPath());
+  ASSERT_TRUE(truth.ok());
+  StatusOr<Evaluation> evaluation = Evaluate(*resumed, *truth);
+  ASSERT_TRUE(evaluation.ok()) << evaluation.status().ToString();
+  std::cout << "resumed:\n" << EvaluationToText(*evaluation);
+  EXPECT_GE(evaluation->targets.track_recall, evaluation_->targets.track_recall - 0.05);
+  EXPECT_GE(evaluation->targets.track_precision, evaluation_->targets.track_precision - 0.05);
+  EXPECT_GE(evaluation->targets.frame_recall, evaluation_->targets.frame_recall - 0.05);
+  EXPECT_NEAR(double(resumed->targets.size()), double(full->targets.size()), 2);
+
+  // The resumed run's checkpoints carry on from the one it resumed.
+  FrontEndCheckpoint again = half;
+  for (const FrontEndCheckpoint& d : resumed_deliveries) again.Append(d);
+  ASSERT_TRUE(again.Validate().ok()) << again.Validate().ToString();
+  EXPECT_TRUE(again.complete);
+  EXPECT_EQ(again.frames.size(), resumed->frames.size());
+  EXPECT_EQ(again.key_frames.size(), resumed->key_frames.size());
+  EXPECT_EQ(again.links.size(), resumed->links.size());
+  EXPECT_EQ(again.targets.size(), resumed->targets.size());
+
+  // From a complete checkpoint nothing is tracked again: the result is the checkpoint's.
+  options.on_checkpoint = nullptr;
+  StatusOr<FrontEndResult> done = RunFrontEnd(video, options, nullptr, &all);
+  ASSERT_TRUE(done.ok()) << done.status().ToString();
+  EXPECT_EQ(done->timing.frames, 0);
+  EXPECT_EQ(done->frames.size(), full->frames.size());
+  EXPECT_EQ(done->scan.frames.size(), full->scan.frames.size());
+  ASSERT_EQ(done->targets.size(), full->targets.size());
+  for (size_t t = 0; t < done->targets.size(); ++t) {
+    EXPECT_EQ(done->targets[t].observations.size(), full->targets[t].observations.size());
+  }
+
+  // A checkpoint that does not fit the video, or itself, is refused with the video's name.
+  FrontEndCheckpoint longer = all;
+  longer.frames.push_back(all.frames.back());
+  longer.frames.back().index = longer.through_frame = int64_t(longer.frames.size()) - 1;
+  StatusOr<FrontEndResult> refused = RunFrontEnd(video, options, nullptr, &longer);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_EQ(refused.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_NE(refused.status().message().find("town.ts: cannot resume"), std::string::npos)
+      << refused.status().message();
+  FrontEndCheckpoint broken = half;
+  broken.key_frames.pop_back();
+  refused = RunFrontEnd(video, options, nullptr, &broken);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_NE(refused.status().message().find("town.ts: cannot resume"), std::string::npos)
+      << refused.status().message();
+
+  // A checkpoint that cannot be kept (a full disk) stops the run with the reason.
+  options.on_checkpoint = [](const FrontEndCheckpoint&) { return IoError("disk full"); };
+  StatusOr<FrontEndResult> stopped = RunFrontEnd(video, options);
+  ASSERT_FALSE(stopped.ok());
+  EXPECT_EQ(stopped.status().code(), StatusCode::kIoError);
+  EXPECT_NE(stopped.status().message().find("town.ts: checkpoint: disk full"), std::string::npos)
+      << stopped.status().message();
 }
 
 // Walkers from 200 m at 0.2 m per pixel: change detection sees people in frames where the feature

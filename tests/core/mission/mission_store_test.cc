@@ -140,6 +140,7 @@ TEST_F(MissionStoreTest, SchemaOneFileIsReadAndUpgradedForWriting) {
   const Mission full = MakeFullMission();
   WriteMissionFile(path, full);
   ExecSql(path,
+          "DROP TABLE checkpoint; "
           "ALTER TABLE frames DROP COLUMN pts; ALTER TABLE frames DROP COLUMN key_frame; "
           "UPDATE meta SET value = 1 WHERE key = 'schema_version'; PRAGMA user_version = 1");
   {
@@ -162,6 +163,110 @@ TEST_F(MissionStoreTest, SchemaOneFileIsReadAndUpgradedForWriting) {
   ASSERT_TRUE(m.ok()) << m.status().ToString();
   EXPECT_EQ(m->schema_version, kSchemaVersion);
   EXPECT_SAME_MISSION(*m, full);
+}
+
+// Schema 2 (before checkpoints): read with no checkpoint, upgraded when opened for writing, and
+// then keeps checkpoints.
+TEST_F(MissionStoreTest, SchemaTwoFileHasNoCheckpointUntilUpgraded) {
+  const fs::path path = File("v2.saker");
+  const Mission full = MakeFullMission();
+  WriteMissionFile(path, full);
+  ExecSql(path,
+          "DROP TABLE checkpoint; UPDATE meta SET value = 2 WHERE key = 'schema_version'; "
+          "PRAGMA user_version = 2");
+  {
+    auto store = MissionStore::Open(path.string());
+    ASSERT_TRUE(store.ok()) << store.status().ToString();
+    auto records = (*store)->ReadCheckpoint();
+    ASSERT_TRUE(records.ok()) << records.status().ToString();
+    EXPECT_TRUE(records->empty());
+    auto m = (*store)->Load();
+    ASSERT_TRUE(m.ok()) << m.status().ToString();
+    EXPECT_EQ(m->schema_version, 2);
+  }
+  {
+    auto store = MissionStore::Open(path.string(), OpenMode::kReadWrite);
+    ASSERT_TRUE(store.ok()) << store.status().ToString();
+    ASSERT_TRUE((*store)->WriteCheckpoint({{"state", 0, {1, 2, 3}}}).ok());
+  }
+  auto store = MissionStore::Open(path.string());
+  ASSERT_TRUE(store.ok()) << store.status().ToString();
+  auto records = (*store)->ReadCheckpoint();
+  ASSERT_TRUE(records.ok()) << records.status().ToString();
+  ASSERT_EQ(records->size(), 1u);
+  EXPECT_EQ((*records)[0].bytes, (std::vector<uint8_t>{1, 2, 3}));
+  auto m = (*store)->Load();
+  ASSERT_TRUE(m.ok()) << m.status().ToString();
+  EXPECT_EQ(m->schema_version, kSchemaVersion);
+  EXPECT_SAME_MISSION(*m, full);
+}
+
+TEST_F(MissionStoreTest, CheckpointRecordsAppendReplaceAndClear) {
+  const fs::path path = File("checkpoint.saker");
+  auto store = CreateOrDie(path);
+  ASSERT_NE(store, nullptr);
+  ASSERT_TRUE(store->Save(MakeFullMission()).ok());
+  ASSERT_TRUE(store
+                  ->WriteCheckpoint({{"frame", 2, RandomBytes(300, 1)},
+                                     {"frame", 0, RandomBytes(10, 2)},
+                                     {"state", 0, {7}},
+                                     {"frame", 1, {}}})
+                  .ok());
+  // Appending more of one kind, replacing one record, and all of another kind.
+  ASSERT_TRUE(store
+                  ->WriteCheckpoint({{"frame", 3, RandomBytes(5, 3)},
+                                     {"frame", 0, RandomBytes(12, 4)},
+                                     {"state", 1, {9, 9}}},
+                                    {"state"})
+                  .ok());
+  auto records = MissionStore::Open(path.string())->get()->ReadCheckpoint();
+  ASSERT_TRUE(records.ok()) << records.status().ToString();
+  ASSERT_EQ(records->size(), 5u);
+  const std::vector<std::pair<std::string, int64_t>> expected = {
+      {"frame", 0}, {"frame", 1}, {"frame", 2}, {"frame", 3}, {"state", 1}};
+  for (size_t i = 0; i < expected.size(); ++i) {
+    EXPECT_EQ((*records)[i].kind, expected[i].first);
+    EXPECT_EQ((*records)[i].key, expected[i].second);
+  }
+  EXPECT_EQ((*records)[0].bytes, RandomBytes(12, 4));
+  EXPECT_TRUE((*records)[1].bytes.empty());
+  EXPECT_EQ((*records)[2].bytes, RandomBytes(300, 1));
+  EXPECT_EQ((*records)[4].bytes, (std::vector<uint8_t>{9, 9}));
+
+  // The mission itself is untouched by checkpoints.
+  auto loaded = store->Load();
+  ASSERT_TRUE(loaded.ok());
+  EXPECT_SAME_MISSION(*loaded, MakeFullMission());
+
+  // Clearing gives the pages of a large checkpoint back to the file system.
+  std::vector<CheckpointRecord> large;
+  for (int i = 0; i < 40; ++i) large.push_back({"image", i, RandomBytes(100000, uint32_t(i))});
+  ASSERT_TRUE(store->WriteCheckpoint(large).ok());
+  store.reset();
+  const auto size_with = fs::file_size(path);
+  store = MissionStore::Open(path.string(), OpenMode::kReadWrite).value();
+  ASSERT_TRUE(store->ClearCheckpoint().ok());
+  store.reset();
+  EXPECT_LT(fs::file_size(path) + 3'000'000, size_with);
+  records = MissionStore::Open(path.string())->get()->ReadCheckpoint();
+  ASSERT_TRUE(records.ok());
+  EXPECT_TRUE(records->empty());
+}
+
+TEST_F(MissionStoreTest, CheckpointOfTheWrongTypesIsInvalidDataAndReadOnlyRefusesWrites) {
+  const fs::path path = File("bad-checkpoint.saker");
+  WriteMissionFile(path, MakeFullMission());
+  ExecSql(path, "INSERT INTO checkpoint (kind, key, data) VALUES ('state', 0, 'text')");
+  auto store = MissionStore::Open(path.string());
+  ASSERT_TRUE(store.ok());
+  auto records = (*store)->ReadCheckpoint();
+  ASSERT_FALSE(records.ok());
+  EXPECT_EQ(records.status().code(), StatusCode::kInvalidData);
+  EXPECT_NE(records.status().message().find("bad-checkpoint.saker: table checkpoint"),
+            std::string::npos)
+      << records.status().message();
+  EXPECT_EQ((*store)->WriteCheckpoint({{"state", 0, {}}}).code(), StatusCode::kInvalidArgument);
+  EXPECT_EQ((*store)->ClearCheckpoint().code(), StatusCode::kInvalidArgument);
 }
 
 TEST_F(MissionStoreTest, ComparisonHelperSeesSmallDifferences) {
