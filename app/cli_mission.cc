@@ -5,6 +5,7 @@
 #include "core/activity/colours.h"
 #include "core/mission/mission_store.h"
 #include "core/mosaic/decomposition.h"
+#include "core/pipeline/checkpoint.h"
 #include "core/pipeline/export_mission.h"
 #include "core/pipeline/process.h"
 #include "core/render/activity_map.h"
@@ -57,11 +58,24 @@ ProcessCommand::ProcessCommand(CLI::App& app) : state_(std::make_unique<State>()
       "closure and bundle adjustment, every frame placed on the map, activity mapping (speed,\n"
       "direction, visit of every track), and the mosaic's tile pyramid. Each stage is saved as it\n"
       "completes; Ctrl-C cancels cleanly and leaves a valid mission holding the stages that\n"
-      "completed. See docs/missions.md.");
+      "completed. The front end checkpoints its work into the mission (every 30 s, at a key\n"
+      "frame): after Ctrl-C, a crash or a power cut, --resume carries on from the last\n"
+      "checkpoint instead of starting again. See docs/missions.md and docs/reliability.md.");
   s.command->add_option("VIDEO", s.video, "Video file (MPEG-TS, MP4, ...)")->required();
   s.command->add_option("-o,--output", s.mission, "Mission file to write (.saker)")->required();
   s.command->add_flag("--replace", s.replace,
                       "Replace an existing mission file (never a file that is not a mission)");
+  s.command
+      ->add_flag("--resume", s.options.resume,
+                 "Carry on an interrupted job in the existing mission file (made from the same "
+                 "video) from its last checkpoint; a complete mission is left as it is")
+      ->excludes("--replace");
+  s.command
+      ->add_option("--checkpoint-every", s.options.front_end.checkpoint_interval_s,
+                   "Seconds between the front end's checkpoints (taken at the next key frame; 0: "
+                   "at every key frame)")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
   s.command->add_flag("--json", s.json, "Print the summary as JSON");
   s.command->add_flag("-q,--quiet", s.quiet, "No progress on stderr");
   s.command->add_flag("--no-metadata", s.no_metadata,
@@ -123,6 +137,8 @@ int ProcessCommand::RunOn(const std::string& video, const std::string& mission,
                                 {"save_s", p.save_s},
                                 {"total_s", p.total_s},
                                 {"video_duration_s", p.video_duration_s},
+                                {"resumed_from_frame", p.resumed_from_frame},
+                                {"already_complete", p.already_complete},
                                 {"warnings", warnings}}
                      .dump(2)
               << "\n";
@@ -278,6 +294,10 @@ int InfoCommand::Run() const {
   if (!m.ok()) return Fail(m.status());
   StatusOr<int64_t> tiles = (*store)->CountTiles();
   if (!tiles.ok()) return Fail(tiles.status());
+  StatusOr<std::optional<pipeline::CheckpointState>> checkpoint_state =
+      pipeline::ReadCheckpointState(**store);
+  if (!checkpoint_state.ok()) return Fail(checkpoint_state.status());
+  const std::optional<pipeline::CheckpointState>& checkpoint = *checkpoint_state;
   // Is the video still there, and the same file?
   std::string video_state = "missing: frame recall needs it (the mosaic and tracks do not)";
   std::error_code error;
@@ -333,6 +353,11 @@ int InfoCommand::Run() const {
                           {"activity", p.activity},
                           {"tiles", p.tiles}}},
                         {"cancelled", p.cancelled}};
+    if (checkpoint) {
+      j["checkpoint"] = {{"through_frame", checkpoint->through_frame},
+                         {"complete", checkpoint->complete},
+                         {"key_frames", checkpoint->key_frames}};
+    }
     if (m->map.origin) {
       j["origin"] = {{"latitude_deg", m->map.origin->latitude_deg},
                      {"longitude_deg", m->map.origin->longitude_deg},
@@ -347,6 +372,16 @@ int InfoCommand::Run() const {
   std::cout << "         " << m->source.width << "x" << m->source.height << ", "
             << m->source.frame_rate << " fps, " << m->frames.size() << " frames\n";
   std::cout << "  completed: " << stages << (p.cancelled ? " (then cancelled)" : "") << "\n";
+  if (checkpoint) {
+    std::cout << "  checkpoint: ";
+    if (checkpoint->complete) {
+      std::cout << "the front end's result (a later stage was interrupted)";
+    } else {
+      std::cout << "the front end up to frame " << checkpoint->through_frame << " ("
+                << checkpoint->key_frames << " key frames)";
+    }
+    std::cout << "; carry on with: saker-cli process VIDEO -o " << s.mission << " --resume\n";
+  }
   std::cout << "  map: ";
   if (m->map.geo_referenced && m->map.origin) {
     char origin[128];

@@ -9,12 +9,16 @@
 //     --replace, killed (SIGKILL) after a random time up to the reference's duration (half of
 //     the kills in its last quarter, where the later stages are saved). While the
 //     child runs, a read-only reader polls the file and notes the furthest stage it saw committed.
+//     Checkpoints are taken at every key frame (--checkpoint-every 0). A killed processing job is
+//     then resumed (--resume), half the time killed once more first, and must complete.
 //   - copy: `saker-cli copy` of the reference over a copy of the last processing run's mission
 //     (often partial) with --replace, killed likewise.
 // After each kill a run fails when the file cannot be opened and loaded, fails SQLite's integrity
 // check, has a stage marked complete whose data differ from the reference's, has a later stage
 // complete without an earlier one, lost a stage the reader had seen committed, or (copy) is
-// neither the previous copy nor the complete new one; and when the reference itself changed.
+// neither the previous copy nor the complete new one; and when the reference itself changed. A
+// resumed job fails when it does not complete, leaves its checkpoint, or differs from the
+// reference by more than a resumed job may (Inconsistency).
 // It prints the number of runs and failures (the target is zero), where the kills landed, and the
 // temporary files that killed jobs left beside their targets.
 
@@ -121,8 +125,11 @@ Snapshot Take(const std::string& path, bool full) {
   return s;
 }
 
-// Why `s` is not a state the processing job can have committed (empty: it is one).
-std::string Inconsistency(const Snapshot& s, const Snapshot& reference) {
+// Why `s` is not a state the processing job can have committed (empty: it is one). A resumed
+// job's mosaic and tracks are those of one run only up to the seam where it resumed, so for it
+// (`exact` false) they must only be close to the reference's: key frames within 15 %, the same
+// frames placed, tracks within 3.
+std::string Inconsistency(const Snapshot& s, const Snapshot& reference, bool exact = true) {
   if (!s.error.empty()) return "does not reopen: " + s.error;
   if (s.integrity != "ok") return "integrity check: " + s.integrity;
   const saker::mission::Progress& p = s.progress;
@@ -141,6 +148,22 @@ std::string Inconsistency(const Snapshot& s, const Snapshot& reference) {
         return "front end: frame " + std::to_string(i) + " differs";
       }
     }
+  }
+  const auto near = [](size_t a, size_t b, double tolerance) {
+    return std::abs(double(a) - double(b)) <= tolerance;
+  };
+  if (!exact) {
+    if (p.mosaic &&
+        !near(m.key_frames.size(), r.key_frames.size(), 0.15 * double(r.key_frames.size()) + 1)) {
+      return "mosaic (resumed): " + std::to_string(m.key_frames.size()) +
+             " key frames, not about " + std::to_string(r.key_frames.size());
+    }
+    if (p.activity && !near(m.tracks.size(), r.tracks.size(), 3)) {
+      return "activity (resumed): " + std::to_string(m.tracks.size()) + " tracks, not about " +
+             std::to_string(r.tracks.size());
+    }
+    if (p.tiles && (s.tiles == 0 || !m.pyramid)) return "tiles (resumed): none";
+    return {};
   }
   if (p.mosaic) {
     if (m.key_frames.size() != r.key_frames.size() || m.links.size() != r.links.size()) {
@@ -207,6 +230,14 @@ std::pair<double, bool> KillAfter(pid_t child, std::chrono::duration<double> aft
   return {std::chrono::duration<double>(Clock::now() - spawned).count(), ended};
 }
 
+// Whether the mission at `path` holds a checkpoint to resume from.
+bool HasCheckpoint(const std::string& path) {
+  auto store = MissionStore::Open(path);
+  if (!store.ok()) return false;
+  auto records = (*store)->ReadCheckpoint();
+  return records.ok() && !records->empty();
+}
+
 // Leftover temporary files of killed jobs beside the targets.
 int CountTemporaryFiles(const fs::path& dir) {
   int n = 0;
@@ -265,7 +296,14 @@ int main(int argc, char** argv) {
     const double seconds = std::chrono::duration<double>(Clock::now() - start).count();
     return WIFEXITED(status) && WEXITSTATUS(status) == 0 ? seconds : -1.0;
   };
-  double process_s = run_to_end({"process", "-q", video, "-o", reference_path});
+  // Checkpoints at every key frame, so that the kills land in and between them.
+  const std::vector<std::string> checkpoint_every = {"--checkpoint-every", "0"};
+  const auto process_arguments = [&](const std::string& output) {
+    std::vector<std::string> arguments = {"process", "-q", video, "-o", output};
+    arguments.insert(arguments.end(), checkpoint_every.begin(), checkpoint_every.end());
+    return arguments;
+  };
+  double process_s = run_to_end(process_arguments(reference_path));
   double copy_s = run_to_end({"copy", reference_path, (dir / "timing.saker").string()});
   if (process_s < 0 || copy_s < 0) {
     std::cerr << "saker-bench-crash: the uninterrupted reference run failed\n";
@@ -289,7 +327,13 @@ int main(int argc, char** argv) {
   const std::string copied = (dir / "copy.saker").string();
   int failures = 0, process_runs = 0, copy_runs = 0, replaced_runs = 0, copies_complete = 0,
       ended_runs = 0;
-  std::map<int, int> landed;  // stages completed when killed -> processing runs
+  // Resuming the killed processing jobs: how many, from a checkpoint, killed again first, and
+  // the time to finish.
+  int resumed_runs = 0, from_checkpoint = 0, resumes_killed = 0;
+  double resume_s = 0;
+  bool processed_resumed = false;  // `processed` holds a resumed job's mission
+  bool copied_resumed = false;     // and the copy a Save As replaces
+  std::map<int, int> landed;       // stages completed when killed -> processing runs
   const auto start = Clock::now();
   for (int run = 0; run < runs; ++run) {
     const bool copy = std::uniform_int_distribution<int>(0, 2)(random) == 0;
@@ -309,7 +353,7 @@ int main(int argc, char** argv) {
       if (!replace) fs::remove(processed);
       replaced_runs += replace;
       const Snapshot before = Take(processed, false);
-      std::vector<std::string> arguments = {"process", "-q", video, "-o", processed};
+      std::vector<std::string> arguments = process_arguments(processed);
       if (replace) arguments.push_back("--replace");
       const pid_t child = Spawn(arguments);
       // The furthest stage a reader saw committed by this run (on a new file only: while
@@ -328,19 +372,56 @@ int main(int argc, char** argv) {
         if (seen > 0 || before.exists) failure = "the mission file vanished";
         landed[0]++;
       } else {
-        failure = Inconsistency(after, reference);
+        // Killed before its rename, a replacing job leaves the previous (maybe resumed) mission.
+        failure = Inconsistency(after, reference, !(replace && processed_resumed));
         if (failure.empty() && after.stages() < seen) {
           failure = "lost a committed stage (a reader had seen " + std::to_string(seen) +
                     " stages, " + std::to_string(after.stages()) + " reopened)";
         }
         landed[after.stages()]++;
       }
+      if (!replace || ended) processed_resumed = false;
+      // The killed job resumed (half the time killed once more first), then checked complete.
+      if (failure.empty() && !ended && after.exists && after.error.empty()) {
+        ++resumed_runs;
+        from_checkpoint += HasCheckpoint(processed);
+        std::vector<std::string> resume = process_arguments(processed);
+        resume.push_back("--resume");
+        if (std::uniform_int_distribution<int>(0, 1)(random) == 0) {
+          ++resumes_killed;
+          KillAfter(Spawn(resume),
+                    std::chrono::duration<double>(
+                        std::uniform_real_distribution<double>(0, process_s)(random)),
+                    nullptr);
+          if (std::string why = Inconsistency(Take(processed, true), reference, false);
+              !why.empty()) {
+            failure = "killed resume: " + why;
+          }
+        }
+        if (failure.empty()) {
+          const double seconds = run_to_end(resume);
+          const Snapshot done = Take(processed, true);
+          if (seconds < 0) {
+            failure = "resume: the job failed";
+          } else if (std::string why = Inconsistency(done, reference, false); !why.empty()) {
+            failure = "resume: " + why;
+          } else if (!done.progress.tiles || done.progress.cancelled) {
+            failure = "resume: the mission is not complete";
+          } else if (HasCheckpoint(processed)) {
+            failure = "resume: the completed job left its checkpoint";
+          }
+          resume_s += std::max(0.0, seconds);
+        }
+        processed_resumed = true;
+      }
     } else {
       ++copy_runs;
       // What Save As replaces: the last processing run's mission (often partial), copied whole.
       fs::remove(copied);
+      copied_resumed = false;
       if (Take(processed, false).error.empty() && fs::exists(processed)) {
         run_to_end({"copy", processed, copied});
+        copied_resumed = processed_resumed;
       }
       const Snapshot before = Take(copied, true);
       std::vector<std::string> arguments = {"copy", reference_path, copied};
@@ -350,7 +431,7 @@ int main(int argc, char** argv) {
       const Snapshot after = Take(copied, true);
       if (!after.exists) {
         if (before.exists) failure = "copy: the previous copy vanished";
-      } else if (std::string why = Inconsistency(after, reference); !why.empty()) {
+      } else if (std::string why = Inconsistency(after, reference, !copied_resumed); !why.empty()) {
         failure = "copy: " + why;
       } else if (after.progress.tiles && after.tiles == reference.tiles) {
         ++copies_complete;
@@ -379,5 +460,13 @@ int main(int argc, char** argv) {
   std::printf("processing runs by the state they reopened in:");
   for (const auto& [stages, count] : landed) std::printf(" %s %d;", kStageNames[stages], count);
   std::printf("\ntemporary files left by killed jobs: %d\n", CountTemporaryFiles(dir));
+  if (resumed_runs > 0) {
+    std::printf(
+        "resumed %d killed processing jobs (%d from a checkpoint, the rest from the start; %d "
+        "killed once more first): finishing took %.2f s on average, %.0f %% of processing from "
+        "the start (%.2f s)\n",
+        resumed_runs, from_checkpoint, resumes_killed, resume_s / resumed_runs,
+        100 * resume_s / resumed_runs / process_s, process_s);
+  }
   return failures == 0 ? 0 : 1;
 }

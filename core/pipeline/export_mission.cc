@@ -144,6 +144,10 @@ Status CopyMission(const std::string& from, const std::string& to, bool replace,
       }
       SAKER_RETURN_IF_ERROR(target->WriteTiles(batch));
     }
+    // An unfinished job's checkpoint too, so that the copy can be resumed.
+    SAKER_ASSIGN_OR_RETURN(const std::vector<mission::CheckpointRecord> checkpoint,
+                           source->ReadCheckpoint());
+    if (!checkpoint.empty()) SAKER_RETURN_IF_ERROR(target->WriteCheckpoint(checkpoint));
   }  // closed: the WAL is checkpointed into the file
   // A log of the mission being replaced (or an orphaned one) must not be replayed onto the copy.
   SAKER_RETURN_IF_ERROR(mission::MissionStore::FoldLog(to));

@@ -44,9 +44,9 @@ StatusOr<std::vector<ExportedFile>> ExportMission(const mission::Mission& missio
                                                   const ExportRequest& request,
                                                   JobContext* job = nullptr);
 
-// Copies the mission at `from` to a new mission file `to` (everything, tiles included), which
-// must not be `from`; `replace` allows overwriting another mission there. The copy is complete or
-// absent: it is built beside `to` and renamed into place.
+// Copies the mission at `from` to a new mission file `to` (everything: tiles and an unfinished
+// job's checkpoint included), which must not be `from`; `replace` allows overwriting another
+// mission there. The copy is complete or absent: it is built beside `to` and renamed into place.
 Status CopyMission(const std::string& from, const std::string& to, bool replace,
                    JobContext* job = nullptr);
 

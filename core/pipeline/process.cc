@@ -1,6 +1,7 @@
 #include "core/pipeline/process.h"
 
 #include "core/mission/mission_store.h"
+#include "core/pipeline/checkpoint.h"
 #include "core/video/video_reader.h"
 
 #include <nlohmann/json.hpp>
@@ -101,6 +102,11 @@ Status ProcessOptions::Validate() const {
 
 std::string ProcessSummary::ToText() const {
   std::ostringstream out;
+  if (already_complete) {
+    out << "the mission is complete (" << frames << " frames, " << key_frames << " key frames, "
+        << tracks << " moving-target tracks): nothing to resume\n";
+    return out.str();
+  }
   char line[256];
   std::snprintf(line, sizeof(line),
                 "%lld frames (%lld placed on the map), %lld key frames, %lld cross-links, %lld "
@@ -115,7 +121,14 @@ std::string ProcessSummary::ToText() const {
                 front_end_s, mosaic_s, activity_s, tiles_s, save_s, total_s, video_duration_s,
                 video_duration_s > 0 ? total_s / video_duration_s : 0.0);
   out << line;
-  if (progress.cancelled) out << "cancelled: the mission keeps the stages that completed\n";
+  if (resumed_from_frame >= 0) {
+    out << "resumed: the front end went on from its checkpoint at frame " << resumed_from_frame
+        << "\n";
+  }
+  if (progress.cancelled) {
+    out << "cancelled: the mission keeps the stages that completed and its checkpoint (carry on "
+           "with --resume)\n";
+  }
   for (const std::string& warning : warnings) out << "warning: " << warning << "\n";
   return out.str();
 }
@@ -223,8 +236,38 @@ StatusOr<ProcessSummary> ProcessVideo(const std::string& video, const std::strin
       SAKER_ASSIGN_OR_RETURN(m.source.fingerprint, mission::FingerprintFile(video));
     }
   }
-  SAKER_ASSIGN_OR_RETURN(std::unique_ptr<mission::MissionStore> store,
-                         mission::MissionStore::Create(mission_path, options.replace));
+  std::unique_ptr<mission::MissionStore> store;
+  std::optional<frontend::FrontEndCheckpoint> checkpoint;
+  if (options.resume) {
+    SAKER_ASSIGN_OR_RETURN(
+        store, mission::MissionStore::Open(mission_path, mission::OpenMode::kReadWrite));
+    SAKER_ASSIGN_OR_RETURN(const mission::Mission previous, store->Load());
+    if (!previous.source.fingerprint.empty() && !m.source.fingerprint.empty() &&
+        previous.source.fingerprint != m.source.fingerprint) {
+      return InvalidArgumentError(mission_path + ": cannot resume with " + video +
+                                  ": the mission was made from another video (" +
+                                  previous.source.path + ")");
+    }
+    SAKER_ASSIGN_OR_RETURN(checkpoint, ReadCheckpoint(*store));
+    const mission::Progress& p = previous.progress;
+    if (!checkpoint && !p.cancelled && p.front_end && p.mosaic && p.activity &&
+        (p.tiles || !options.render_tiles)) {
+      summary.already_complete = true;
+      summary.progress = p;
+      summary.frames = int64_t(previous.frames.size());
+      summary.key_frames = int64_t(previous.key_frames.size());
+      summary.tracks = int64_t(previous.tracks.size());
+      summary.geo_referenced = previous.map.geo_referenced;
+      summary.total_s = Seconds(start);
+      return summary;
+    }
+    if (!checkpoint) {
+      summary.warnings.push_back(mission_path +
+                                 ": no checkpoint to resume from: processed from the start");
+    }
+  } else {
+    SAKER_ASSIGN_OR_RETURN(store, mission::MissionStore::Create(mission_path, options.replace));
+  }
   const auto commit = [&](unsigned parts, const char* stage) -> Status {
     const auto begin = Clock::now();
     SAKER_RETURN_IF_ERROR(store->Save(m, parts));
@@ -238,15 +281,24 @@ StatusOr<ProcessSummary> ProcessVideo(const std::string& video, const std::strin
     SAKER_RETURN_IF_ERROR(commit(0, "cancelled"));
     summary.progress = m.progress;
     return CancelledError(mission_path +
-                          ": processing cancelled; the mission keeps the stages "
-                          "that completed (" +
+                          ": processing cancelled; the mission keeps the stages that completed "
+                          "and its checkpoint, so that --resume carries on from there (" +
                           status.message() + ")");
   };
   SAKER_RETURN_IF_ERROR(commit(0, "source"));
 
-  // Front end.
+  // Front end, with its checkpoints going into the mission as it goes.
   auto begin = Clock::now();
-  StatusOr<frontend::FrontEndResult> front = frontend::RunFrontEnd(video, options.front_end, job);
+  CheckpointWriter checkpoints(store.get(), checkpoint ? &*checkpoint : nullptr);
+  frontend::FrontEndOptions front_options = options.front_end;
+  front_options.on_checkpoint = [&](const frontend::FrontEndCheckpoint& c) -> Status {
+    SAKER_RETURN_IF_ERROR(checkpoints.Write(c));
+    return options.front_end.on_checkpoint ? options.front_end.on_checkpoint(c) : Status::Ok();
+  };
+  if (checkpoint) summary.resumed_from_frame = checkpoint->through_frame;
+  StatusOr<frontend::FrontEndResult> front =
+      frontend::RunFrontEnd(video, front_options, job, checkpoint ? &*checkpoint : nullptr);
+  checkpoint.reset();  // the result holds what it had
   if (!front.ok()) {
     if (front.status().code() == StatusCode::kCancelled) return cancelled(front.status());
     return front.status();
@@ -275,6 +327,7 @@ StatusOr<ProcessSummary> ProcessVideo(const std::string& video, const std::strin
     }
     // No key frame: a mission without a mosaic (frames and metadata only).
     summary.warnings.push_back(video + ": no mosaic: " + mosaic_result.status().message());
+    SAKER_RETURN_IF_ERROR(store->ClearCheckpoint());
     summary.progress = m.progress;
     summary.total_s = Seconds(start);
     return summary;
@@ -346,6 +399,8 @@ StatusOr<ProcessSummary> ProcessVideo(const std::string& video, const std::strin
     }
     summary.tiles_s = Seconds(begin);
   }
+  // The job is complete: its checkpoint is no longer needed.
+  SAKER_RETURN_IF_ERROR(store->ClearCheckpoint());
   summary.progress = m.progress;
   summary.total_s = Seconds(start);
   return summary;

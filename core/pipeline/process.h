@@ -24,8 +24,13 @@ struct ProcessOptions {
   mosaic::MosaicOptions mosaic;
   activity::ActivityOptions activity;
   tiles::PyramidOptions pyramid;
-  bool render_tiles = true;   // false: no mosaic picture in the mission (faster)
-  bool replace = false;       // overwrite an existing mission file (never a foreign file)
+  bool render_tiles = true;  // false: no mosaic picture in the mission (faster)
+  bool replace = false;      // overwrite an existing mission file (never a foreign file)
+  // Carry on an interrupted job (saker-cli process --resume): the mission at `mission_path` must
+  // exist and have been made from this video. The front end resumes from the checkpoint the
+  // mission holds (from the start when it holds none) and the later stages run again; a mission
+  // that is complete is left as it is. docs/reliability.md, "Resume".
+  bool resume = false;
   std::string saker_version;  // recorded in the mission
   // Called on the processing thread after each commit, with the stage just saved ("source",
   // "front end", "mosaic", "activity", "tiles"): a viewer reloads the mission then.
@@ -45,13 +50,17 @@ struct ProcessSummary {
   bool geo_referenced = false;
   double front_end_s = 0, mosaic_s = 0, activity_s = 0, tiles_s = 0, save_s = 0, total_s = 0;
   double video_duration_s = 0;
+  int64_t resumed_from_frame = -1;    // the checkpoint's last frame a resumed job went on from
+  bool already_complete = false;      // resume found nothing left to do
   std::vector<std::string> warnings;  // what could not be done, for a person (not errors)
   std::string ToText() const;         // a few lines for a person
 };
 
-// Processes `video` into a new mission file at `mission_path`. Errors name the file. When `job`
-// is cancelled the mission keeps the stages that completed, is marked cancelled, and the result
-// is a Cancelled status saying so. A video in which the front end finds no key frame still gives
+// Processes `video` into a new mission file at `mission_path` (or resumes, options.resume).
+// Errors name the file. The front end's checkpoints go into the mission as it runs and are
+// dropped when the job completes. When `job` is cancelled the mission keeps the stages that
+// completed and its checkpoint, is marked cancelled, and the result is a Cancelled status saying
+// so. A video in which the front end finds no key frame still gives
 // a mission (frames and metadata; no mosaic), and the summary says so.
 StatusOr<ProcessSummary> ProcessVideo(const std::string& video, const std::string& mission_path,
                                       const ProcessOptions& options, JobContext* job = nullptr);

@@ -1,6 +1,7 @@
 #include "core/pipeline/process.h"
 
 #include "core/mission/mission_store.h"
+#include "core/pipeline/checkpoint.h"
 #include "core/pipeline/evaluate.h"
 #include "core/pipeline/export_mission.h"
 #include "core/sim/simulator.h"
@@ -10,6 +11,7 @@
 #include <fcntl.h>
 #include <gtest/gtest.h>
 #include <signal.h>
+#include <sqlite3.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -129,6 +131,188 @@ TEST_F(ProcessTest, CancelKeepsTheStagesThatCompleted) {
   EXPECT_FALSE(m->progress.mosaic);
   EXPECT_TRUE(m->progress.cancelled);
   EXPECT_FALSE(m->frames.empty());
+}
+
+// The front end's checkpoints go through the mission file unchanged: read back, they are what
+// the front end handed out, merged.
+TEST_F(ProcessTest, CheckpointsRoundTripThroughTheMissionFile) {
+  const std::string path = (*dir_ / "checkpoint.saker").string();
+  auto store = mission::MissionStore::Create(path);
+  ASSERT_TRUE(store.ok()) << store.status().ToString();
+  CheckpointWriter writer(store->get());
+  frontend::FrontEndCheckpoint merged;
+  frontend::FrontEndOptions options;
+  options.checkpoint_interval_s = 0;
+  int deliveries = 0;
+  options.on_checkpoint = [&](const frontend::FrontEndCheckpoint& c) -> Status {
+    ++deliveries;
+    merged.Append(c);
+    SAKER_RETURN_IF_ERROR(writer.Write(c));
+    // What the file holds is always the whole checkpoint so far.
+    StatusOr<std::optional<frontend::FrontEndCheckpoint>> read = ReadCheckpoint(**store);
+    if (!read.ok()) return read.status();
+    EXPECT_TRUE(read->has_value());
+    EXPECT_EQ((*read)->frames.size(), merged.frames.size());
+    EXPECT_EQ((*read)->open_targets.size(), merged.open_targets.size());
+    return Status::Ok();
+  };
+  StatusOr<frontend::FrontEndResult> result = frontend::RunFrontEnd(Video(), options);
+  ASSERT_TRUE(result.ok()) << result.status().ToString();
+  ASSERT_GE(deliveries, 5);
+  StatusOr<std::optional<frontend::FrontEndCheckpoint>> read = ReadCheckpoint(**store);
+  ASSERT_TRUE(read.ok()) << read.status().ToString();
+  ASSERT_TRUE(read->has_value());
+  const frontend::FrontEndCheckpoint& c = **read;
+  EXPECT_TRUE(c.complete);
+  EXPECT_EQ(c.through_frame, merged.through_frame);
+  ASSERT_EQ(c.frames.size(), result->frames.size());
+  for (size_t i = 0; i < c.frames.size(); ++i) {
+    const frontend::FrameResult& a = c.frames[i];
+    const frontend::FrameResult& b = result->frames[i];
+    ASSERT_TRUE(a.index == b.index && a.time_s == b.time_s && a.pts == b.pts &&
+                a.key_frame == b.key_frame && a.homography_ok == b.homography_ok &&
+                a.current_from_previous == b.current_from_previous &&
+                a.covariance == b.covariance && a.tracked == b.tracked && a.inliers == b.inliers &&
+                a.moving == b.moving)
+        << "frame " << i;
+  }
+  ASSERT_EQ(c.key_frames.size(), result->key_frames.size());
+  for (size_t k = 0; k < c.key_frames.size(); ++k) {
+    EXPECT_EQ(c.key_frames[k].frame_index, result->key_frames[k].frame_index);
+    EXPECT_EQ(c.key_frames[k].segment, result->key_frames[k].segment);
+    EXPECT_EQ(c.key_frames[k].points, result->key_frames[k].points);
+  }
+  ASSERT_EQ(c.key_frame_images.size(), result->key_frame_images.size());
+  for (size_t k = 0; k < c.key_frame_images.size(); ++k) {
+    const frontend::KeyFrameImage& a = c.key_frame_images[k].image;
+    const frontend::KeyFrameImage& b = result->key_frame_images[k];
+    EXPECT_EQ(a.id, b.id);
+    EXPECT_EQ(a.scale, b.scale);
+    ASSERT_EQ(a.grey.size(), b.grey.size());
+    EXPECT_EQ(cv::norm(a.grey, b.grey, cv::NORM_INF), 0) << "key frame image " << k;
+  }
+  ASSERT_EQ(c.links.size(), result->links.size());
+  for (size_t l = 0; l < c.links.size(); ++l) {
+    EXPECT_EQ(c.links[l].to_from_from, result->links[l].to_from_from);
+    EXPECT_EQ(c.links[l].covariance, result->links[l].covariance);
+    EXPECT_EQ(c.links[l].chained, result->links[l].chained);
+    ASSERT_EQ(c.links[l].correspondences.size(), result->links[l].correspondences.size());
+  }
+  ASSERT_EQ(c.targets.size(), result->targets.size());
+  for (size_t t = 0; t < c.targets.size(); ++t) {
+    ASSERT_EQ(c.targets[t].observations.size(), result->targets[t].observations.size());
+    for (size_t o = 0; o < c.targets[t].observations.size(); ++o) {
+      const track::TargetObservation& a = c.targets[t].observations[o];
+      const track::TargetObservation& b = result->targets[t].observations[o];
+      EXPECT_TRUE(a.frame == b.frame && a.position == b.position && a.box_min == b.box_min &&
+                  a.box_max == b.box_max && a.features == b.features && a.change == b.change);
+    }
+  }
+}
+
+// A job stopped half way resumes from its checkpoint into a mission as good as one processed
+// in one go; the checkpoint is dropped once the job completes.
+TEST_F(ProcessTest, AnInterruptedJobResumesFromItsCheckpoint) {
+  ProcessOptions options;
+  options.saker_version = "test";
+  const std::string whole = (*dir_ / "whole.saker").string();
+  const auto baseline = ProcessVideo(Video(), whole, options);
+  ASSERT_TRUE(baseline.ok()) << baseline.status().ToString();
+
+  const std::string path = (*dir_ / "interrupted.saker").string();
+  JobContext job;
+  int64_t stopped_at = -1;
+  options.front_end.checkpoint_interval_s = 0;
+  options.front_end.on_checkpoint = [&](const frontend::FrontEndCheckpoint& c) {
+    if (2 * c.through_frame >= baseline->frames && stopped_at < 0) {
+      stopped_at = c.through_frame;
+      job.RequestCancel();
+    }
+    return Status::Ok();
+  };
+  const auto interrupted = ProcessVideo(Video(), path, options, &job);
+  ASSERT_FALSE(interrupted.ok());
+  ASSERT_EQ(interrupted.status().code(), StatusCode::kCancelled);
+  ASSERT_GT(stopped_at, 0);
+  {
+    auto store = mission::MissionStore::Open(path);
+    ASSERT_TRUE(store.ok());
+    const auto checkpoint = ReadCheckpoint(**store);
+    ASSERT_TRUE(checkpoint.ok()) << checkpoint.status().ToString();
+    ASSERT_TRUE(checkpoint->has_value());
+    EXPECT_EQ((*checkpoint)->through_frame, stopped_at);
+    EXPECT_FALSE((*checkpoint)->complete);
+  }
+  // A damaged checkpoint is refused with the file and the record named, the mission kept.
+  const std::string damaged = (*dir_ / "damaged.saker").string();
+  ASSERT_TRUE(CopyMission(path, damaged, false).ok());
+  {
+    sqlite3* db = nullptr;
+    ASSERT_EQ(sqlite3_open(damaged.c_str(), &db), SQLITE_OK);
+    ASSERT_EQ(
+        sqlite3_exec(db, "UPDATE checkpoint SET data = x'0102' WHERE kind = 'frame' AND key = 7",
+                     nullptr, nullptr, nullptr),
+        SQLITE_OK);
+    sqlite3_close(db);
+  }
+  options.front_end.on_checkpoint = nullptr;
+  options.resume = true;
+  const auto refused = ProcessVideo(Video(), damaged, options);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_EQ(refused.status().code(), StatusCode::kInvalidData);
+  EXPECT_NE(refused.status().message().find("damaged.saker: checkpoint: record frame 7"),
+            std::string::npos)
+      << refused.status().message();
+
+  const auto resumed = ProcessVideo(Video(), path, options);
+  ASSERT_TRUE(resumed.ok()) << resumed.status().ToString();
+  std::cout << resumed->ToText();
+  EXPECT_EQ(resumed->resumed_from_frame, stopped_at);
+  EXPECT_LT(resumed->front_end_s, baseline->front_end_s);
+  auto store = mission::MissionStore::Open(path);
+  ASSERT_TRUE(store.ok());
+  const auto checkpoint = ReadCheckpoint(**store);
+  ASSERT_TRUE(checkpoint.ok());
+  EXPECT_FALSE(checkpoint->has_value()) << "the checkpoint of a completed job is dropped";
+  const auto m = (*store)->Load();
+  ASSERT_TRUE(m.ok());
+  EXPECT_TRUE(m->progress.front_end && m->progress.mosaic && m->progress.activity &&
+              m->progress.tiles);
+  EXPECT_FALSE(m->progress.cancelled);
+
+  // As good as the mission processed in one go.
+  const auto reference = (*mission::MissionStore::Open(whole))->Load();
+  ASSERT_TRUE(reference.ok());
+  EXPECT_EQ(m->frames.size(), reference->frames.size());
+  EXPECT_EQ(resumed->frames_placed, baseline->frames_placed);
+  EXPECT_NEAR(double(resumed->key_frames), double(baseline->key_frames),
+              0.15 * double(baseline->key_frames) + 1);
+  EXPECT_NEAR(double(resumed->tracks), double(baseline->tracks), 3);
+  const auto truth = sim::ReadTruth(*truth_path_);
+  ASSERT_TRUE(truth.ok());
+  const auto a = EvaluateActivity(*reference, *truth, options.activity.visit_gap_s);
+  const auto b = EvaluateActivity(*m, *truth, options.activity.visit_gap_s);
+  ASSERT_TRUE(a.ok() && b.ok());
+  std::cout << "in one go:\n"
+            << ActivityAccuracyToText(*a) << "resumed:\n"
+            << ActivityAccuracyToText(*b);
+  EXPECT_GE(b->matched, a->matched - 1);
+  EXPECT_LT(b->speed_median_error_mps, a->speed_median_error_mps + 0.3);
+  EXPECT_GE(b->visit_agreement, a->visit_agreement - 0.1);
+
+  // Resuming a complete mission leaves it as it is.
+  const auto again = ProcessVideo(Video(), path, options);
+  ASSERT_TRUE(again.ok()) << again.status().ToString();
+  EXPECT_TRUE(again->already_complete);
+  EXPECT_NE(again->ToText().find("nothing to resume"), std::string::npos);
+  // Resuming with another video is refused.
+  const std::filesystem::path other = *dir_ / "other.ts";
+  std::filesystem::copy_file(Video(), other, std::filesystem::copy_options::overwrite_existing);
+  std::filesystem::resize_file(other, std::filesystem::file_size(other) - 188);
+  const auto wrong = ProcessVideo(other.string(), path, options);
+  ASSERT_FALSE(wrong.ok());
+  EXPECT_NE(wrong.status().message().find("made from another video"), std::string::npos)
+      << wrong.status().message();
 }
 
 // Save As: a complete copy, tiles included; never over the source or over a file that is not a

@@ -1,0 +1,433 @@
+#include "core/pipeline/checkpoint.h"
+
+#include <opencv2/imgcodecs.hpp>
+
+#include <cstring>
+#include <map>
+#include <string>
+#include <type_traits>
+#include <vector>
+
+namespace saker::pipeline {
+namespace {
+
+// Record kinds (docs/mission-file.md).
+constexpr const char* kState = "state";
+constexpr const char* kFrame = "frame";
+constexpr const char* kKeyFrame = "key_frame";
+constexpr const char* kImage = "key_frame_image";
+constexpr const char* kLink = "link";
+constexpr const char* kBreak = "break";
+constexpr const char* kTarget = "target";
+constexpr const char* kChangeTarget = "change_target";
+constexpr const char* kOpenTarget = "open_target";
+constexpr const char* kOpenChangeTarget = "open_change_target";
+constexpr uint32_t kStateVersion = 1;
+
+// Little-endian fields appended to a byte vector.
+class Writer {
+ public:
+  template <typename T>
+  void Put(T value) {
+    static_assert(std::is_arithmetic_v<T>);
+    const size_t at = bytes_.size();
+    bytes_.resize(at + sizeof(T));
+    std::memcpy(bytes_.data() + at, &value, sizeof(T));
+  }
+  template <typename Derived>
+  void PutMatrix(const Eigen::MatrixBase<Derived>& m) {
+    for (Eigen::Index r = 0; r < m.rows(); ++r) {
+      for (Eigen::Index c = 0; c < m.cols(); ++c) Put<double>(m(r, c));
+    }
+  }
+  void PutBytes(const uint8_t* data, size_t size) {
+    Put<uint64_t>(size);
+    bytes_.insert(bytes_.end(), data, data + size);
+  }
+  void PutString(const std::string& s) {
+    PutBytes(reinterpret_cast<const uint8_t*>(s.data()), s.size());
+  }
+  std::vector<uint8_t> Take() { return std::move(bytes_); }
+
+ private:
+  std::vector<uint8_t> bytes_;
+};
+
+// Reads what Writer wrote, never past the end: every Get fails once the bytes run out.
+class Reader {
+ public:
+  explicit Reader(const std::vector<uint8_t>& bytes) : bytes_(bytes) {}
+
+  template <typename T>
+  bool Get(T* value) {
+    if (bytes_.size() - at_ < sizeof(T)) return false;
+    std::memcpy(value, bytes_.data() + at_, sizeof(T));
+    at_ += sizeof(T);
+    return true;
+  }
+  template <typename Matrix>
+  bool GetMatrix(Matrix* m) {
+    for (Eigen::Index r = 0; r < m->rows(); ++r) {
+      for (Eigen::Index c = 0; c < m->cols(); ++c) {
+        if (!Get(&(*m)(r, c))) return false;
+      }
+    }
+    return true;
+  }
+  bool GetVector2(Eigen::Vector2d* v) { return GetMatrix(v); }
+  // A count of items of at least `item_bytes` each that the rest of the record can hold.
+  bool GetCount(size_t item_bytes, size_t* count) {
+    uint64_t n = 0;
+    if (!Get(&n) || n > (bytes_.size() - at_) / item_bytes) return false;
+    *count = size_t(n);
+    return true;
+  }
+  bool GetBytes(std::vector<uint8_t>* out) {
+    size_t n = 0;
+    if (!GetCount(1, &n)) return false;
+    out->assign(bytes_.begin() + std::ptrdiff_t(at_), bytes_.begin() + std::ptrdiff_t(at_ + n));
+    at_ += n;
+    return true;
+  }
+  bool GetString(std::string* out) {
+    std::vector<uint8_t> b;
+    if (!GetBytes(&b)) return false;
+    out->assign(b.begin(), b.end());
+    return true;
+  }
+  bool AtEnd() const { return at_ == bytes_.size(); }
+
+ private:
+  const std::vector<uint8_t>& bytes_;
+  size_t at_ = 0;
+};
+
+std::vector<uint8_t> EncodeFrame(const frontend::FrameResult& f) {
+  Writer w;
+  w.Put<int64_t>(f.index);
+  w.Put<double>(f.time_s);
+  w.Put<int64_t>(f.pts);
+  w.Put<uint8_t>(uint8_t(f.key_frame) | uint8_t(f.homography_ok) << 1);
+  w.PutMatrix(f.current_from_previous);
+  w.PutMatrix(f.covariance);
+  w.Put<int32_t>(f.tracked);
+  w.Put<int32_t>(f.inliers);
+  w.Put<int32_t>(f.moving);
+  return w.Take();
+}
+
+bool DecodeFrame(Reader& r, frontend::FrameResult* f) {
+  uint8_t flags = 0;
+  if (!r.Get(&f->index) || !r.Get(&f->time_s) || !r.Get(&f->pts) || !r.Get(&flags) ||
+      !r.GetMatrix(&f->current_from_previous) || !r.GetMatrix(&f->covariance) ||
+      !r.Get(&f->tracked) || !r.Get(&f->inliers) || !r.Get(&f->moving)) {
+    return false;
+  }
+  f->key_frame = flags & 1;
+  f->homography_ok = flags & 2;
+  return true;
+}
+
+std::vector<uint8_t> EncodeKeyFrame(const track::KeyFrame& k) {
+  Writer w;
+  w.Put<int32_t>(int32_t(k.id));
+  w.Put<int64_t>(k.frame_index);
+  w.Put<int32_t>(k.segment);
+  w.Put<uint64_t>(k.points.size());
+  for (const track::StationaryPoint& p : k.points) {
+    w.Put<int64_t>(int64_t(p.first));
+    w.PutMatrix(p.second);
+  }
+  return w.Take();
+}
+
+bool DecodeKeyFrame(Reader& r, track::KeyFrame* k) {
+  int32_t id = 0;
+  size_t n = 0;
+  if (!r.Get(&id) || !r.Get(&k->frame_index) || !r.Get(&k->segment) || !r.GetCount(24, &n)) {
+    return false;
+  }
+  k->id = track::KeyFrameId(id);
+  k->points.resize(n);
+  for (track::StationaryPoint& p : k->points) {
+    int64_t point_id = 0;
+    if (!r.Get(&point_id) || !r.GetVector2(&p.second)) return false;
+    p.first = track::FeatureTrackId(point_id);
+  }
+  return true;
+}
+
+StatusOr<std::vector<uint8_t>> EncodeImage(const frontend::KeyFramePreview& p) {
+  Writer w;
+  w.Put<int32_t>(int32_t(p.image.id));
+  w.Put<int64_t>(p.image.frame_index);
+  w.Put<double>(p.image.scale);
+  w.PutMatrix(p.preview_from_frame);
+  std::vector<uint8_t> png;
+  // Lossless, so that a resumed job matches and renders the same pixels; fast compression.
+  if (!p.image.grey.empty() &&
+      !cv::imencode(".png", p.image.grey, png, {cv::IMWRITE_PNG_COMPRESSION, 1})) {
+    return InvalidArgumentError("cannot encode the image of key frame " +
+                                std::to_string(int(p.image.id)));
+  }
+  w.PutBytes(png.data(), png.size());
+  return w.Take();
+}
+
+bool DecodeImage(Reader& r, frontend::KeyFramePreview* p) {
+  int32_t id = 0;
+  std::vector<uint8_t> png;
+  if (!r.Get(&id) || !r.Get(&p->image.frame_index) || !r.Get(&p->image.scale) ||
+      !r.GetMatrix(&p->preview_from_frame) || !r.GetBytes(&png)) {
+    return false;
+  }
+  p->image.id = track::KeyFrameId(id);
+  if (!(p->image.scale >= 1 && p->image.scale < 1e4)) return false;
+  if (!png.empty()) {
+    p->image.grey = cv::imdecode(png, cv::IMREAD_GRAYSCALE);
+    if (p->image.grey.empty()) return false;
+  }
+  return true;
+}
+
+std::vector<uint8_t> EncodeLink(const track::SequentialLink& l) {
+  Writer w;
+  w.Put<int32_t>(int32_t(l.from));
+  w.Put<int32_t>(int32_t(l.to));
+  w.Put<uint8_t>(l.chained);
+  w.PutMatrix(l.to_from_from);
+  w.PutMatrix(l.covariance);
+  w.Put<uint64_t>(l.correspondences.size());
+  for (const track::Correspondence& c : l.correspondences) {
+    w.Put<int64_t>(int64_t(c.id));
+    w.PutMatrix(c.source);
+    w.PutMatrix(c.target);
+  }
+  return w.Take();
+}
+
+bool DecodeLink(Reader& r, track::SequentialLink* l) {
+  int32_t from = 0, to = 0;
+  uint8_t chained = 0;
+  size_t n = 0;
+  if (!r.Get(&from) || !r.Get(&to) || !r.Get(&chained) || !r.GetMatrix(&l->to_from_from) ||
+      !r.GetMatrix(&l->covariance) || !r.GetCount(40, &n)) {
+    return false;
+  }
+  l->from = track::KeyFrameId(from);
+  l->to = track::KeyFrameId(to);
+  l->chained = chained != 0;
+  l->correspondences.resize(n);
+  for (track::Correspondence& c : l->correspondences) {
+    int64_t id = 0;
+    if (!r.Get(&id) || !r.GetVector2(&c.source) || !r.GetVector2(&c.target)) return false;
+    c.id = track::FeatureTrackId(id);
+  }
+  return true;
+}
+
+std::vector<uint8_t> EncodeBreak(const track::ChainBreak& b) {
+  Writer w;
+  w.Put<int64_t>(b.frame_index);
+  w.PutString(b.reason);
+  return w.Take();
+}
+
+bool DecodeBreak(Reader& r, track::ChainBreak* b) {
+  return r.Get(&b->frame_index) && r.GetString(&b->reason);
+}
+
+std::vector<uint8_t> EncodeTarget(const track::TargetTrack& t) {
+  Writer w;
+  w.Put<int64_t>(int64_t(t.id));
+  w.Put<uint8_t>(t.confirmed);
+  w.Put<uint64_t>(t.max_features);
+  w.PutMatrix(t.image_velocity);
+  w.Put<uint64_t>(t.observations.size());
+  for (const track::TargetObservation& o : t.observations) {
+    w.Put<int64_t>(o.frame);
+    w.PutMatrix(o.position);
+    w.PutMatrix(o.box_min);
+    w.PutMatrix(o.box_max);
+    w.PutMatrix(o.velocity);
+    w.Put<uint8_t>(uint8_t(o.change));
+    w.Put<uint64_t>(o.features.size());
+    for (const track::FeatureTrackId id : o.features) w.Put<int64_t>(int64_t(id));
+  }
+  return w.Take();
+}
+
+bool DecodeTarget(Reader& r, track::TargetTrack* t) {
+  int64_t id = 0;
+  uint8_t confirmed = 0;
+  uint64_t max_features = 0;
+  size_t n = 0;
+  if (!r.Get(&id) || !r.Get(&confirmed) || !r.Get(&max_features) ||
+      !r.GetVector2(&t->image_velocity) || !r.GetCount(81, &n)) {
+    return false;
+  }
+  t->id = track::TargetTrackId(id);
+  t->confirmed = confirmed != 0;
+  t->max_features = size_t(max_features);
+  t->observations.resize(n);
+  for (track::TargetObservation& o : t->observations) {
+    uint8_t change = 0;
+    size_t features = 0;
+    if (!r.Get(&o.frame) || !r.GetVector2(&o.position) || !r.GetVector2(&o.box_min) ||
+        !r.GetVector2(&o.box_max) || !r.GetVector2(&o.velocity) || !r.Get(&change) ||
+        change > uint8_t(track::ChangeEvidence::kChanged) || !r.GetCount(8, &features)) {
+      return false;
+    }
+    o.change = track::ChangeEvidence(change);
+    o.features.resize(features);
+    for (track::FeatureTrackId& f : o.features) {
+      int64_t feature = 0;
+      if (!r.Get(&feature)) return false;
+      f = track::FeatureTrackId(feature);
+    }
+  }
+  return true;
+}
+
+// The state record: Unsupported for another version of the layout, false when malformed.
+StatusOr<bool> DecodeState(Reader& r, const std::string& where, frontend::FrontEndCheckpoint* c) {
+  uint32_t version = 0;
+  uint8_t complete = 0;
+  if (r.Get(&version) && version != kStateVersion) {
+    return UnsupportedError(where + ": written by another Saker (checkpoint version " +
+                            std::to_string(version) + "); process the video again");
+  }
+  const bool ok = r.Get(&c->through_frame) && r.Get(&complete) && r.Get(&c->change_through_frame);
+  c->complete = complete != 0;
+  return ok;
+}
+
+}  // namespace
+
+CheckpointWriter::CheckpointWriter(mission::MissionStore* store,
+                                   const frontend::FrontEndCheckpoint* resumed)
+    : store_(store) {
+  if (resumed != nullptr) {
+    links_ = int64_t(resumed->links.size());
+    breaks_ = int64_t(resumed->breaks.size());
+    targets_ = int64_t(resumed->targets.size());
+    change_targets_ = int64_t(resumed->change_targets.size());
+  }
+}
+
+Status CheckpointWriter::Write(const frontend::FrontEndCheckpoint& c) {
+  std::vector<mission::CheckpointRecord> records;
+  std::vector<std::string> replace = {kOpenTarget, kOpenChangeTarget};
+  {
+    Writer w;
+    w.Put<uint32_t>(kStateVersion);
+    w.Put<int64_t>(c.through_frame);
+    w.Put<uint8_t>(c.complete);
+    w.Put<int64_t>(c.change_through_frame);
+    records.push_back({kState, 0, w.Take()});
+  }
+  for (const frontend::FrameResult& f : c.frames)
+    records.push_back({kFrame, f.index, EncodeFrame(f)});
+  for (const track::KeyFrame& k : c.key_frames) {
+    records.push_back({kKeyFrame, int64_t(k.id), EncodeKeyFrame(k)});
+  }
+  for (const frontend::KeyFramePreview& p : c.key_frame_images) {
+    SAKER_ASSIGN_OR_RETURN(std::vector<uint8_t> bytes, EncodeImage(p));
+    records.push_back({kImage, int64_t(p.image.id), std::move(bytes)});
+  }
+  for (const track::SequentialLink& l : c.links)
+    records.push_back({kLink, links_++, EncodeLink(l)});
+  for (const track::ChainBreak& b : c.breaks)
+    records.push_back({kBreak, breaks_++, EncodeBreak(b)});
+  if (c.complete) {
+    // The final targets replace everything found along the way.
+    replace.insert(replace.end(), {kTarget, kChangeTarget});
+    targets_ = change_targets_ = 0;
+  }
+  for (const track::TargetTrack& t : c.targets) {
+    records.push_back({kTarget, targets_++, EncodeTarget(t)});
+  }
+  for (const track::TargetTrack& t : c.change_targets) {
+    records.push_back({kChangeTarget, change_targets_++, EncodeTarget(t)});
+  }
+  int64_t open = 0;
+  for (const track::TargetTrack& t : c.open_targets) {
+    records.push_back({kOpenTarget, open++, EncodeTarget(t)});
+  }
+  open = 0;
+  for (const track::TargetTrack& t : c.open_change_targets) {
+    records.push_back({kOpenChangeTarget, open++, EncodeTarget(t)});
+  }
+  return store_->WriteCheckpoint(records, replace);
+}
+
+StatusOr<std::optional<frontend::FrontEndCheckpoint>> ReadCheckpoint(
+    const mission::MissionStore& store) {
+  SAKER_ASSIGN_OR_RETURN(const std::vector<mission::CheckpointRecord> records,
+                         store.ReadCheckpoint());
+  if (records.empty()) return std::optional<frontend::FrontEndCheckpoint>();
+  frontend::FrontEndCheckpoint c;
+  bool has_state = false;
+  const std::string where = store.path() + ": checkpoint";
+  // Records come sorted by kind and key: each kind in the order it was written.
+  for (const mission::CheckpointRecord& record : records) {
+    Reader r(record.bytes);
+    bool ok = false;
+    const std::string& kind = record.kind;
+    if (kind == kState) {
+      SAKER_ASSIGN_OR_RETURN(ok, DecodeState(r, where, &c));
+      has_state = true;
+    } else if (kind == kFrame) {
+      ok = DecodeFrame(r, &c.frames.emplace_back());
+    } else if (kind == kKeyFrame) {
+      ok = DecodeKeyFrame(r, &c.key_frames.emplace_back());
+    } else if (kind == kImage) {
+      ok = DecodeImage(r, &c.key_frame_images.emplace_back());
+    } else if (kind == kLink) {
+      ok = DecodeLink(r, &c.links.emplace_back());
+    } else if (kind == kBreak) {
+      ok = DecodeBreak(r, &c.breaks.emplace_back());
+    } else if (kind == kTarget) {
+      ok = DecodeTarget(r, &c.targets.emplace_back());
+    } else if (kind == kChangeTarget) {
+      ok = DecodeTarget(r, &c.change_targets.emplace_back());
+    } else if (kind == kOpenTarget) {
+      ok = DecodeTarget(r, &c.open_targets.emplace_back());
+    } else if (kind == kOpenChangeTarget) {
+      ok = DecodeTarget(r, &c.open_change_targets.emplace_back());
+    } else {
+      return InvalidDataError(where + ": unknown record kind '" + kind + "'");
+    }
+    if (!ok || !r.AtEnd()) {
+      return InvalidDataError(where + ": record " + kind + " " + std::to_string(record.key) +
+                              " is truncated or malformed (" + std::to_string(record.bytes.size()) +
+                              " bytes)");
+    }
+  }
+  if (!has_state) return InvalidDataError(where + ": no state record");
+  const Status valid = c.Validate();
+  if (!valid.ok()) return InvalidDataError(where + ": " + valid.message());
+  return std::optional<frontend::FrontEndCheckpoint>(std::move(c));
+}
+
+StatusOr<std::optional<CheckpointState>> ReadCheckpointState(const mission::MissionStore& store) {
+  SAKER_ASSIGN_OR_RETURN(const std::vector<mission::CheckpointRecord> records,
+                         store.ReadCheckpoint());
+  std::optional<CheckpointState> state;
+  const std::string where = store.path() + ": checkpoint";
+  int64_t key_frames = 0;
+  for (const mission::CheckpointRecord& record : records) {
+    key_frames += record.kind == kKeyFrame;
+    if (record.kind != kState) continue;
+    Reader r(record.bytes);
+    frontend::FrontEndCheckpoint c;
+    SAKER_ASSIGN_OR_RETURN(const bool ok, DecodeState(r, where, &c));
+    if (!ok || !r.AtEnd()) return InvalidDataError(where + ": the state record is malformed");
+    state = CheckpointState{c.through_frame, c.complete, 0};
+  }
+  if (!records.empty() && !state) return InvalidDataError(where + ": no state record");
+  if (state) state->key_frames = key_frames;
+  return state;
+}
+
+}  // namespace saker::pipeline
