@@ -2,6 +2,7 @@
 
 #include "core/geo/local_tangent_plane.h"
 #include "core/mission/mission_store.h"
+#include "core/pipeline/checkpoint.h"
 #include "core/pipeline/export_mission.h"
 #include "core/pipeline/process.h"
 #include "core/util/memory.h"
@@ -87,6 +88,9 @@ struct MainWindow::Loaded {
   QString video;           // the video to recall frames from; empty when not found
   QString problem;         // why not, for a person
   QStringList candidates;  // where to look for the video (remembered location, beside the mission)
+  std::optional<pipeline::CheckpointState> checkpoint;  // an interrupted job's
+  // Its key frames, placed as the front end placed them, to show until there is a mosaic.
+  std::vector<frontend::KeyFramePreview> previews;
 };
 
 MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
@@ -166,6 +170,7 @@ void MainWindow::createDocks() {
   auto* side = new QWidget(this);
   auto* layout = new QVBoxLayout(side);
   facts_ = new QLabel(side);
+  facts_->setObjectName("missionFacts");
   facts_->setTextInteractionFlags(Qt::TextSelectableByMouse);
   facts_->setWordWrap(true);
   facts_->setAlignment(Qt::AlignTop | Qt::AlignLeft);
@@ -243,6 +248,11 @@ void MainWindow::createActions() {
   file->addSeparator();
   locate_action_ = file->addAction(tr("&Locate Video…"), this, &MainWindow::locateVideo);
   locate_action_->setStatusTip(tr("Tell Saker where this mission's video is now"));
+  resume_action_ = file->addAction(QIcon::fromTheme("media-playback-start"),
+                                   tr("&Resume Processing"), this, [this] { resumeProcessing(); });
+  resume_action_->setObjectName("resumeProcessing");
+  resume_action_->setStatusTip(
+      tr("Carry this mission's interrupted processing on from its last checkpoint"));
   file->addSeparator();
   QAction* quit =
       file->addAction(QIcon::fromTheme("application-exit"), tr("&Quit"), this, &QWidget::close);
@@ -418,6 +428,12 @@ void MainWindow::startLoad(const QString& path) {
     SAKER_ASSIGN_OR_RETURN(const std::unique_ptr<mission::MissionStore> store,
                            mission::MissionStore::Open(loaded->path.toStdString()));
     SAKER_ASSIGN_OR_RETURN(mission::Mission m, store->Load());
+    SAKER_ASSIGN_OR_RETURN(loaded->checkpoint, pipeline::ReadCheckpointState(*store));
+    if (loaded->checkpoint && !m.progress.mosaic) {
+      SAKER_ASSIGN_OR_RETURN(std::optional<frontend::FrontEndCheckpoint> checkpoint,
+                             pipeline::ReadCheckpoint(*store));
+      if (checkpoint) loaded->previews = std::move(checkpoint->key_frame_images);
+    }
     // The video: where it was processed, where the analyst last located it, or beside the
     // mission file; recognised by its fingerprint.
     QStringList candidates{FromStd(m.source.path)};
@@ -454,6 +470,12 @@ void MainWindow::missionLoaded(const Loaded& loaded) {
   mission_path_ = loaded.path;
   video_path_ = loaded.video;
   video_problem_ = loaded.problem;
+  checkpoint_frame_.reset();
+  checkpoint_complete_ = false;
+  if (loaded.checkpoint) {
+    checkpoint_frame_ = loaded.checkpoint->through_frame;
+    checkpoint_complete_ = loaded.checkpoint->complete;
+  }
   track_index_ = std::make_unique<activity::TrackIndex>(&mission_->tracks);
   plane_.reset();
   if (mission_->map.geo_referenced && mission_->map.origin) {
@@ -464,6 +486,13 @@ void MainWindow::missionLoaded(const Loaded& loaded) {
                     selected_->second >= mission_->tracks[selected_->first].points.size()))
     selected_.reset();
   if (mission_->progress.mosaic) view_->clearPreview();
+  // An interrupted job's key frames stand in for the mosaic it has not made yet.
+  if (!mission_->progress.mosaic && !loaded.previews.empty() && !jobs_->isRunning()) {
+    view_->clearPreview();
+    for (const frontend::KeyFramePreview& preview : loaded.previews) {
+      view_->addPreviewKeyFrame(preview);
+    }
+  }
   view_->setMission(mission_, mission_path_);
   frame_panel_->setMission(mission_, video_path_);
   if (!same) {
@@ -500,7 +529,24 @@ bool MainWindow::startJob(const QString& title, std::function<Status(JobContext*
   return true;
 }
 
-void MainWindow::processVideo(const QString& video, const QString& mission_path, bool replace) {
+bool MainWindow::resumeProcessing() {
+  if (!mission_ || mission_path_.isEmpty()) return false;
+  const mission::Progress& p = mission_->progress;
+  if (!p.cancelled && p.tiles && !checkpoint_frame_) {
+    statusBar()->showMessage(tr("The mission is complete: nothing to resume"), 8000);
+    return false;
+  }
+  if (video_path_.isEmpty()) {
+    showError(tr("Resume Processing"),
+              tr("%1\nLocate the video first (File > Locate Video…).").arg(video_problem_));
+    return false;
+  }
+  processVideo(video_path_, mission_path_, /*replace=*/false, /*resume=*/true);
+  return true;
+}
+
+void MainWindow::processVideo(const QString& video, const QString& mission_path, bool replace,
+                              bool resume) {
   if (jobs_->isRunning()) {
     showError(tr("Busy"), tr("%1 is running. Wait for it or cancel it first.").arg(jobs_->title()));
     return;
@@ -517,8 +563,11 @@ void MainWindow::processVideo(const QString& video, const QString& mission_path,
   setWindowTitle(tr("%1 — Saker").arg(QFileInfo(mission_path_).fileName()));
   resetFilter();
 
+  checkpoint_frame_.reset();
   pipeline::ProcessOptions options;
   options.replace = replace;
+  options.resume = resume;
+  options.front_end.checkpoint_interval_s = checkpoint_interval_s_;
   options.saker_version = SAKER_VERSION;
   // A video too long for this machine stops with a message instead of exhausting its memory.
   options.front_end.max_memory_mib = DefaultMemoryLimitMiB();
@@ -536,9 +585,10 @@ void MainWindow::processVideo(const QString& video, const QString& mission_path,
         Qt::QueuedConnection);
   };
   const std::string video_path = video.toStdString(), target = mission_path_.toStdString();
-  startJob(tr("Processing"), [video_path, target, options](JobContext* job) -> Status {
-    return pipeline::ProcessVideo(video_path, target, options, job).status();
-  });
+  startJob(resume ? tr("Resuming") : tr("Processing"),
+           [video_path, target, options](JobContext* job) -> Status {
+             return pipeline::ProcessVideo(video_path, target, options, job).status();
+           });
   updateMissionFacts();
 }
 
@@ -553,7 +603,8 @@ void MainWindow::jobEnded(const QString& title, const Status& status) {
     if (processing) reloadMission();
   } else if (status.code() == StatusCode::kCancelled) {
     statusBar()->showMessage(processing ? tr("Processing cancelled: the mission keeps the stages "
-                                             "that completed")
+                                             "that completed and its checkpoint (File > Resume "
+                                             "Processing carries on)")
                                         : tr("%1 cancelled").arg(title),
                              10000);
     if (processing) reloadMission();
@@ -903,7 +954,19 @@ void MainWindow::updateMissionFacts() {
                   ? tr("geo-referenced at %1")
                         .arg(LatLonText(m.map.origin->latitude_deg, m.map.origin->longitude_deg))
                   : tr("image pixels (no metadata)"));
+  if (checkpoint_frame_ && !jobs_->isRunning()) {
+    html += row(tr("Checkpoint"), checkpoint_complete_
+                                      ? tr("front end finished")
+                                      : tr("front end up to frame %1").arg(*checkpoint_frame_));
+  }
   html += "</table>";
+  if (state != tr("complete") && state != tr("processing")) {
+    html += checkpoint_frame_
+                ? tr("<p>Processing stopped before it completed. File &gt; Resume Processing "
+                     "carries it on from its checkpoint.</p>")
+                : tr("<p>Processing stopped before it completed. File &gt; Resume Processing "
+                     "processes the video again into this mission.</p>");
+  }
   if (!video_problem_.isEmpty()) {
     html += tr("<p style='color:#c0392b'>%1 Frame recall needs it: File &gt; Locate Video…</p>")
                 .arg(video_problem_.toHtmlEscaped());
@@ -919,6 +982,11 @@ void MainWindow::updateActions() {
   export_tracks_action_->setEnabled(has && idle && !mission_->tracks.empty());
   export_mosaic_action_->setEnabled(has && idle && mission_->pyramid.has_value());
   locate_action_->setEnabled(has);
+  const mission::Progress* p = has ? &mission_->progress : nullptr;
+  const bool complete =
+      has && !p->cancelled && (p->tiles || (p->activity && !mission_->pyramid.has_value()));
+  resume_action_->setEnabled(has && idle && (!complete || checkpoint_frame_) &&
+                             !video_path_.isEmpty());
 }
 
 void MainWindow::addRecent(const QString& path) {

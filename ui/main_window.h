@@ -52,8 +52,15 @@ class MainWindow : public QMainWindow {
   // Asks where to save the mission (beside the video by default), then processes the video.
   void openVideo(const QString& path);
   // Processes `video` into the mission `mission_path` without asking; `replace` overwrites a
-  // mission there. The mosaic and tracks appear and grow as stages complete.
-  void processVideo(const QString& video, const QString& mission_path, bool replace);
+  // mission there, `resume` carries on the interrupted job in it from its checkpoint. The mosaic
+  // and tracks appear and grow as stages complete.
+  void processVideo(const QString& video, const QString& mission_path, bool replace,
+                    bool resume = false);
+  // File > Resume Processing: carries the shown mission's interrupted job on (its video must be
+  // available). False, with a message in the status bar, when there is nothing to resume.
+  bool resumeProcessing();
+  // Seconds between the front end's checkpoints of the jobs started from now (default 30).
+  void setCheckpointInterval(double seconds) { checkpoint_interval_s_ = seconds; }
   // Exports with the current colour mode and filters (only the tracks shown), without asking.
   void exportActivityMap(const QString& path);
   void exportTracks(const QString& path);  // by extension: .geojson / .json, .kml, .csv
@@ -128,6 +135,10 @@ class MainWindow : public QMainWindow {
   QString mission_path_;
   QString video_path_;
   QString video_problem_;  // why the video is not available, for the frame panel
+  // How far an interrupted job's checkpoint goes (none: no checkpoint in the file).
+  std::optional<int64_t> checkpoint_frame_;
+  bool checkpoint_complete_ = false;  // the front end had finished
+  double checkpoint_interval_s_ = 30;
   std::unique_ptr<activity::TrackIndex> track_index_;
   std::optional<geo::LocalTangentPlane> plane_;  // map -> latitude, longitude (geo-referenced)
   std::optional<std::pair<size_t, size_t>> selected_;
@@ -155,6 +166,7 @@ class MainWindow : public QMainWindow {
   QAction* export_tracks_action_ = nullptr;
   QAction* export_mosaic_action_ = nullptr;
   QAction* locate_action_ = nullptr;
+  QAction* resume_action_ = nullptr;
   QAction* show_tracks_action_ = nullptr;
   QAction* show_outlines_action_ = nullptr;
   QAction* show_ellipses_action_ = nullptr;

@@ -258,6 +258,7 @@ TEST(MainWindowTest, ProcessingKeepsTheWindowLiveAndCancelLeavesAUsablePartialMi
   });
   heartbeat.start(10);
 
+  window.setCheckpointInterval(0);  // at every key frame, so that there is one to resume from
   window.processVideo(QString::fromStdString(m->video.string()), target, false);
   EXPECT_TRUE(window.taskRunner()->isRunning());
   QPushButton* cancel_button = nullptr;
@@ -291,6 +292,28 @@ TEST(MainWindowTest, ProcessingKeepsTheWindowLiveAndCancelLeavesAUsablePartialMi
   ASSERT_TRUE(reopened.ok()) << reopened.status().ToString();
   EXPECT_TRUE(reopened->progress.cancelled);
   EXPECT_EQ(reopened->source.fingerprint, m->loaded.source.fingerprint);
+
+  // File > Resume Processing carries the job on from its checkpoint to a complete mission.
+  QAction* resume = window.findChild<QAction*>("resumeProcessing");
+  ASSERT_NE(resume, nullptr);
+  ASSERT_TRUE(WaitUntil([&] { return resume->isEnabled(); }));
+  auto* facts = window.findChild<QLabel*>("missionFacts");
+  ASSERT_NE(facts, nullptr);
+  EXPECT_TRUE(facts->text().contains("Resume Processing")) << facts->text().toStdString();
+  EXPECT_TRUE(facts->text().contains("Checkpoint")) << facts->text().toStdString();
+  resume->trigger();
+  ASSERT_TRUE(finished.wait(120000));
+  const Status resumed = finished.takeFirst().at(1).value<Status>();
+  EXPECT_TRUE(resumed.ok()) << resumed.ToString();
+  ASSERT_TRUE(WaitUntil([&] {
+    return window.mission() != nullptr && window.mission()->progress.tiles &&
+           !window.taskRunner()->isRunning();
+  }));
+  EXPECT_FALSE(window.mission()->progress.cancelled);
+  EXPECT_NEAR(double(window.mission()->tracks.size()), double(m->loaded.tracks.size()), 3);
+  EXPECT_EQ(window.mission()->frames.size(), m->loaded.frames.size());
+  EXPECT_FALSE(resume->isEnabled()) << "nothing left to resume";
+  EXPECT_FALSE(facts->text().contains("Resume Processing")) << facts->text().toStdString();
 }
 
 TEST(MainWindowTest, ProcessingToTheEndShowsTheMissionAsItsStagesComplete) {
