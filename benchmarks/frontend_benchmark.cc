@@ -3,13 +3,15 @@
 // memory.
 //
 //   saker-bench-frontend [--seconds S] [--json]
-//   saker-bench-frontend --memory-minutes M [--memory-height H]
+//   saker-bench-frontend --memory-minutes M [--memory-height H] [--memory-repeat R]
 //
 // --memory-minutes measures memory instead: it simulates M minutes of video once (1280x720, or
-// 16:9 at --memory-height; the
-// figure-of-eight scenario, in a temporary directory it removes afterwards), runs the front end
-// over it, and prints the resident memory after 1, 2, 5, 10, ... minutes of video and the peak,
-// with what the result keeps, so that growth per minute is visible.
+// 16:9 at --memory-height; the figure-of-eight scenario, in a temporary directory it removes
+// afterwards), runs the front end over it, and prints the resident memory after 1, 2, 5, 10, ...
+// minutes of video and the peak, with what the result keeps, so that growth per minute is
+// visible. --memory-repeat R joins R copies of the simulated MPEG-TS end to end (M x R minutes;
+// the reader makes the time stamps continuous at each join, which the front end takes for a cut),
+// so that an hour of 1080p does not take the simulator two hours to render.
 
 #include "core/frontend/front_end.h"
 #include "core/sim/simulator.h"
@@ -40,7 +42,8 @@ double ResidentMb() { return double(saker::ResidentMemoryBytes()) / 1e6; }
 double PeakMb() { return double(saker::PeakResidentMemoryBytes()) / 1e6; }
 
 // Memory on a long video: see the file comment.
-int MeasureMemory(double minutes, int height) {
+int MeasureMemory(double clip_minutes, int height, int repeat) {
+  const double minutes = clip_minutes * repeat;
   const int width = height * 16 / 9;
   std::string pattern = (fs::temp_directory_path() / "saker-bench-memory-XXXXXX").string();
   if (mkdtemp(pattern.data()) == nullptr) {
@@ -60,13 +63,13 @@ int MeasureMemory(double minutes, int height) {
   sim.output = dir / "long.ts";
   sim.camera.width = width;
   sim.camera.height = height;
-  sim.duration_s = minutes * 60;
+  sim.duration_s = clip_minutes * 60;
   // The paper's figure of eight over the town (504 s with its 75 key frames), sized to last a
   // little longer than asked for.
   sim.scenario = saker::sim::Scenario::kFigureEight;
   sim.flight.figure_eight_key_frames =
       std::max(8, int(std::ceil(75 * sim.duration_s / 504 * 1.05)));
-  std::printf("simulating %g minutes of %dx%d video (figure of eight)...\n", minutes, width,
+  std::printf("simulating %g minutes of %dx%d video (figure of eight)...\n", clip_minutes, width,
               height);
   std::fflush(stdout);
   auto start = Clock::now();
@@ -77,6 +80,25 @@ int MeasureMemory(double minutes, int height) {
   std::printf("  done in %.0f s, %.0f MB\n",
               std::chrono::duration<double>(Clock::now() - start).count(),
               double(fs::file_size(sim.output)) / 1e6);
+  std::string video = sim.output.string();
+  if (repeat > 1) {
+    const fs::path joined = dir / "joined.ts";
+    {
+      std::ofstream out(joined, std::ios::binary);
+      for (int i = 0; i < repeat && out; ++i) {
+        std::ifstream in(sim.output, std::ios::binary);
+        out << in.rdbuf();
+      }
+      if (!out) {
+        std::cerr << "cannot write " << joined << "\n";
+        return 1;
+      }
+    }
+    fs::remove(sim.output);
+    video = joined.string();
+    std::printf("  joined %d copies: %g minutes, %.0f MB\n", repeat, minutes,
+                double(fs::file_size(joined)) / 1e6);
+  }
   // What the simulator freed goes back to the system, and the peak starts again from here
   // ("5" resets VmHWM, Linux 4.0 and later), so the figures below are the front end's.
   malloc_trim(0);
@@ -109,7 +131,7 @@ int MeasureMemory(double minutes, int height) {
       ++next;
     }
   });
-  auto result = saker::frontend::RunFrontEnd(sim.output.string(), {}, &job);
+  auto result = saker::frontend::RunFrontEnd(video, {}, &job);
   if (!result.ok()) {
     std::cerr << result.status().message() << "\n";
     return 1;
@@ -207,8 +229,13 @@ int main(int argc, char** argv) {
                  "--memory-minutes: the video's height (16:9), e.g. 1080 for 1920x1080")
       ->capture_default_str()
       ->check(CLI::Range(144, 2160));
+  int memory_repeat = 1;
+  app.add_option("--memory-repeat", memory_repeat,
+                 "--memory-minutes: join this many copies of the simulated video end to end")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 1000));
   CLI11_PARSE(app, argc, argv);
-  if (memory_minutes > 0) return MeasureMemory(memory_minutes, memory_height);
+  if (memory_minutes > 0) return MeasureMemory(memory_minutes, memory_height, memory_repeat);
 
   const fs::path dir = fs::temp_directory_path() / "saker-bench-frontend";
   fs::create_directories(dir);
