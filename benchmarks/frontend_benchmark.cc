@@ -114,12 +114,15 @@ int MeasureMemory(double clip_minutes, int height, int repeat) {
     if (m < minutes) checkpoints.push_back(m);
   }
   checkpoints.push_back(minutes);
-  // Progress comes once per frame, as the fraction of the video done.
+  // Progress comes once per frame (counted: the fraction it carries is of the duration the
+  // container declares, which a joined video understates).
   size_t next = 0;
   double previous_minutes = 0, previous_rss = rss_start;
+  int64_t frames_done = 0;
   start = Clock::now();
-  saker::JobContext job([&](const std::string&, double fraction) {
-    while (next < checkpoints.size() && fraction * minutes >= checkpoints[next] - 1e-9) {
+  saker::JobContext job([&](const std::string&, double) {
+    const double minutes_done = double(++frames_done) / (sim.fps * 60);
+    while (next < checkpoints.size() && minutes_done >= checkpoints[next] - 1e-9) {
       const double rss = ResidentMb();
       std::printf(
           "  after %3g min of video (%4.0f s): RSS %4.0f MB (+%3.0f MB; %+5.1f MB per minute "
