@@ -151,6 +151,12 @@ class CheckpointTest : public ::testing::Test {
     sqlite3_finalize(stmt);
     sqlite3_close(db);
   }
+  void Exec(const char* sql) {
+    sqlite3* db = nullptr;
+    ASSERT_EQ(sqlite3_open(path_.c_str(), &db), SQLITE_OK);
+    EXPECT_EQ(sqlite3_exec(db, sql, nullptr, nullptr, nullptr), SQLITE_OK) << sql;
+    sqlite3_close(db);
+  }
   std::vector<uint8_t> GetRecord(const std::string& kind, int64_t key) const {
     auto store = mission::MissionStore::Open(path_);
     EXPECT_TRUE(store.ok());
@@ -282,29 +288,15 @@ TEST_F(CheckpointTest, DamagedRecordsAreRefusedNamingTheFile) {
 }
 
 TEST_F(CheckpointTest, RecordsThatDoNotFitTogetherAreRefused) {
-  // A key frame missing from the middle: the rest no longer fits.
-  {
-    sqlite3* db = nullptr;
-    ASSERT_EQ(sqlite3_open(path_.c_str(), &db), SQLITE_OK);
-    ASSERT_EQ(sqlite3_exec(db, "DELETE FROM checkpoint WHERE kind = 'frame' AND key = 5", nullptr,
-                           nullptr, nullptr),
-              SQLITE_OK);
-    sqlite3_close(db);
-  }
+  // A frame missing from the middle: the rest no longer fits.
+  Exec("DELETE FROM checkpoint WHERE kind = 'frame' AND key = 5");
   auto read = Read();
   ASSERT_FALSE(read.ok());
   EXPECT_EQ(read.status().code(), StatusCode::kInvalidData);
   EXPECT_NE(read.status().message().find("mission.saker: checkpoint"), std::string::npos)
       << read.status().message();
   // An unknown kind (a newer Saker's) is named.
-  {
-    sqlite3* db = nullptr;
-    ASSERT_EQ(sqlite3_open(path_.c_str(), &db), SQLITE_OK);
-    ASSERT_EQ(sqlite3_exec(db, "INSERT INTO checkpoint VALUES ('hologram', 0, x'00')", nullptr,
-                           nullptr, nullptr),
-              SQLITE_OK);
-    sqlite3_close(db);
-  }
+  Exec("INSERT INTO checkpoint VALUES ('hologram', 0, x'00')");
   read = Read();
   ASSERT_FALSE(read.ok());
   EXPECT_NE(read.status().message().find("unknown record kind 'hologram'"), std::string::npos)
