@@ -95,6 +95,9 @@ void LoadEverything(const mission::MissionStore& store, const std::string& path)
   }
   ExpectNamesFile(store.ReadTile(0, 0, 0).status(), path);
   ExpectNamesFile(store.ReadTile(-1, 0, 0).status(), path);
+  // An unfinished job's checkpoint records (their content is pipeline/checkpoint's, tested in
+  // tests/core/pipeline/checkpoint_test.cc).
+  ExpectNamesFile(store.ReadCheckpoint().status(), path);
 }
 
 void WriteFile(const fs::path& path, const uint8_t* data, size_t size) {
