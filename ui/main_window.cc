@@ -597,7 +597,10 @@ void MainWindow::jobEnded(const QString& title, const Status& status) {
     w->setVisible(false);
   const bool processing = !processing_video_.isEmpty();
   processing_video_.clear();
+  // A completed job has dropped its checkpoint; the reload below shows the rest.
+  if (processing && status.ok()) checkpoint_frame_.reset();
   updateActions();
+  updateMissionFacts();
   if (status.ok()) {
     statusBar()->showMessage(tr("%1: done").arg(title), 8000);
     if (processing) reloadMission();
