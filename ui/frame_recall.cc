@@ -6,7 +6,6 @@
 #include <opencv2/imgproc.hpp>
 
 #include <QElapsedTimer>
-#include <QMetaObject>
 #include <atomic>
 #include <condition_variable>
 #include <exception>
@@ -44,7 +43,8 @@ struct FrameRecall::Shared {
   std::thread thread;
 };
 
-FrameRecall::FrameRecall(QObject* parent) : QObject(parent), shared_(std::make_unique<Shared>()) {
+FrameRecall::FrameRecall(QObject* parent)
+    : QObject(parent), shared_(std::make_unique<Shared>()), mailbox_(new Mailbox(this)) {
   shared_->thread = std::thread([this] { run(); });
 }
 
@@ -94,11 +94,9 @@ void FrameRecall::run() {
   std::unique_ptr<video::VideoReader> reader;  // random access, on the complete index
   QString open_error;                          // why `reader` is null once an open was tried
 
-  // Emission happens on the GUI thread: a queued call on `this`, which the destructor outlives
-  // (it joins this thread first) and whose pending calls Qt discards with the object.
-  auto post = [this](auto emit_signal) {
-    QMetaObject::invokeMethod(this, std::move(emit_signal), Qt::QueuedConnection);
-  };
+  // Emission happens on the GUI thread, through this object's mailbox, which the destructor
+  // outlives (it joins this thread first) and whose pending calls Qt discards with it.
+  auto post = [this](auto emit_signal) { mailbox_->post(std::move(emit_signal)); };
   auto superseded = [&shared, &open_generation] {
     return shared.stop || shared.generation != open_generation;
   };

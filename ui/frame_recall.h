@@ -11,6 +11,7 @@
 // queued signals on the thread that owns the FrameRecall (the GUI thread).
 
 #include "core/video/video_reader.h"
+#include "ui/mailbox.h"
 
 #include <QImage>
 #include <QObject>
@@ -65,6 +66,7 @@ class FrameRecall : public QObject {
 
   // State shared with the worker (mutex, condition variable, requests); see frame_recall.cc.
   std::unique_ptr<Shared> shared_;
+  Mailbox* mailbox_ = nullptr;  // the worker's answers, to the GUI thread
 };
 
 }  // namespace saker::ui

@@ -100,6 +100,7 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   setAcceptDrops(true);
   resize(1280, 800);
 
+  mailbox_ = new Mailbox(this);
   jobs_ = new TaskRunner(this);
   loader_ = new TaskRunner(this);
   connect(jobs_, &TaskRunner::progress, this, [this](const QString& stage, double fraction) {
@@ -574,15 +575,12 @@ void MainWindow::processVideo(const QString& video, const QString& mission_path,
   // Both callbacks run on the worker; the runner is joined before this window is destroyed.
   options.on_commit = [this](const std::string& stage) {
     if (stage == "source" || stage == "cancelled") return;  // nothing to show yet
-    QMetaObject::invokeMethod(this, &MainWindow::reloadMission, Qt::QueuedConnection);
+    mailbox_->post([this] { reloadMission(); });
   };
   options.front_end.on_key_frame = [this](const frontend::KeyFramePreview& preview) {
-    QMetaObject::invokeMethod(
-        this,
-        [this, preview] {
-          if (!mission_ || !mission_->progress.mosaic) view_->addPreviewKeyFrame(preview);
-        },
-        Qt::QueuedConnection);
+    mailbox_->post([this, preview] {
+      if (!mission_ || !mission_->progress.mosaic) view_->addPreviewKeyFrame(preview);
+    });
   };
   const std::string video_path = video.toStdString(), target = mission_path_.toStdString();
   startJob(resume ? tr("Resuming") : tr("Processing"),

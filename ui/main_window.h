@@ -12,6 +12,7 @@
 #include "core/mission/mission.h"
 #include "core/util/job_context.h"
 #include "core/util/status.h"
+#include "ui/mailbox.h"
 #include "ui/meta_types.h"
 
 #include <Eigen/Core>
@@ -174,6 +175,7 @@ class MainWindow : public QMainWindow {
 
   TaskRunner* jobs_ = nullptr;    // processing, exports, copies: one at a time
   TaskRunner* loader_ = nullptr;  // mission loads
+  Mailbox* mailbox_ = nullptr;    // the processing job's commits and key frames
   std::shared_ptr<Loaded> loading_;
   QString pending_load_;  // a load asked for while one ran
   QString processing_video_;

@@ -1,11 +1,12 @@
 #include "ui/task_runner.h"
 
-#include <QMetaObject>
 #include <exception>
 
 namespace saker::ui {
 
-TaskRunner::TaskRunner(QObject* parent) : QObject(parent) { qRegisterMetaType<saker::Status>(); }
+TaskRunner::TaskRunner(QObject* parent) : QObject(parent), mailbox_(new Mailbox(this)) {
+  qRegisterMetaType<saker::Status>();
+}
 
 TaskRunner::~TaskRunner() { cancelAndWait(); }
 
@@ -21,7 +22,7 @@ bool TaskRunner::start(const QString& title, Task task) {
       progress_fraction_ = fraction;
     }
     if (!progress_posted_.exchange(true)) {
-      QMetaObject::invokeMethod(this, &TaskRunner::postProgress, Qt::QueuedConnection);
+      mailbox_->post([this] { postProgress(); });
     }
   });
   job_ = job;
@@ -34,13 +35,10 @@ bool TaskRunner::start(const QString& title, Task task) {
       // analyst's work down with it.
       status = IoError(std::string("unexpected error: ") + e.what());
     }
-    QMetaObject::invokeMethod(
-        this,
-        [this, status] {
-          running_ = false;
-          emit finished(title_, status);
-        },
-        Qt::QueuedConnection);
+    mailbox_->post([this, status] {
+      running_ = false;
+      emit finished(title_, status);
+    });
   });
   return true;
 }

@@ -9,6 +9,7 @@
 
 #include "core/util/job_context.h"
 #include "core/util/status.h"
+#include "ui/mailbox.h"
 #include "ui/meta_types.h"
 
 #include <QObject>
@@ -51,6 +52,7 @@ class TaskRunner : public QObject {
   void join();
 
   std::thread thread_;
+  Mailbox* mailbox_ = nullptr;  // progress and the end, to the GUI thread
   std::shared_ptr<JobContext> job_;
   bool running_ = false;
   QString title_;

@@ -3,7 +3,6 @@
 #include "core/mission/mission_store.h"
 #include "core/tiles/pyramid.h"
 
-#include <QMetaObject>
 #include <condition_variable>
 #include <deque>
 #include <functional>
@@ -120,16 +119,15 @@ void TileCache::runWorker(Shared* shared, const Deliver& deliver) {
   }
 }
 
-TileCache::TileCache(QObject* parent) : QObject(parent), shared_(std::make_unique<Shared>()) {
+TileCache::TileCache(QObject* parent)
+    : QObject(parent), shared_(std::make_unique<Shared>()), mailbox_(new Mailbox(this)) {
   // The worker posts each answer to this object's thread; the destructor joins the worker before
-  // this object goes, and Qt drops events posted to a deleted object, so no answer outlives us.
+  // the mailbox goes, and Qt drops events posted to a deleted object, so no answer outlives us.
   auto deliver = [this](quint64 generation, TileKey key, QImage image, QString error) {
-    QMetaObject::invokeMethod(
-        this,
+    mailbox_->post(
         [this, generation, key, image = std::move(image), error = std::move(error)]() mutable {
           onLoaded(generation, key, std::move(image), std::move(error));
-        },
-        Qt::QueuedConnection);
+        });
   };
   Shared* shared = shared_.get();
   shared_->thread = std::thread([shared, deliver] { runWorker(shared, deliver); });

@@ -6,6 +6,7 @@
 // tileReady signal. The GUI thread never waits on the worker: tile() only looks in the cache.
 
 #include "core/mission/mission.h"
+#include "ui/mailbox.h"
 
 #include <QHash>
 #include <QImage>
@@ -103,6 +104,7 @@ class TileCache : public QObject {
   bool wanted(const TileKey& key) const;  // not loaded fresh, not empty, in the pyramid
 
   std::unique_ptr<Shared> shared_;
+  Mailbox* mailbox_ = nullptr;  // the worker's tiles, to the GUI thread
   QString path_;
   std::optional<mission::PyramidInfo> pyramid_;
   quint64 generation_ = 0;
