@@ -4,6 +4,7 @@
 #include <limits>
 #include <map>
 #include <numeric>
+#include <optional>
 #include <tuple>
 #include <unordered_map>
 
@@ -329,50 +330,101 @@ std::pair<double, int> SideBySide(const TargetTrack& a, const TargetTrack& b) {
 
 std::vector<TargetTrack> LinkFragments(std::vector<TargetTrack> tracks,
                                        const TargetTrackOptions& options) {
+  // Merges are made one at a time, always the first in a fixed order: duplicates before
+  // continuations, each by track index, the tracks ordered by their first frame. Merging keeps
+  // that order (a track only ever absorbs one that starts no earlier), and after a merge only
+  // pairs involving the grown track can newly be duplicates, so those are the only pairs checked
+  // again. Pairs that share no frame are skipped by their frame spans and continuations are looked
+  // up by start frame, so an hour of video (thousands of fragments) links in a fraction of a
+  // second rather than the O(n^3) of rescanning every pair after every merge.
   std::sort(tracks.begin(), tracks.end(), [](const TargetTrack& a, const TargetTrack& b) {
     return a.observations.front().frame != b.observations.front().frame
                ? a.observations.front().frame < b.observations.front().frame
                : a.id < b.id;
   });
-  bool changed = true;
-  while (changed) {
-    changed = false;
-    // Duplicates: side by side for a while.
-    for (size_t a = 0; a < tracks.size() && !changed; ++a) {
-      for (size_t b = a + 1; b < tracks.size() && !changed; ++b) {
-        const auto [distance, frames] = SideBySide(tracks[a], tracks[b]);
-        // As for grouping features: walkers side by side stay two, a car's two halves are one.
-        const double speed = std::max(MeanSpeed(tracks[a]), MeanSpeed(tracks[b]));
-        // Pieces of one long vehicle (a van's front and rear corners) keep their distance, up
-        // to 30 % more than the grouping distance.
-        const double limit = options.group_distance_px * std::clamp(speed / 1.5 * 1.3, 0.35, 1.3);
-        if (frames >= options.duplicate_overlap_frames && distance <= limit) {
-          FoldInto(tracks[a], std::move(tracks[b]));
-          tracks.erase(tracks.begin() + long(b));
-          changed = true;
-        }
+  std::vector<double> speed(tracks.size());  // MeanSpeed of each track, kept up to date
+  for (size_t i = 0; i < tracks.size(); ++i) speed[i] = MeanSpeed(tracks[i]);
+  const auto first = [&](size_t i) { return tracks[i].observations.front().frame; };
+  const auto last = [&](size_t i) { return tracks[i].observations.back().frame; };
+
+  // Whether tracks a < b ran side by side for a while (a track's two halves, a car seen twice).
+  const auto duplicates = [&](size_t a, size_t b) {
+    if (first(b) > last(a) || first(a) > last(b)) return false;  // no frame in common
+    const auto [distance, frames] = SideBySide(tracks[a], tracks[b]);
+    // As for grouping features: walkers side by side stay two, a car's two halves are one.
+    // Pieces of one long vehicle (a van's front and rear corners) keep their distance, up to
+    // 30 % more than the grouping distance.
+    const double limit =
+        options.group_distance_px * std::clamp(std::max(speed[a], speed[b]) / 1.5 * 1.3, 0.35, 1.3);
+    return frames >= options.duplicate_overlap_frames && distance <= limit;
+  };
+  // Folds track `from` into track `into` (into < from) and removes it.
+  const auto fold = [&](size_t into, size_t from) {
+    FoldInto(tracks[into], std::move(tracks[from]));
+    tracks.erase(tracks.begin() + long(from));
+    speed.erase(speed.begin() + long(from));
+    speed[into] = MeanSpeed(tracks[into]);
+  };
+  // The first duplicate of track a after it in the order, or none.
+  const auto next_duplicate = [&](size_t a) -> std::optional<size_t> {
+    for (size_t b = a + 1; b < tracks.size() && first(b) <= last(a); ++b) {
+      if (duplicates(a, b)) return b;
+    }
+    return std::nullopt;
+  };
+  // Track t has grown: merges the duplicates that made, in the order a full rescan would.
+  const auto settle = [&](size_t t) {
+    for (;;) {
+      size_t x = 0;
+      while (x < t && !duplicates(x, t)) ++x;
+      if (x < t) {
+        fold(x, t);
+        t = x;
+      } else if (const std::optional<size_t> y = next_duplicate(t)) {
+        fold(t, *y);
+      } else {
+        return;
       }
     }
-    // Continuations: the best-placed track starting after each one's end.
-    for (size_t a = 0; a < tracks.size() && !changed; ++a) {
-      const TargetObservation& end = tracks[a].observations.back();
-      const Eigen::Vector2d velocity = EndVelocity(tracks[a]);
-      double best = std::numeric_limits<double>::infinity();
-      size_t best_b = 0;
-      for (size_t b = 0; b < tracks.size(); ++b) {
-        const TargetObservation& start = tracks[b].observations.front();
-        const int64_t gap = start.frame - end.frame;
-        if (b == a || gap <= 0 || gap > options.link_gap_frames) continue;
-        const Eigen::Vector2d predicted = end.position + velocity * double(gap);
-        const double distance = (start.position - predicted).norm();
-        if (distance <= options.association_gate_px + double(gap) && distance < best)
-          best = distance, best_b = b;
-      }
-      if (std::isfinite(best)) {
-        TargetTrack piece = std::move(tracks[best_b]);
-        FoldInto(tracks[a], std::move(piece));
-        tracks.erase(tracks.begin() + long(best_b));
-        changed = true;
+  };
+  // The best-placed track starting soon after track a's end, where a's motion leads.
+  const auto continuation = [&](size_t a) -> std::optional<size_t> {
+    const TargetObservation& end = tracks[a].observations.back();
+    const Eigen::Vector2d velocity = EndVelocity(tracks[a]);
+    double best = std::numeric_limits<double>::infinity();
+    std::optional<size_t> best_b;
+    const auto after = std::partition_point(
+        tracks.begin(), tracks.end(),
+        [&](const TargetTrack& t) { return t.observations.front().frame <= end.frame; });
+    for (size_t b = size_t(after - tracks.begin()); b < tracks.size(); ++b) {
+      const TargetObservation& start = tracks[b].observations.front();
+      const int64_t gap = start.frame - end.frame;
+      if (gap > options.link_gap_frames) break;
+      const Eigen::Vector2d predicted = end.position + velocity * double(gap);
+      const double distance = (start.position - predicted).norm();
+      if (distance <= options.association_gate_px + double(gap) && distance < best)
+        best = distance, best_b = b;
+    }
+    return best_b;
+  };
+
+  // Duplicates: the first pair in order, until none is left.
+  for (size_t a = 0; a < tracks.size();) {
+    if (const std::optional<size_t> b = next_duplicate(a)) {
+      fold(a, *b);
+      settle(a);
+    } else {
+      ++a;
+    }
+  }
+  // Continuations: the first track in order that has one, then the duplicates that made.
+  for (bool merged = true; merged;) {
+    merged = false;
+    for (size_t a = 0; a < tracks.size() && !merged; ++a) {
+      if (const std::optional<size_t> b = continuation(a)) {
+        fold(a, *b);  // *b > a: it starts after a ends
+        settle(a);
+        merged = true;
       }
     }
   }

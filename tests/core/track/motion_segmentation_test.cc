@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <random>
 
 namespace saker::track {
@@ -199,6 +200,38 @@ TEST(LinkFragmentsTest, JoinsContinuationsAndDuplicatesButNotPassersBy) {
   EXPECT_EQ(linked[1].id, TargetTrackId{4});
   EXPECT_EQ(linked[2].id, TargetTrackId{5});
   EXPECT_EQ(linked[3].id, TargetTrackId{6});
+}
+
+// An hour of video gives thousands of fragments: each of 1000 cars, ten on screen at a time,
+// broken into three pieces with its rear corners tracked alongside, comes out whole. (Rescanning
+// every pair after every merge took minutes here; see docs/front-end.md.)
+TEST(LinkFragmentsTest, ThousandsOfFragmentsLinkIntoTheirTargets) {
+  const TargetTrackOptions options;
+  constexpr int kCars = 1000;
+  std::vector<TargetTrack> tracks;
+  for (int i = 0; i < kCars; ++i) {
+    const int64_t s = 20 * i;  // one car enters every 20 frames and is seen for 200
+    const Eigen::Vector2d at(100, 100 + 100 * (i % 20));
+    const Eigen::Vector2d step(4, 0);
+    const auto piece = [&](int64_t id, int64_t first, int64_t last, double dx) {
+      tracks.push_back(Track(id, s + first, s + last,
+                             at + step * double(first) + Eigen::Vector2d(dx, 0), step, {2, 0}));
+    };
+    const int64_t id = 10 * i + 1;
+    piece(id, 0, 60, 0);
+    piece(id + 1, 80, 140, 0);
+    piece(id + 2, 160, 200, 0);
+    piece(id + 3, 10, 50, -12);  // the rear corners, alongside the first piece
+  }
+  std::shuffle(tracks.begin(), tracks.end(), std::mt19937(7));
+  const std::vector<TargetTrack> linked = LinkFragments(tracks, options);
+  ASSERT_EQ(linked.size(), size_t(kCars));
+  for (int i = 0; i < kCars; ++i) {
+    EXPECT_EQ(linked[i].id, TargetTrackId{10 * i + 1});
+    EXPECT_EQ(linked[i].observations.front().frame, 20 * i);
+    EXPECT_EQ(linked[i].observations.back().frame, 20 * i + 200);
+    EXPECT_EQ(linked[i].observations.size(), 163u) << "car " << i;  // 61 + 61 + 41 frames seen
+  }
 }
 
 }  // namespace
