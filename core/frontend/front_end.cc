@@ -208,9 +208,12 @@ std::optional<Eigen::Vector3d> ParallaxEpipole(const std::vector<track::Correspo
 }
 
 // The targets of the feature tracks, less those the image does not support, and those of change
-// detection; pieces of one object joined, and numbered 1, 2, ... in order of appearance.
+// detection; pieces of one object joined (a walker's across long gaps on the ground, followed
+// through the frame-to-frame homographies), echoes of cars dropped (after the joining, so that a
+// car's own change track has become part of it), and numbered 1, 2, ... in order of appearance.
 std::vector<track::TargetTrack> CombineTargets(std::vector<track::TargetTrack> by_features,
                                                std::vector<track::TargetTrack> by_change,
+                                               const std::vector<FrameResult>& frames,
                                                const FrontEndOptions& options) {
   std::vector<track::TargetTrack> all;
   for (track::TargetTrack& t : by_features) {
@@ -221,7 +224,10 @@ std::vector<track::TargetTrack> CombineTargets(std::vector<track::TargetTrack> b
     return a.observations.front().frame < b.observations.front().frame;
   });
   for (size_t i = 0; i < all.size(); ++i) all[i].id = track::TargetTrackId(int64_t(i) + 1);
-  all = track::LinkFragments(std::move(all), options.targets);
+  track::GroundMotion ground;
+  for (const FrameResult& f : frames) ground.Add(f.index, f.homography_ok, f.current_from_previous);
+  all = track::LinkFragments(std::move(all), options.targets, &ground);
+  all = track::DropChangeEchoes(std::move(all), options.change_echoes);
   for (size_t i = 0; i < all.size(); ++i) all[i].id = track::TargetTrackId(int64_t(i) + 1);
   return all;
 }
@@ -356,6 +362,7 @@ Status FrontEndOptions::Validate() const {
   SAKER_RETURN_IF_ERROR(key_frames.Validate());
   SAKER_RETURN_IF_ERROR(change.Validate());
   SAKER_RETURN_IF_ERROR(change_tracks.Validate());
+  SAKER_RETURN_IF_ERROR(change_echoes.Validate());
   if (!(min_change_support >= 0 && min_change_support <= 1)) {
     return InvalidArgumentError("front end: the change support fraction must be in [0, 1]");
   }
@@ -788,8 +795,8 @@ StatusOr<FrontEndResult> RunFrontEnd(const std::string& path, const FrontEndOpti
     for (track::TargetTrack& t : change_tracks.TakeFinished()) {
       keep_target(std::move(t), change_cut, &targets_by_change);
     }
-    result.targets =
-        CombineTargets(std::move(result.targets), std::move(targets_by_change), options);
+    result.targets = CombineTargets(std::move(result.targets), std::move(targets_by_change),
+                                    result.frames, options);
     if (options.on_checkpoint && !result.frames.empty()) {
       SAKER_RETURN_IF_ERROR(hand_out(result.frames.back().index, /*complete=*/true));
     }

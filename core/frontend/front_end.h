@@ -61,6 +61,7 @@ struct FrontEndOptions {
   // A target track needs a change under at least this fraction of the observations where the
   // change detector could look (a corner sliding along a road marking has none); 0 turns it off.
   double min_change_support = 0.5;
+  track::ChangeEchoOptions change_echoes;  // change-only tracks beside a car are dropped
   bool parallax_check = true;    // estimate the epipole (fundamental matrix) for the MTI test
   int min_parallax_points = 20;  // matches on F but off the ground plane needed to use F's epipole
   int queue_frames = 6;          // decoded frames waiting for the tracker, at most

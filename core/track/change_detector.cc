@@ -428,4 +428,74 @@ bool SupportedByChange(const TargetTrack& track, double min_fraction) {
   return looked == 0 || double(changed) >= min_fraction * double(looked);
 }
 
+Status ChangeEchoOptions::Validate() const {
+  if (!(distance_px > 0 && velocity_px > 0 && min_mover_speed_px >= 0 && min_fraction > 0 &&
+        min_fraction <= 1)) {
+    return InvalidArgumentError(
+        "change echoes: distance and velocity must be positive, the mover's speed >= 0 and the "
+        "fraction in (0, 1]");
+  }
+  return Status::Ok();
+}
+
+namespace {
+
+bool FoundByChangeOnly(const TargetTrack& track) {
+  for (const TargetObservation& o : track.observations) {
+    if (!o.features.empty()) return false;
+  }
+  return true;
+}
+
+// The frames of `echo` where `mover` is seen near it and moving alike (both in frame order).
+size_t FramesAlongside(const TargetTrack& echo, const TargetTrack& mover,
+                       const ChangeEchoOptions& options) {
+  size_t alongside = 0;
+  auto m = mover.observations.begin();
+  for (const TargetObservation& e : echo.observations) {
+    while (m != mover.observations.end() && m->frame < e.frame) ++m;
+    if (m == mover.observations.end()) break;
+    if (m->frame != e.frame) continue;
+    alongside += (m->position - e.position).norm() < options.distance_px &&
+                 (m->velocity - e.velocity).norm() < options.velocity_px;
+  }
+  return alongside;
+}
+
+}  // namespace
+
+std::vector<TargetTrack> DropChangeEchoes(std::vector<TargetTrack> tracks,
+                                          const ChangeEchoOptions& options) {
+  if (!options.enabled) return tracks;
+  std::vector<const TargetTrack*> movers;
+  for (const TargetTrack& t : tracks) {
+    if (!t.observations.empty() && !FoundByChangeOnly(t) &&
+        MeanSpeed(t) >= options.min_mover_speed_px) {
+      movers.push_back(&t);
+    }
+  }
+  std::vector<bool> echo(tracks.size(), false);
+  for (size_t i = 0; i < tracks.size(); ++i) {
+    const TargetTrack& t = tracks[i];
+    if (t.observations.empty() || !FoundByChangeOnly(t)) continue;
+    const double needed = options.min_fraction * double(t.observations.size());
+    for (const TargetTrack* m : movers) {
+      if (m->observations.back().frame < t.observations.front().frame ||
+          m->observations.front().frame > t.observations.back().frame) {
+        continue;
+      }
+      if (double(FramesAlongside(t, *m, options)) >= needed) {
+        echo[i] = true;
+        break;
+      }
+    }
+  }
+  std::vector<TargetTrack> kept;
+  kept.reserve(tracks.size());
+  for (size_t i = 0; i < tracks.size(); ++i) {
+    if (!echo[i]) kept.push_back(std::move(tracks[i]));
+  }
+  return kept;
+}
+
 }  // namespace saker::track

@@ -178,4 +178,26 @@ class BlobTracker {
 // observations (TargetObservation::change), among those where it could look.
 bool SupportedByChange(const TargetTrack& track, double min_fraction);
 
+// A moving car changes the image where it was as well as where it is, and between two cars that
+// follow each other the differences merge: the change detector can follow such a blob as if it
+// were an object of its own, at the car's speed and a few metres from it. A track found by change
+// detection alone (no observation with features) is such an echo when, on at least
+// `min_fraction` of its frames, a feature-tracked target that moves at `min_mover_speed_px` or
+// more (mean, per frame) is within `distance_px` of it with a velocity within `velocity_px` of its
+// own. Slow feature tracks are not taken as movers: walkers side by side are each other's
+// neighbours, not echoes.
+struct ChangeEchoOptions {
+  bool enabled = true;
+  double distance_px = 40;
+  double velocity_px = 0.5;
+  double min_mover_speed_px = 1;
+  double min_fraction = 0.8;
+  Status Validate() const;
+};
+
+// `tracks` less the change-only tracks that echo a feature-tracked mover (see ChangeEchoOptions),
+// in their order. Observations must be in increasing frame order, as TargetTrack keeps them.
+std::vector<TargetTrack> DropChangeEchoes(std::vector<TargetTrack> tracks,
+                                          const ChangeEchoOptions& options);
+
 }  // namespace saker::track

@@ -1,5 +1,7 @@
 #include "core/track/target_tracks.h"
 
+#include "core/util/check.h"
+
 #include <algorithm>
 #include <limits>
 #include <map>
@@ -62,6 +64,11 @@ Status TargetTrackOptions::Validate() const {
     return InvalidArgumentError("targets: need max gap >= 0 and min frames >= 1");
   }
   if (!(box_margin_px >= 0)) return InvalidArgumentError("targets: box margin must be >= 0");
+  if (link_gap_frames < 0 || ground_link_gap_frames < 0 || duplicate_overlap_frames < 1 ||
+      !(ground_link_growth_px >= 0) || !(ground_link_max_speed_px >= 0)) {
+    return InvalidArgumentError(
+        "targets: link gaps and the gate's growth must be >= 0, the duplicate overlap >= 1 frame");
+  }
   return Status::Ok();
 }
 
@@ -301,11 +308,12 @@ Eigen::Vector2d EndVelocity(const TargetTrack& t) {
   return (last.position - earlier.position) / double(last.frame - earlier.frame);
 }
 
-// Mean ground-relative speed of a track, pixels per frame.
-double MeanSpeed(const TargetTrack& t) {
-  double sum = 0;
-  for (const TargetObservation& o : t.observations) sum += o.velocity.norm();
-  return t.observations.empty() ? 0 : sum / double(t.observations.size());
+double DistanceToSegment(const Eigen::Vector2d& p, const Eigen::Vector2d& a,
+                         const Eigen::Vector2d& b) {
+  const Eigen::Vector2d ab = b - a;
+  const double length2 = ab.squaredNorm();
+  const double t = length2 > 0 ? std::clamp((p - a).dot(ab) / length2, 0.0, 1.0) : 0.0;
+  return (p - (a + t * ab)).norm();
 }
 
 // Mean distance between two tracks over the frames both saw, and how many frames that is.
@@ -328,8 +336,49 @@ std::pair<double, int> SideBySide(const TargetTrack& a, const TargetTrack& b) {
 
 }  // namespace
 
+double MeanSpeed(const TargetTrack& t) {
+  double sum = 0;
+  for (const TargetObservation& o : t.observations) sum += o.velocity.norm();
+  return t.observations.empty() ? 0 : sum / double(t.observations.size());
+}
+
+void GroundMotion::Add(int64_t frame, bool linked, const Eigen::Matrix3d& current_from_previous) {
+  if (segment_.empty()) first_frame_ = frame;
+  const int64_t next = first_frame_ + int64_t(segment_.size());
+  SAKER_CHECK(frame >= next) << "frame " << frame << " added after frame " << next - 1;
+  if (frame > next) {  // frames missing: unknown, and the chain is broken there
+    segment_.resize(size_t(frame - first_frame_), -1);
+    frame_from_segment_.resize(segment_.size(), Eigen::Matrix3d::Identity());
+    linked = false;
+  }
+  if (!linked || segment_.empty()) {
+    segment_.push_back(segments_++);
+    frame_from_segment_.push_back(Eigen::Matrix3d::Identity());
+    return;
+  }
+  Eigen::Matrix3d h = current_from_previous * frame_from_segment_.back();
+  if (std::abs(h(2, 2)) > 1e-12) h /= h(2, 2);
+  segment_.push_back(segment_.back());
+  frame_from_segment_.push_back(h);
+}
+
+std::optional<Eigen::Vector2d> GroundMotion::Map(const Eigen::Vector2d& point, int64_t from,
+                                                 int64_t to) const {
+  const int64_t n = int64_t(segment_.size());
+  const int64_t i = from - first_frame_, j = to - first_frame_;
+  if (i < 0 || j < 0 || i >= n || j >= n || segment_[size_t(i)] < 0 ||
+      segment_[size_t(i)] != segment_[size_t(j)]) {
+    return std::nullopt;
+  }
+  const Eigen::Vector3d p = frame_from_segment_[size_t(j)] *
+                            frame_from_segment_[size_t(i)].inverse() * point.homogeneous();
+  if (!(std::abs(p.z()) > 1e-12)) return std::nullopt;
+  return Eigen::Vector2d(p.hnormalized());
+}
+
 std::vector<TargetTrack> LinkFragments(std::vector<TargetTrack> tracks,
-                                       const TargetTrackOptions& options) {
+                                       const TargetTrackOptions& options,
+                                       const GroundMotion* ground) {
   // Merges are made one at a time, always the first in a fixed order: duplicates before
   // continuations, each by track index, the tracks ordered by their first frame. Merging keeps
   // that order (a track only ever absorbs one that starts no earlier), and after a merge only
@@ -396,14 +445,29 @@ std::vector<TargetTrack> LinkFragments(std::vector<TargetTrack> tracks,
     const auto after = std::partition_point(
         tracks.begin(), tracks.end(),
         [&](const TargetTrack& t) { return t.observations.front().frame <= end.frame; });
+    // Walkers stop and go on; a car that is lost is looked for where it was heading.
+    const bool on_ground = ground != nullptr && speed[a] <= options.ground_link_max_speed_px;
+    const int64_t max_gap = on_ground
+                                ? std::max(options.link_gap_frames, options.ground_link_gap_frames)
+                                : options.link_gap_frames;
     for (size_t b = size_t(after - tracks.begin()); b < tracks.size(); ++b) {
       const TargetObservation& start = tracks[b].observations.front();
       const int64_t gap = start.frame - end.frame;
-      if (gap > options.link_gap_frames) break;
-      const Eigen::Vector2d predicted = end.position + velocity * double(gap);
-      const double distance = (start.position - predicted).norm();
-      if (distance <= options.association_gate_px + double(gap) && distance < best)
-        best = distance, best_b = b;
+      if (gap > max_gap) break;
+      double distance = std::numeric_limits<double>::infinity(), gate = 0;
+      const std::optional<Eigen::Vector2d> stopped =
+          on_ground ? ground->Map(end.position, end.frame, start.frame) : std::nullopt;
+      const std::optional<Eigen::Vector2d> went_on =
+          stopped ? ground->Map(end.position + end.velocity * double(gap), end.frame, start.frame)
+                  : std::nullopt;
+      if (stopped && went_on) {
+        distance = DistanceToSegment(start.position, *stopped, *went_on);
+        gate = options.association_gate_px + options.ground_link_growth_px * double(gap);
+      } else if (gap <= options.link_gap_frames) {
+        distance = (start.position - (end.position + velocity * double(gap))).norm();
+        gate = options.association_gate_px + double(gap);
+      }
+      if (distance <= gate && distance < best) best = distance, best_b = b;
     }
     return best_b;
   };

@@ -16,9 +16,11 @@
 #include "core/util/status.h"
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <vector>
 
 namespace saker::track {
@@ -40,6 +42,13 @@ struct TargetTrackOptions {
   // that one was heading, continues it; tracks side by side for this many frames are one.
   int link_gap_frames = 60;
   int duplicate_overlap_frames = 5;
+  // With the ground's motion (GroundMotion), the pieces of slow objects (mean ground speed up to
+  // ground_link_max_speed_px per frame: people) are joined on the ground across gaps of up to
+  // ground_link_gap_frames, the gate growing by ground_link_growth_px per frame of gap (see
+  // LinkFragments).
+  double ground_link_max_speed_px = 1;
+  int ground_link_gap_frames = 200;
+  double ground_link_growth_px = 0.25;
   // Change evidence (RecordChange) comes some frames late. When set, a target that ends waits
   // until RecordChange has reached its last frame, or EndChangeEvidence() says that no more will
   // come, before it is finished: it leaves with the evidence of every frame that gets one.
@@ -111,12 +120,41 @@ class TargetTracker {
   int64_t next_id_ = 1;
 };
 
-// Joins the pieces of one object's track, once the video is over: a track that starts shortly
-// after another ended, where that one was heading (image position extrapolated with its image
-// velocity, within association_gate_px plus 1 px per frame of gap), continues it; two tracks that
-// run side by side (within group_distance_px) for at least duplicate_overlap_frames frames are
-// one. Ids of the earlier pieces are kept; the result is ordered by id.
+// Mean ground-relative speed of a track's observations, pixels per frame (0 for none).
+double MeanSpeed(const TargetTrack& track);
+
+// The ground's motion through a video: each frame's homography from the previous one, chained
+// within chain segments, so that a point of one frame can be found in a later one.
+class GroundMotion {
+ public:
+  // Frames come in increasing order, one after another; `linked` is false where a frame has no
+  // homography from the previous one (the first frame of a chain segment).
+  void Add(int64_t frame, bool linked, const Eigen::Matrix3d& current_from_previous);
+  // Where the ground point at `point` in frame `from` lies in frame `to`; none when a chain break
+  // lies between them or either frame was not added.
+  std::optional<Eigen::Vector2d> Map(const Eigen::Vector2d& point, int64_t from, int64_t to) const;
+
+ private:
+  int64_t first_frame_ = 0;
+  int segments_ = 0;
+  std::vector<int> segment_;  // chain segment of each frame (-1: a frame never added)
+  std::vector<Eigen::Matrix3d> frame_from_segment_;  // from the segment's first frame
+};
+
+// Joins the pieces of one object's track, once the video is over. A track that starts shortly
+// after another ended, where that one was heading, continues it. Without `ground`: the image
+// position extrapolated with the image velocity, within association_gate_px plus 1 px per frame
+// of gap, for gaps up to link_gap_frames. With it, a slow object (a walker) is followed on the
+// ground: it may have gone on at its ground speed or slowed down, even stopped, so the later
+// track must start near the path between where it was last seen and where it would be at its
+// last speed, both carried into the later frame by the ground's motion; within
+// association_gate_px plus ground_link_growth_px per frame of gap, for gaps up to
+// ground_link_gap_frames (across a chain break, the image test applies). Cars keep the image
+// test: along a road the path of a lost car reaches the car ahead of it. Two tracks that run side
+// by side (within group_distance_px) for at least duplicate_overlap_frames frames are one. Ids of
+// the earlier pieces are kept; the result is ordered by id.
 std::vector<TargetTrack> LinkFragments(std::vector<TargetTrack> tracks,
-                                       const TargetTrackOptions& options);
+                                       const TargetTrackOptions& options,
+                                       const GroundMotion* ground = nullptr);
 
 }  // namespace saker::track

@@ -305,6 +305,65 @@ TEST(SupportedByChangeTest, CountsOnlyWhereTheDetectorLooked) {
   EXPECT_TRUE(SupportedByChange(track, 0.9));  // never looked: no evidence against it
 }
 
+// A track seen in frames [first, first + n) moving from `start` at `velocity` per frame; with
+// features (one corner) or found by change detection alone.
+TargetTrack Moving(int64_t first, int n, Eigen::Vector2d start, Eigen::Vector2d velocity,
+                   bool with_features) {
+  TargetTrack track;
+  for (int i = 0; i < n; ++i) {
+    TargetObservation o;
+    o.frame = first + i;
+    o.position = start + double(i) * velocity;
+    o.velocity = velocity;
+    if (with_features) o.features.push_back(FeatureTrackId(7));
+    track.observations.push_back(o);
+  }
+  return track;
+}
+
+TEST(DropChangeEchoesTest, DropsOnlyChangeTracksRidingAlongACar) {
+  const Eigen::Vector2d car_velocity(1.9, 0);
+  std::vector<TargetTrack> tracks;
+  tracks.push_back(Moving(0, 100, {100, 100}, car_velocity, true));             // the car
+  tracks.push_back(Moving(10, 60, {100 + 19 - 25, 100}, car_velocity, false));  // 25 px behind
+  tracks.push_back(Moving(0, 100, {100, 300}, car_velocity, false));  // far from it: an object
+  tracks.push_back(Moving(0, 100, {100, 130}, {1.9, 0.8}, false));    // beside, not alike
+  // Beside it for 70 of 100 frames only (the car turns off after frame 70).
+  tracks.push_back(Moving(0, 100, {100, 120}, car_velocity, false));
+  tracks[0].observations.resize(70);
+  for (size_t i = 0; i < tracks.size(); ++i) tracks[i].id = TargetTrackId(int64_t(i) + 1);
+
+  std::vector<TargetTrack> kept = DropChangeEchoes(tracks, {});
+  std::vector<int64_t> ids;
+  for (const TargetTrack& t : kept) ids.push_back(int64_t(t.id));
+  EXPECT_EQ(ids, (std::vector<int64_t>{1, 3, 4, 5}));
+
+  ChangeEchoOptions off;
+  off.enabled = false;
+  EXPECT_EQ(DropChangeEchoes(tracks, off).size(), tracks.size());
+}
+
+TEST(DropChangeEchoesTest, WalkersBesideASlowFeatureTrackStay) {
+  // Two people walking together (0.4 px per frame): one has corners, the other only changes.
+  std::vector<TargetTrack> tracks;
+  tracks.push_back(Moving(0, 200, {50, 50}, {0.4, 0}, true));
+  tracks.push_back(Moving(0, 200, {50, 62}, {0.4, 0}, false));
+  EXPECT_EQ(DropChangeEchoes(tracks, {}).size(), 2u);
+  ChangeEchoOptions any_speed;
+  any_speed.min_mover_speed_px = 0;
+  EXPECT_EQ(DropChangeEchoes(tracks, any_speed).size(), 1u);
+}
+
+TEST(DropChangeEchoesTest, RejectsInvalidOptions) {
+  ChangeEchoOptions o;
+  EXPECT_TRUE(o.Validate().ok());
+  o.min_fraction = 0;
+  EXPECT_FALSE(o.Validate().ok());
+  o = {};
+  o.distance_px = -1;
+  EXPECT_FALSE(o.Validate().ok());
+}
+
 // A feature target (two corners moving 2 px per frame) seen in frames 0..9, then never again,
 // while the change evidence comes `lag` frames late and finds a change everywhere. Returns the
 // targets finished, in order, and the frame each was handed out at.

@@ -202,6 +202,59 @@ TEST(LinkFragmentsTest, JoinsContinuationsAndDuplicatesButNotPassersBy) {
   EXPECT_EQ(linked[3].id, TargetTrackId{6});
 }
 
+// The camera pans: the ground moves 1 px per frame to the left in the image.
+GroundMotion Panning(int64_t frames, int64_t chain_break = -1) {
+  Eigen::Matrix3d current_from_previous = Eigen::Matrix3d::Identity();
+  current_from_previous(0, 2) = -1;
+  GroundMotion ground;
+  for (int64_t f = 0; f < frames; ++f) {
+    ground.Add(f, f > 0 && f != chain_break, current_from_previous);
+  }
+  return ground;
+}
+
+TEST(GroundMotionTest, CarriesPointsWithinAChainSegmentOnly) {
+  GroundMotion ground = Panning(100, /*chain_break=*/60);
+  const std::optional<Eigen::Vector2d> later = ground.Map({50, 20}, 10, 40);
+  ASSERT_TRUE(later.has_value());
+  EXPECT_NEAR(later->x(), 20, 1e-9);
+  EXPECT_NEAR(later->y(), 20, 1e-9);
+  const std::optional<Eigen::Vector2d> back = ground.Map(*later, 40, 10);
+  ASSERT_TRUE(back.has_value());
+  EXPECT_NEAR(back->x(), 50, 1e-9);
+  EXPECT_FALSE(ground.Map({50, 20}, 50, 70).has_value());  // across the break
+  EXPECT_TRUE(ground.Map({50, 20}, 60, 70).has_value());
+  EXPECT_FALSE(ground.Map({50, 20}, 90, 100).has_value());  // never added
+  // Frames that never came break the chain too.
+  ground.Add(105, true, Eigen::Matrix3d::Identity());
+  ground.Add(106, true, Eigen::Matrix3d::Identity());
+  EXPECT_FALSE(ground.Map({50, 20}, 99, 105).has_value());
+  EXPECT_FALSE(ground.Map({50, 20}, 102, 103).has_value());
+  EXPECT_TRUE(ground.Map({50, 20}, 105, 106).has_value());
+}
+
+// A walker (0.3 px per frame on the ground, under a camera panning 1 px per frame) stands still
+// for 120 frames and walks on: the two pieces are one walker, found where the
+// ground's motion carries the place it stopped. Another walker 80 px away is someone else.
+TEST(LinkFragmentsTest, OnTheGroundAStoppedWalkerIsJoinedAcrossALongGap) {
+  const TargetTrackOptions options;
+  std::vector<TargetTrack> tracks;
+  tracks.push_back(Track(1, 0, 40, {400, 300}, {-0.7, 0}, {0.3, 0}));     // stops at (372, 300)
+  tracks.push_back(Track(2, 160, 220, {254, 301}, {-0.7, 0}, {0.3, 0}));  // that spot: (252, 300)
+  tracks.push_back(Track(3, 165, 220, {250, 380}, {-0.7, 0}, {0.3, 0}));
+  const GroundMotion ground = Panning(300);
+  const std::vector<TargetTrack> linked = LinkFragments(tracks, options, &ground);
+  ASSERT_EQ(linked.size(), 2u);
+  EXPECT_EQ(linked[0].id, TargetTrackId{1});
+  EXPECT_EQ(linked[0].observations.back().frame, 220);
+  EXPECT_EQ(linked[0].observations.size(), 41u + 61u);
+  EXPECT_EQ(linked[1].id, TargetTrackId{3});
+  // Without the ground's motion, or across a chain break, the gap is too long to bridge.
+  EXPECT_EQ(LinkFragments(tracks, options).size(), 3u);
+  const GroundMotion broken = Panning(300, /*chain_break=*/100);
+  EXPECT_EQ(LinkFragments(tracks, options, &broken).size(), 3u);
+}
+
 // An hour of video gives thousands of fragments: each of 1000 cars, ten on screen at a time,
 // broken into three pieces with its rear corners tracked alongside, comes out whole. (Rescanning
 // every pair after every merge had not finished this after 300 s; see docs/front-end.md.)
