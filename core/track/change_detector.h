@@ -48,9 +48,11 @@ struct ChangeOptions {
   double threshold = 4;          // a difference above this many times its noise is significant
   double registration_px = 0.3;  // misregistration allowed: the local gradient times this is
                                  // added to the noise
-  int border_px = 6;             // changes this close to the edge of the warped frames are ignored
-  int min_area_px = 1;           // blob size, processing pixels
-  int max_area_px = 80;          // larger blobs are vehicles, left to the feature tracks
+  // Changes this close to the edge of a warped frame are ignored (processing pixels): linear
+  // interpolation there mixes in the black outside it. More hides walkers at the image's edge.
+  int border_px = 2;
+  int min_area_px = 1;            // blob size, processing pixels
+  int max_area_px = 80;           // larger blobs are vehicles, left to the feature tracks
   double min_contrast_grey = 12;  // the strongest change in a blob, at least
   Status Validate() const;
 };
