@@ -207,6 +207,11 @@ ChangeFrame ChangeDetector::Process(int64_t frame, const cv::Mat& grey,
   cv::Mat changed(small_size_, CV_8U, cv::Scalar(0));
   strength_.create(small_size_, CV_32F);
   strength_.setTo(0);
+  // Two passes per row: a branch-free one marks the pixels whose differences agree in sign and
+  // exceed the sensor noise (the two signs agree at random on flat ground, so a branch there is
+  // mispredicted half the time); the gradient test then runs on those few. 2.9 -> 0.9 ms a frame
+  // at 960x540, with the same answer.
+  std::vector<uint8_t> candidate(size_t(small_size_.width));
   for (size_t i = 0; i < pairs_.size(); ++i) {
     const Other& before = pairs_[i][0];
     const Other& after = pairs_[i][1];
@@ -218,45 +223,67 @@ ChangeFrame ChangeDetector::Process(int64_t frame, const cv::Mat& grey,
       uint8_t* out = changed.ptr<uint8_t>(y);
       float* s = strength_.ptr<float>(y);
       for (int x = 0; x < small_size_.width; ++x) {
-        if (v[x] == 0) continue;
         const float d0 = float(c[x]) - before.gain * float(w0[x]);
         const float d1 = float(c[x]) - after.gain * float(w1[x]);
-        if (d0 * d1 <= 0) continue;
         const float a = std::min(std::abs(d0), std::abs(d1));
-        if (a <= quick || a <= std::abs(s[x]) || !significant(d0, before.warped, x, y) ||
-            !significant(d1, after.warped, x, y)) {
+        candidate[size_t(x)] =
+            uint8_t((v[x] != 0) & (d0 * d1 > 0) & (a > quick) & (a > std::abs(s[x])));
+      }
+      for (int x = 0; x < small_size_.width; ++x) {
+        if (candidate[size_t(x)] == 0) continue;
+        const float d0 = float(c[x]) - before.gain * float(w0[x]);
+        const float d1 = float(c[x]) - after.gain * float(w1[x]);
+        if (!significant(d0, before.warped, x, y) || !significant(d1, after.warped, x, y)) {
           continue;
         }
+        const float a = std::min(std::abs(d0), std::abs(d1));
         out[x] = 255;
         s[x] = d0 > 0 ? a : -a;
       }
     }
   }
 
-  const int count =
-      cv::connectedComponentsWithStats(changed, labels_, stats_, centroids_, 8, CV_32S);
-  for (int i = 1; i < count; ++i) {
-    const int area = stats_.at<int>(i, cv::CC_STAT_AREA);
-    if (area < options_.min_area_px || area > options_.max_area_px) continue;
-    const int x0 = stats_.at<int>(i, cv::CC_STAT_LEFT), y0 = stats_.at<int>(i, cv::CC_STAT_TOP);
-    const int x1 = x0 + stats_.at<int>(i, cv::CC_STAT_WIDTH),
-              y1 = y0 + stats_.at<int>(i, cv::CC_STAT_HEIGHT);
+  // The changed pixels' 8-connected components, in raster order of their first pixel, each
+  // filled from there. The mask is sparse (a few hundred pixels of half a million), so the fill
+  // visits only those: labelling the whole image (cv::connectedComponentsWithStats) took 3 ms a
+  // frame at 960x540.
+  changed.copyTo(unvisited_);
+  cv::findNonZero(changed, seeds_);
+  const int width = small_size_.width, height = small_size_.height;
+  for (const cv::Point& seed : seeds_) {
+    if (unvisited_.at<uint8_t>(seed) == 0) continue;
+    unvisited_.at<uint8_t>(seed) = 0;
+    fill_.assign(1, seed);
+    int area = 0, x0 = seed.x, x1 = seed.x, y0 = seed.y, y1 = seed.y;
     double weight = 0, sx = 0, sy = 0, peak = 0;
-    for (int y = y0; y < y1; ++y) {
-      for (int x = x0; x < x1; ++x) {
-        if (labels_.at<int>(y, x) != i) continue;
-        const double st = strength_.at<float>(y, x);
-        weight += std::abs(st);
-        sx += std::abs(st) * x;
-        sy += std::abs(st) * y;
-        if (std::abs(st) > std::abs(peak)) peak = st;
+    while (!fill_.empty()) {
+      const cv::Point p = fill_.back();
+      fill_.pop_back();
+      ++area;
+      x0 = std::min(x0, p.x);
+      x1 = std::max(x1, p.x);
+      y0 = std::min(y0, p.y);
+      y1 = std::max(y1, p.y);
+      const double st = strength_.at<float>(p);
+      weight += std::abs(st);
+      sx += std::abs(st) * p.x;
+      sy += std::abs(st) * p.y;
+      if (std::abs(st) > std::abs(peak)) peak = st;
+      for (int yy = std::max(0, p.y - 1); yy <= std::min(height - 1, p.y + 1); ++yy) {
+        uint8_t* row = unvisited_.ptr<uint8_t>(yy);
+        for (int xx = std::max(0, p.x - 1); xx <= std::min(width - 1, p.x + 1); ++xx) {
+          if (row[xx] == 0) continue;
+          row[xx] = 0;
+          fill_.emplace_back(xx, yy);
+        }
       }
     }
+    if (area < options_.min_area_px || area > options_.max_area_px) continue;
     if (std::abs(peak) < options_.min_contrast_grey || weight <= 0) continue;
     ChangeBlob blob;
     blob.position = ToFull(sx / weight, sy / weight);
     blob.box_min = ToFull(x0 - 0.5, y0 - 0.5);
-    blob.box_max = ToFull(x1 - 0.5, y1 - 0.5);
+    blob.box_max = ToFull(x1 + 0.5, y1 + 0.5);
     blob.area_px = area;
     blob.contrast = peak;
     result.blobs.push_back(blob);

@@ -118,7 +118,8 @@ class ChangeDetector {
   // Buffers reused from frame to frame (the masks handed out are allocated per answer).
   std::vector<std::array<Other, 2>> pairs_;  // per baseline: before and after
   std::vector<cv::Mat> covers_;              // per baseline: where both cover the centre frame
-  cv::Mat labels_, stats_, centroids_;       // connected components of the changed mask
+  cv::Mat unvisited_;                        // changed pixels not yet in a component
+  std::vector<cv::Point> seeds_, fill_;      // the changed pixels; those waiting to be filled
   cv::Mat strength_;                         // CV_32F signed change of the changed pixels
 };
 

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <iterator>
 
 namespace saker::track {
 
@@ -56,34 +57,40 @@ void MotionSegmenter::Reset() {
 void MotionSegmenter::AddFrame(const std::vector<Correspondence>& matches,
                                const Eigen::Matrix3d& current_from_previous,
                                const std::optional<Eigen::Vector3d>& epipole) {
-  std::unordered_map<int64_t, TrackState> next;
-  next.reserve(matches.size());
+  ++calls_;
   moving_.clear();
   const double cos_limit = std::cos(options_.epipolar_angle_deg * M_PI / 180.0);
   const size_t window = size_t(options_.window_frames);
   for (const Correspondence& m : matches) {
-    const int64_t key = static_cast<int64_t>(m.id);
-    TrackState state;
-    if (auto it = tracks_.find(key); it != tracks_.end()) state = std::move(it->second);
+    TrackState& state = tracks_[static_cast<int64_t>(m.id)];
+    state.updated = calls_;
 
     const Eigen::Vector2d predicted =
         (current_from_previous * m.source.homogeneous()).hnormalized();
-    state.residuals.push_back(m.target - predicted);
-    state.flows.push_back(predicted - m.source);
-    while (state.residuals.size() > window) {
-      state.residuals.pop_front();
-      state.flows.pop_front();
+    Step step;
+    step.residual = m.target - predicted;
+    step.flow = predicted - m.source;
+    // The new step replaces the oldest once the window is full.
+    size_t newest = state.steps.size();
+    if (newest < window) {
+      state.steps.push_back(step);
+    } else {
+      newest = state.first;
+      state.first = (state.first + 1) % window;
     }
-    while (state.significant.size() >= window) state.significant.pop_front();
+    Step& current = state.steps[newest];
+    current = step;
+    const size_t held = state.steps.size();
 
     // Stage 1: motion relative to the ground over the last short_frames frames.
     Eigen::Vector2d motion(0, 0), flow(0, 0);
     double largest_step = 0;
-    const size_t n = std::min(state.residuals.size(), size_t(options_.short_frames));
-    for (size_t k = state.residuals.size() - n; k < state.residuals.size(); ++k) {
-      motion += state.residuals[k];
-      flow += state.flows[k];
-      largest_step = std::max(largest_step, state.residuals[k].norm());
+    const size_t n = std::min(held, size_t(options_.short_frames));
+    for (size_t k = held - n; k < held; ++k) {
+      const Step& s = state.at(k);
+      motion += s.residual;
+      flow += s.flow;
+      largest_step = std::max(largest_step, s.residual.norm());
     }
     // Real motion is spread over the frames; a single jump (the tracker slipping onto another
     // corner) is not motion, however large.
@@ -102,37 +109,39 @@ void MotionSegmenter::AddFrame(const std::vector<Correspondence>& matches,
                         motion.norm() <= options_.max_parallax_fraction * flow.norm());
       }
     }
-    state.significant.push_back(significant);
+    current.significant = significant;
 
     // Stage 2: consistency over the window.
     int count = 0;
     Eigen::Vector2d sum(0, 0);
-    for (size_t k = 0; k < state.residuals.size(); ++k) sum += state.residuals[k];
-    for (bool b : state.significant) count += b;
+    for (size_t k = 0; k < held; ++k) {
+      sum += state.at(k).residual;
+      count += state.at(k).significant;
+    }
     const double fraction = double(count) / double(window);
     if (state.label == MotionLabel::kMoving) {
       // Released when it has mostly stopped over the window, or at once when the last few
       // verdicts all say still (corners left behind on the road by a passing car).
-      const size_t recent = std::min<size_t>(4, state.significant.size());
+      const size_t recent = std::min<size_t>(4, held);
       bool recently_still = recent == 4;
-      for (size_t k = state.significant.size() - recent; k < state.significant.size(); ++k) {
-        recently_still &= !state.significant[k];
-      }
+      for (size_t k = held - recent; k < held; ++k) recently_still &= !state.at(k).significant;
       if (fraction <= options_.release_fraction || recently_still)
         state.label = MotionLabel::kStationary;
     } else if (fraction >= options_.min_significant_fraction &&
                sum.norm() >= options_.min_window_displacement_px) {
       state.label = MotionLabel::kMoving;
-    } else if (state.residuals.size() >= window / 2) {
+    } else if (held >= window / 2) {
       state.label = MotionLabel::kStationary;
     }
 
     if (state.label == MotionLabel::kMoving) {
-      moving_.push_back({m.id, m.target, sum / double(state.residuals.size())});
+      moving_.push_back({m.id, m.target, sum / double(held)});
     }
-    next.emplace(key, std::move(state));
   }
-  tracks_ = std::move(next);
+  // Tracks not in this frame's matches have ended.
+  for (auto it = tracks_.begin(); it != tracks_.end();) {
+    it = it->second.updated == calls_ ? std::next(it) : tracks_.erase(it);
+  }
 }
 
 MotionLabel MotionSegmenter::LabelOf(FeatureTrackId id) const {

@@ -29,7 +29,6 @@
 #include <Eigen/Core>
 
 #include <cstdint>
-#include <deque>
 #include <optional>
 #include <unordered_map>
 #include <vector>
@@ -82,15 +81,25 @@ class MotionSegmenter {
   void Reset();
 
  private:
+  struct Step {
+    Eigen::Vector2d residual{0, 0};  // the per-frame residual against the ground motion
+    Eigen::Vector2d flow{0, 0};      // the ground's image motion at the feature
+    bool significant = false;        // the stage 1 verdict
+  };
   struct TrackState {
-    std::deque<Eigen::Vector2d> residuals;  // last window_frames per-frame residuals
-    std::deque<Eigen::Vector2d> flows;      // the ground's image motion at the feature, per frame
-    std::deque<bool> significant;           // stage 1 verdicts
+    // The last window_frames steps, a ring: the oldest at `first`.
+    std::vector<Step> steps;
+    size_t first = 0;
+    int64_t updated = -1;  // the AddFrame call that saw the track last
     MotionLabel label = MotionLabel::kUnknown;
+    // Step k, 0 the oldest held.
+    const Step& at(size_t k) const { return steps[(first + k) % steps.size()]; }
   };
 
   SegmentationOptions options_;
+  // Kept from frame to frame, so that a track's state is not allocated again every frame.
   std::unordered_map<int64_t, TrackState> tracks_;
+  int64_t calls_ = 0;
   std::vector<MovingPoint> moving_;
 };
 
