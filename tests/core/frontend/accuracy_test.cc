@@ -1,0 +1,74 @@
+// Moving-target detection at default options on whole simulated flights, against the simulator's
+// truth: the targets on the demo scenario, and floors on other worlds of the same scenario
+// that the defaults were not tuned on (docs/front-end.md, "Accuracy").
+//
+// Each world is the demo's 71 s of 1280x720 video: about 45 s to simulate and process in a release
+// build, many minutes under a sanitizer. Sanitizer builds skip these: they measure accuracy, and
+// the same front end code runs under the sanitizers in front_end_test.cc.
+
+#include "core/frontend/evaluate.h"
+#include "core/frontend/front_end.h"
+#include "core/sim/simulator.h"
+#include "core/sim/truth.h"
+#include "tests/testing/test_data.h"
+
+#include <gtest/gtest.h>
+
+#include <cstdint>
+#include <iostream>
+#include <string>
+
+namespace saker::frontend {
+namespace {
+
+struct World {
+  const char* name;
+  uint64_t seed;
+  // Target-track recall and precision asserted (saker-cli evaluate's "recall" and "precision").
+  double min_recall;
+  double min_precision;
+};
+
+void ExpectDetection(const World& world) {
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+  GTEST_SKIP() << "accuracy over whole flights is measured in the release build";
+#endif
+  const std::filesystem::path dir = saker::testing::MakeTempDir("saker-accuracy");
+  sim::SimulationOptions options;  // the demo's: roundabout-loop, 1280x720, 25 fps
+  options.output = dir / "world.ts";
+  options.seed = world.seed;
+  const StatusOr<sim::SimulationSummary> summary = sim::Simulate(options);
+  ASSERT_TRUE(summary.ok()) << summary.status().ToString();
+  const StatusOr<sim::Truth> truth = sim::ReadTruth(options.TruthPath());
+  ASSERT_TRUE(truth.ok()) << truth.status().ToString();
+
+  const StatusOr<FrontEndResult> result = RunFrontEnd(options.output.string(), {});
+  ASSERT_TRUE(result.ok()) << result.status().ToString();
+  const StatusOr<Evaluation> evaluation = Evaluate(*result, *truth);
+  ASSERT_TRUE(evaluation.ok()) << evaluation.status().ToString();
+  std::cout << world.name << ":\n" << EvaluationToText(*evaluation);
+
+  EXPECT_EQ(evaluation->homography.failed, 0);
+  EXPECT_LT(evaluation->homography.median_px, 0.1);
+  ASSERT_GE(evaluation->targets.truth_targets, 30);
+  EXPECT_GE(evaluation->targets.track_recall, world.min_recall);
+  EXPECT_GE(evaluation->targets.track_precision, world.min_precision);
+}
+
+// The demo mission (saker-cli demo): the targets. Measured 0.911 (41 of 45 sightings) and
+// 0.980 (48 of 49 tracks): one sighting or one false track to spare.
+TEST(FrontEndAccuracyTest, TheDemoMeetsTheTargets) { ExpectDetection({"demo", 1, 0.90, 0.95}); }
+
+// Other towns and traffic, below the targets (docs/front-end.md says why). Floors two sightings
+// and two tracks under what is measured.
+TEST(FrontEndAccuracyTest, SeedTwoStaysAboveItsFloors) {
+  // Measured 0.727 (32 of 44 sightings) and 0.894 (42 of 47 tracks).
+  ExpectDetection({"seed 2", 2, 0.68, 0.85});
+}
+TEST(FrontEndAccuracyTest, SeedThreeStaysAboveItsFloors) {
+  // Measured 0.825 (33 of 40 sightings) and 0.917 (44 of 48 tracks).
+  ExpectDetection({"seed 3", 3, 0.77, 0.87});
+}
+
+}  // namespace
+}  // namespace saker::frontend
