@@ -54,6 +54,45 @@ void MergeObservation(const TargetObservation& o, TargetObservation* into) {
   m.change = std::max(m.change, o.change);
 }
 
+// Calls visit(oa, ob) for every frame both tracks saw, in frame order.
+template <typename Visit>
+void ForCommonFrames(const TargetTrack& a, const TargetTrack& b, Visit visit) {
+  size_t i = 0, j = 0;
+  while (i < a.observations.size() && j < b.observations.size()) {
+    if (a.observations[i].frame < b.observations[j].frame) {
+      ++i;
+    } else if (a.observations[i].frame > b.observations[j].frame) {
+      ++j;
+    } else {
+      visit(a.observations[i++], b.observations[j++]);
+    }
+  }
+}
+
+// Mean distance between two tracks over the frames both saw, and how many frames that is.
+std::pair<double, int> SideBySide(const TargetTrack& a, const TargetTrack& b) {
+  double sum = 0;
+  int n = 0;
+  ForCommonFrames(a, b, [&](const TargetObservation& oa, const TargetObservation& ob) {
+    sum += (oa.position - ob.position).norm();
+    ++n;
+  });
+  return {n > 0 ? sum / n : std::numeric_limits<double>::infinity(), n};
+}
+
+// Whether two observations' boxes touch (come within `margin` of each other).
+bool Touching(const TargetObservation& a, const TargetObservation& b, double margin) {
+  const Eigen::Vector2d gap = (a.box_min - b.box_max).cwiseMax(b.box_min - a.box_max).cwiseMax(0.0);
+  return gap.norm() <= margin;
+}
+
+// How far apart two tracks of one object may run on average: as for grouping features (walkers
+// side by side stay two, a car's two halves are one), and up to 30 % more than the grouping
+// distance for pieces of one long vehicle (a van's front and rear corners keep their distance).
+double PiecesApart(const TargetTrackOptions& options, double speed_a, double speed_b) {
+  return options.group_distance_px * std::clamp(std::max(speed_a, speed_b) / 1.5 * 1.3, 0.35, 1.3);
+}
+
 }  // namespace
 
 Status TargetTrackOptions::Validate() const {
@@ -203,13 +242,23 @@ void TargetTracker::MergeAlike(int64_t frame) {
       const TargetObservation& oa = active_[a].observations.back();
       const TargetObservation& ob = active_[b].observations.back();
       if (oa.frame != frame || ob.frame != frame) continue;
-      // Touching boxes, moving alike: the corners of one object found in two places.
-      const Eigen::Vector2d gap =
-          (oa.box_min - ob.box_max).cwiseMax(ob.box_min - oa.box_max).cwiseMax(0.0);
+      // Touching boxes, moving alike: the corners of one object found in two places; and
+      // touching in most of the frames both were seen before, too. Two objects that meet (a car
+      // catching up with a van at a junction) must not become one, with both histories averaged
+      // into a track between them.
       const double speed = std::max(oa.velocity.norm(), ob.velocity.norm());
       const double velocity = std::max(options_.group_velocity_px, 0.6 * speed);
-      const bool touching = gap.norm() <= options_.box_margin_px;
-      if (!touching || (oa.velocity - ob.velocity).norm() > velocity) continue;
+      if (!Touching(oa, ob, options_.box_margin_px) ||
+          (oa.velocity - ob.velocity).norm() > velocity) {
+        continue;
+      }
+      int common = 0, touching = 0;
+      ForCommonFrames(active_[a], active_[b],
+                      [&](const TargetObservation& pa, const TargetObservation& pb) {
+                        ++common;
+                        touching += Touching(pa, pb, options_.box_margin_px);
+                      });
+      if (2 * touching < common) continue;
       // Keep the older target (smaller id); fold the other's observations into it by frame.
       size_t keep = active_[a].id < active_[b].id ? a : b, drop = keep == a ? b : a;
       std::map<int64_t, TargetObservation> by_frame;
@@ -316,24 +365,6 @@ double DistanceToSegment(const Eigen::Vector2d& p, const Eigen::Vector2d& a,
   return (p - (a + t * ab)).norm();
 }
 
-// Mean distance between two tracks over the frames both saw, and how many frames that is.
-std::pair<double, int> SideBySide(const TargetTrack& a, const TargetTrack& b) {
-  size_t i = 0, j = 0;
-  double sum = 0;
-  int n = 0;
-  while (i < a.observations.size() && j < b.observations.size()) {
-    if (a.observations[i].frame < b.observations[j].frame) {
-      ++i;
-    } else if (a.observations[i].frame > b.observations[j].frame) {
-      ++j;
-    } else {
-      sum += (a.observations[i].position - b.observations[j].position).norm();
-      ++n, ++i, ++j;
-    }
-  }
-  return {n > 0 ? sum / n : std::numeric_limits<double>::infinity(), n};
-}
-
 }  // namespace
 
 double MeanSpeed(const TargetTrack& t) {
@@ -400,12 +431,8 @@ std::vector<TargetTrack> LinkFragments(std::vector<TargetTrack> tracks,
   const auto duplicates = [&](size_t a, size_t b) {
     if (first(b) > last(a) || first(a) > last(b)) return false;  // no frame in common
     const auto [distance, frames] = SideBySide(tracks[a], tracks[b]);
-    // As for grouping features: walkers side by side stay two, a car's two halves are one.
-    // Pieces of one long vehicle (a van's front and rear corners) keep their distance, up to
-    // 30 % more than the grouping distance.
-    const double limit =
-        options.group_distance_px * std::clamp(std::max(speed[a], speed[b]) / 1.5 * 1.3, 0.35, 1.3);
-    return frames >= options.duplicate_overlap_frames && distance <= limit;
+    return frames >= options.duplicate_overlap_frames &&
+           distance <= PiecesApart(options, speed[a], speed[b]);
   };
   // Folds track `from` into track `into` (into < from) and removes it.
   const auto fold = [&](size_t into, size_t from) {

@@ -155,6 +155,34 @@ TEST(TargetTrackerTest, SurvivesFeatureTurnoverAndShortGaps) {
   EXPECT_EQ(tracker.active()[0].observations.size(), 35u);
 }
 
+// Slow things (half a pixel a frame) whose corners are too far apart to be grouped but whose boxes
+// touch, moving alike. A car that catches up with a van at a junction stays apart from it:
+// merging the two would average both histories into a track between them. An object whose
+// corners were found as two groups from the start is one.
+TEST(TargetTrackerTest, ObjectsThatMeetStayTwoButPiecesOfOneAreOne) {
+  TargetTracker tracker({});
+  for (int frame = 0; frame < 60; ++frame) {
+    const double van = 200 + 0.5 * frame;
+    const bool caught_up = frame >= 40;
+    const double car = caught_up ? van - 11 : 100 + 2.5 * frame;
+    const double car_speed = caught_up ? 0.5 : 2.5;
+    const double x = 100 + 0.5 * frame;
+    tracker.AddFrame(frame, {Point(1, van, 100, 0.5), Point(2, van + 3, 101, 0.5),
+                             Point(3, car - 3, 100, car_speed), Point(4, car, 101, car_speed),
+                             Point(10, x, 300, 0.5), Point(11, x + 3, 301, 0.5),
+                             Point(12, x + 14, 300, 0.5), Point(13, x + 17, 301, 0.5)});
+  }
+  ASSERT_EQ(tracker.active().size(), 3u);
+  for (const TargetTrack& t : tracker.active()) {
+    EXPECT_EQ(t.observations.size(), 60u) << "target " << int64_t(t.id);
+    for (const TargetObservation& o : t.observations) {
+      // Never a van-and-car box (100 px wide before the car caught up).
+      EXPECT_LT((o.box_max - o.box_min).x(), 40) << "target " << int64_t(t.id);
+      if (o.position.y() > 200) EXPECT_EQ(o.features.size(), 4u);
+    }
+  }
+}
+
 TEST(TargetTrackerTest, ShortBlipsAreNeverConfirmed) {
   TargetTracker tracker({});
   for (int frame = 0; frame < 3; ++frame) tracker.AddFrame(frame, {Point(1, 100, 100)});
