@@ -16,6 +16,8 @@
 #include <QTest>
 #include <fstream>
 #include <memory>
+#include <sstream>
+#include <string>
 
 namespace saker::ui::testing {
 
@@ -23,8 +25,20 @@ namespace {
 
 // CTest runs every test in a process of its own; the mission is made once per build, in a folder
 // of the build tree, under a lock so that parallel tests wait for the first one. A stamp written
-// last marks it complete (with the options and the build of this file, so it is remade when
-// either changes).
+// last marks it complete (with the options, the build of this file and the modification times of
+// the engine libraries, so it is remade when any of them changes: this file is not compiled
+// again when only the engine is).
+std::string EngineStamp() {
+  std::string stamp;
+  std::stringstream libraries(SAKER_UI_TEST_ENGINE);
+  for (std::string library; std::getline(libraries, library, ':');) {
+    std::error_code error;
+    const auto time = std::filesystem::last_write_time(library, error);
+    stamp += " " + (error ? std::string("?") : std::to_string(time.time_since_epoch().count()));
+  }
+  return stamp;
+}
+
 class CacheLock {
  public:
   explicit CacheLock(const std::filesystem::path& path)
@@ -54,7 +68,8 @@ std::unique_ptr<TestMission> MakeSmallMission() {
 
   const sim::SimulationOptions options = saker::testing::SmallLoopOptions(made->video);
   made->truth = options.TruthPath();
-  const std::string stamp_text = options.ToJson().dump() + " " + __DATE__ + " " + __TIME__;
+  const std::string stamp_text =
+      options.ToJson().dump() + " " + __DATE__ + " " + __TIME__ + EngineStamp();
   const std::filesystem::path stamp = dir / "stamp";
   std::string existing;
   if (std::ifstream in(stamp); in) std::getline(in, existing);
