@@ -478,14 +478,10 @@ bool FoundByChangeOnly(const TargetTrack& track) {
 size_t FramesAlongside(const TargetTrack& echo, const TargetTrack& mover,
                        const ChangeEchoOptions& options) {
   size_t alongside = 0;
-  auto m = mover.observations.begin();
-  for (const TargetObservation& e : echo.observations) {
-    while (m != mover.observations.end() && m->frame < e.frame) ++m;
-    if (m == mover.observations.end()) break;
-    if (m->frame != e.frame) continue;
-    alongside += (m->position - e.position).norm() < options.distance_px &&
-                 (m->velocity - e.velocity).norm() < options.velocity_px;
-  }
+  ForCommonFrames(echo, mover, [&](const TargetObservation& e, const TargetObservation& m) {
+    alongside += (m.position - e.position).norm() < options.distance_px &&
+                 (m.velocity - e.velocity).norm() < options.velocity_px;
+  });
   return alongside;
 }
 

@@ -54,21 +54,6 @@ void MergeObservation(const TargetObservation& o, TargetObservation* into) {
   m.change = std::max(m.change, o.change);
 }
 
-// Calls visit(oa, ob) for every frame both tracks saw, in frame order.
-template <typename Visit>
-void ForCommonFrames(const TargetTrack& a, const TargetTrack& b, Visit visit) {
-  size_t i = 0, j = 0;
-  while (i < a.observations.size() && j < b.observations.size()) {
-    if (a.observations[i].frame < b.observations[j].frame) {
-      ++i;
-    } else if (a.observations[i].frame > b.observations[j].frame) {
-      ++j;
-    } else {
-      visit(a.observations[i++], b.observations[j++]);
-    }
-  }
-}
-
 // Mean distance between two tracks over the frames both saw, and how many frames that is.
 std::pair<double, int> SideBySide(const TargetTrack& a, const TargetTrack& b) {
   double sum = 0;

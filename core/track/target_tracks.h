@@ -123,6 +123,21 @@ class TargetTracker {
 // Mean ground-relative speed of a track's observations, pixels per frame (0 for none).
 double MeanSpeed(const TargetTrack& track);
 
+// Calls visit(a_observation, b_observation) for every frame both tracks saw, in frame order.
+template <typename Visit>
+void ForCommonFrames(const TargetTrack& a, const TargetTrack& b, Visit visit) {
+  size_t i = 0, j = 0;
+  while (i < a.observations.size() && j < b.observations.size()) {
+    if (a.observations[i].frame < b.observations[j].frame) {
+      ++i;
+    } else if (a.observations[i].frame > b.observations[j].frame) {
+      ++j;
+    } else {
+      visit(a.observations[i++], b.observations[j++]);
+    }
+  }
+}
+
 // The ground's motion through a video: each frame's homography from the previous one, chained
 // within chain segments, so that a point of one frame can be found in a later one.
 class GroundMotion {
