@@ -7,10 +7,12 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <optional>
 #include <sstream>
 
 namespace saker::app {
@@ -62,9 +64,14 @@ int RunSimulation(const sim::SimulationOptions& options, bool quiet) {
   }
   if (!quiet) {
     std::cout << "wrote " << summary->video.string() << ": " << summary->frames << " frames ("
-              << summary->duration_s << " s), " << summary->klv_packets << " KLV packets, "
-              << summary->targets << " moving targets, track " << int(summary->track_length_m)
-              << " m, " << summary->nominal_gsd_m << " m/pixel at nadir\n"
+              << summary->duration_s << " s";
+    if (summary->dropped_frames > 0 || summary->repeated_frames > 0) {
+      std::cout << "; " << summary->dropped_frames << " dropped, " << summary->repeated_frames
+                << " repeated";
+    }
+    std::cout << "), " << summary->klv_packets << " KLV packets, " << summary->targets
+              << " moving targets, track " << int(summary->track_length_m) << " m, "
+              << summary->nominal_gsd_m << " m/pixel at nadir\n"
               << "wrote " << summary->truth.string() << "\n";
   }
   return kExitOk;
@@ -78,6 +85,21 @@ std::string ScenarioList() {
   return out.str();
 }
 
+// The gimbal azimuth of a --look value: a named direction or degrees clockwise from the nose.
+std::optional<double> LookAzimuth(const std::string& look) {
+  if (look == "forward") return 0.0;
+  if (look == "right") return 90.0;
+  if (look == "back") return 180.0;
+  if (look == "left") return 270.0;
+  try {
+    size_t used = 0;
+    const double degrees = std::stod(look, &used);
+    if (used == look.size() && std::isfinite(degrees) && std::abs(degrees) <= 360) return degrees;
+  } catch (const std::exception&) {
+  }
+  return std::nullopt;
+}
+
 }  // namespace
 
 struct SimulateCommand::State {
@@ -86,6 +108,10 @@ struct SimulateCommand::State {
   std::string scenario = "roundabout-loop";
   std::vector<double> bias;
   std::string nodata = "none";
+  std::string look = "forward";
+  std::string logo = "none";
+  std::string sensor_look = "eo";
+  std::string target_paths;
   bool force = false;
   bool quiet = false;
 };
@@ -101,7 +127,7 @@ SimulateCommand::SimulateCommand(CLI::App& app) : state_(std::make_unique<State>
           ScenarioList());
   s.command = c;
   c->add_option("--scenario", s.scenario,
-                "Flight path: roundabout-loop, figure-eight, raster, straight")
+                "Flight path: roundabout-loop, figure-eight, raster, straight, orbit")
       ->capture_default_str();
   c->add_option("-o,--output", o.output, "Output MPEG-TS file")->required();
   c->add_option("--truth", o.truth, "Truth file (default: OUTPUT with .truth.json)");
@@ -168,6 +194,30 @@ SimulateCommand::SimulateCommand(CLI::App& app) : state_(std::make_unique<State>
   c->add_option("--heading", o.flight.straight_heading_deg, "straight: heading, degrees from north")
       ->capture_default_str()
       ->group(flight);
+  c->add_option("--orbit-radius", o.flight.orbit_radius_m,
+                "orbit: radius of the circle round the point the camera stares at, metres")
+      ->capture_default_str()
+      ->group(flight);
+
+  auto* pointing = "Pointing";
+  c->add_option("--off-nadir", o.flight.gimbal_off_nadir_deg,
+                "Oblique view: the camera's angle off nadir, 0 (straight down) .. 60 degrees\n"
+                "(the orbit scenario sets its own, staring at the centre)")
+      ->capture_default_str()
+      ->group(pointing);
+  c->add_option("--look", s.look,
+                "Which way an oblique camera leans: forward, right, left, back, or an azimuth\n"
+                "in degrees clockwise from the nose")
+      ->capture_default_str()
+      ->group(pointing);
+  c->add_option("--zoom-start", o.zoom.start_s, "Start of a zoom, seconds (none by default)")
+      ->group(pointing);
+  c->add_option("--zoom-duration", o.zoom.duration_s, "Length of the zoom, seconds")
+      ->capture_default_str()
+      ->group(pointing);
+  c->add_option("--zoom-to", o.zoom.to_hfov_deg,
+                "Horizontal field of view at the end of the zoom, degrees (from --hfov)")
+      ->group(pointing);
 
   auto* world = "World";
   c->add_option("--loop-length", o.world.loop_length_m, "Length of the town's road loop, metres")
@@ -178,9 +228,20 @@ SimulateCommand::SimulateCommand(CLI::App& app) : state_(std::make_unique<State>
   c->add_option("--people", o.targets.people, "Walking people")
       ->capture_default_str()
       ->group(world);
+  c->add_option("--slow-walkers", o.targets.slow_walker_fraction,
+                "Fraction of people who dawdle at 0.4-0.6 m/s")
+      ->capture_default_str()
+      ->group(world);
+  c->add_option("--groups", o.targets.group_size,
+                "People walk in groups of this many, side by side")
+      ->capture_default_str()
+      ->group(world);
+  c->add_flag("--stop-and-go", o.targets.stop_and_go,
+              "Vehicles stop every 5-20 s for 2-8 s; queues form behind them")
+      ->group(world);
   c->add_option("--ground", o.ground_image,
                 "Orthophoto (PNG, JPEG, GeoTIFF) to fly over instead of the town; transparent\n"
-                "pixels are no data. No moving targets are simulated on it.")
+                "pixels are no data. Moving targets only with --target-paths.")
       ->check(CLI::ExistingFile)
       ->group(world);
   c->add_option("--gsd", o.ground_gsd_m, "Metres per pixel of --ground (read from a GeoTIFF if 0)")
@@ -190,6 +251,11 @@ SimulateCommand::SimulateCommand(CLI::App& app) : state_(std::make_unique<State>
                 "none, white or black (transparent pixels are always no data)")
       ->check(CLI::IsMember({"none", "white", "black"}))
       ->capture_default_str()
+      ->group(world);
+  c->add_option("--target-paths", s.target_paths,
+                "With --ground: where targets move: 'generated' (straight and curved roads\n"
+                "across the image, footpaths near its centre) or a GeoJSON file of LineStrings\n"
+                "(WGS84; features with property kind = footpath are walked)")
       ->group(world);
   c->add_option("--lat", o.origin.latitude_deg, "Latitude of the ground origin, degrees")
       ->capture_default_str()
@@ -212,12 +278,65 @@ SimulateCommand::SimulateCommand(CLI::App& app) : state_(std::make_unique<State>
   c->add_option("--gain-drift", o.imaging.gain_drift, "Slow brightness drift, relative amplitude")
       ->capture_default_str()
       ->group(imaging);
+  c->add_option("--sensor", s.sensor_look,
+                "Sensor: eo (visible colour), ir-white-hot or ir-black-hot (thermal infrared)")
+      ->check(CLI::IsMember({"eo", "ir-white-hot", "ir-black-hot"}))
+      ->capture_default_str()
+      ->group(imaging);
+  c->add_option("--polarity-switch", o.imaging.polarity_switch_s,
+                "Infrared: switch white-hot <-> black-hot at this time, seconds")
+      ->group(imaging);
+  c->add_option("--haze", o.imaging.haze, "Haze: contrast taken by bright airlight, 0 .. 0.8")
+      ->capture_default_str()
+      ->group(imaging);
+  c->add_option("--motion-blur", o.imaging.motion_blur_px,
+                "Smear along the image's vertical axis, pixels")
+      ->capture_default_str()
+      ->group(imaging);
+  c->add_option("--lens-k1", o.imaging.lens_k1,
+                "Radial lens distortion, -0.3 (barrel) .. 0.3 (pincushion); homographies then\n"
+                "hold only approximately")
+      ->capture_default_str()
+      ->group(imaging);
   c->add_option("--blank-start", o.imaging.blank_start_s,
                 "Start of a blank interval (cloud), seconds")
       ->group(imaging);
   c->add_option("--blank-duration", o.imaging.blank_duration_s,
                 "Length of the blank interval, seconds")
       ->group(imaging);
+
+  auto* sampling = "Sampling and cuts";
+  c->add_option("--drop-frames", o.sampling.drop_probability,
+                "Chance that a camera frame is lost (a gap in the time stamps), 0 .. 0.5")
+      ->capture_default_str()
+      ->group(sampling);
+  c->add_option("--repeat-frames", o.sampling.repeat_probability,
+                "Chance that a frame repeats the previous picture, 0 .. 0.5")
+      ->capture_default_str()
+      ->group(sampling);
+  c->add_flag("--variable-rate", o.sampling.variable_rate,
+              "Frame intervals of 3/4 to 5/4 of the nominal one (a variable frame rate)")
+      ->group(sampling);
+  c->add_option("--cut-at", o.cut.at_s,
+                "A splice at this video time, seconds: the video then shows the flight later on")
+      ->group(sampling);
+  c->add_option("--cut-jump", o.cut.jump_s, "How much later the video resumes after --cut-at, s")
+      ->capture_default_str()
+      ->group(sampling);
+
+  auto* overlays = "Burned-in overlays";
+  c->add_flag("--hud-text", o.overlay.hud_text,
+              "Telemetry text (time, frame, position, heading) that changes every frame")
+      ->group(overlays);
+  c->add_flag("--reticle", o.overlay.reticle, "A cross at the image centre")->group(overlays);
+  c->add_option("--logo", s.logo, "A corner logo: none, static, rotating or pulsing")
+      ->check(CLI::IsMember({"none", "static", "rotating", "pulsing"}))
+      ->capture_default_str()
+      ->group(overlays);
+  c->add_option("--overlay-opacity", o.overlay.opacity,
+                "Opacity of the overlays, (0, 1]; below 1 they are semi-transparent")
+      ->capture_default_str()
+      ->group(overlays);
 
   auto* metadata = "Metadata (KLV)";
   c->add_option("--klv-every", o.metadata.every_n_frames, "A KLV packet every N frames; 0 = no KLV")
@@ -254,6 +373,21 @@ int SimulateCommand::Run() const {
   if (state_->nodata != "none") {
     const uint8_t v = state_->nodata == "white" ? 255 : 0;
     options.ground_nodata_bgr = cv::Vec3b(v, v, v);
+  }
+  if (state_->target_paths == "generated") {
+    options.ground_paths.generated = true;
+  } else if (!state_->target_paths.empty()) {
+    options.ground_paths.geojson = state_->target_paths;
+  }
+  options.imaging.look = sim::ParseSensorLook(state_->sensor_look).value_or(sim::SensorLook::kEo);
+  options.overlay.logo = sim::ParseLogoMotion(state_->logo).value_or(sim::LogoMotion::kNone);
+  if (const auto azimuth = LookAzimuth(state_->look)) {
+    options.flight.gimbal_azimuth_deg = *azimuth;
+  } else {
+    std::cerr << "saker-cli: --look must be forward, right, left, back or an azimuth in degrees "
+                 "(got '"
+              << state_->look << "')\n";
+    return kExitUsage;
   }
   if (state_->bias.size() == 2) {
     options.metadata.bias_east_m = state_->bias[0];

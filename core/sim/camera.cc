@@ -67,13 +67,41 @@ Status CameraIntrinsics::Validate() const {
   return Status::Ok();
 }
 
+double ZoomOptions::HfovAt(double time_s, double from_hfov_deg) const {
+  if (!enabled() || time_s <= start_s) return from_hfov_deg;
+  if (time_s >= start_s + duration_s) return to_hfov_deg;
+  const double f = 0.5 - 0.5 * std::cos(kPi * (time_s - start_s) / duration_s);
+  // Interpolate the focal length's inverse (tan of the half angle): a zoom lens moves the focal
+  // length smoothly, and the image scale follows it.
+  const double a = std::tan(Radians(0.5 * from_hfov_deg)), b = std::tan(Radians(0.5 * to_hfov_deg));
+  return Degrees(2.0 * std::atan(a + f * (b - a)));
+}
+
+Status ZoomOptions::Validate() const {
+  if (!enabled()) return Status::Ok();
+  if (!std::isfinite(start_s) || !(duration_s > 0 && duration_s <= 3600)) {
+    return InvalidArgumentError("zoom: the change needs a start >= 0 and a length in (0, 3600] s");
+  }
+  if (!(to_hfov_deg > 0.5 && to_hfov_deg < 120.0)) {
+    return InvalidArgumentError("zoom: the field of view to zoom to must be in (0.5, 120) degrees");
+  }
+  return Status::Ok();
+}
+
 Eigen::Matrix3d CameraPose::WorldFromCamera() const {
   const Eigen::Matrix3d ned_from_body =
       (Eigen::AngleAxisd(Radians(heading_deg), Eigen::Vector3d::UnitZ()) *
        Eigen::AngleAxisd(Radians(pitch_deg), Eigen::Vector3d::UnitY()) *
        Eigen::AngleAxisd(Radians(roll_deg), Eigen::Vector3d::UnitX()))
           .toRotationMatrix();
-  return EnuFromNed() * ned_from_body * BodyFromCamera();
+  if (gimbal_azimuth_deg == 0 && gimbal_off_nadir_deg == 0) {
+    return EnuFromNed() * ned_from_body * BodyFromCamera();
+  }
+  const Eigen::Matrix3d body_from_gimbal =
+      (Eigen::AngleAxisd(Radians(gimbal_azimuth_deg), Eigen::Vector3d::UnitZ()) *
+       Eigen::AngleAxisd(Radians(gimbal_off_nadir_deg), Eigen::Vector3d::UnitY()))
+          .toRotationMatrix();
+  return EnuFromNed() * ned_from_body * body_from_gimbal * BodyFromCamera();
 }
 
 Eigen::Matrix3d FrameFromGround(const CameraIntrinsics& intrinsics, const CameraPose& pose) {

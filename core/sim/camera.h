@@ -1,14 +1,20 @@
 #pragma once
 
-// The simulated camera: an ideal pinhole (no distortion, square pixels) fixed to the platform and
-// looking straight down, with the top of the image towards the nose.
+// The simulated camera: an ideal pinhole (no distortion, square pixels) on a gimbal under the
+// platform. At rest the gimbal looks straight down with the top of the image towards the nose; it
+// tilts the camera off nadir towards an azimuth (forward, sideways, or staring at a point), the
+// top of the image then pointing away from the platform, towards the horizon.
 //
 // Frames (see also ground.h):
 //   ground  east-north-up metres; the ground is the plane z = 0.
 //   body    x nose, y right wing, z down; attitude is yaw-pitch-roll (heading, pitch, roll applied
 //           in that order) from north-east-down: R_ned_from_body = Rz(heading) Ry(pitch) Rx(roll).
-//   camera  OpenCV: x right, y down, z forward along the optical axis. Image x is the right wing,
-//           image y points to the tail (image up is the nose), the optical axis is body down.
+//   gimbal  the camera's mount: R_body_from_gimbal = Rz(gimbal_azimuth) Ry(gimbal_off_nadir), so
+//           the optical axis (gimbal z) leans from body down towards the azimuth (0 = the nose,
+//           90 = the right wing).
+//   camera  OpenCV: x right, y down, z forward along the optical axis. At rest (gimbal angles 0)
+//           image x is the right wing, image y points to the tail (image up is the nose) and the
+//           optical axis is body down.
 //   image   pixels, integer = pixel centre; the outer corners are (-0.5, -0.5) .. (w-0.5, h-0.5).
 //
 // A ray that does not meet the ground (or meets it so far away that the answer is meaningless)
@@ -49,13 +55,27 @@ struct CameraIntrinsics {
   Status Validate() const;
 };
 
-// The platform's pose; the camera is fixed to it looking straight down, image top towards the
-// nose. Angles in degrees.
+// A zoom during the flight: the horizontal field of view goes from the camera's to `to_hfov_deg`
+// over [start_s, start_s + duration_s] (a smooth cosine ramp, as a zoom lens drives), and stays.
+struct ZoomOptions {
+  double start_s = -1;     // < 0: no zoom
+  double duration_s = 2;   // length of the change, seconds (> 0)
+  double to_hfov_deg = 0;  // the field of view it ends at (0.5 .. 120 degrees)
+  bool enabled() const { return start_s >= 0; }
+  // The field of view at `time_s` for a camera whose field of view is `from_hfov_deg` at rest.
+  double HfovAt(double time_s, double from_hfov_deg) const;
+  Status Validate() const;
+};
+
+// The platform's pose and the gimbal's pointing. Angles in degrees.
 struct CameraPose {
   Eigen::Vector3d position_m = {0, 0, 400};  // east, north, height above the ground plane
   double heading_deg = 0;                    // platform heading, clockwise from north
   double pitch_deg = 0;                      // nose up positive: the footprint moves forward
   double roll_deg = 0;                       // right wing down positive: the footprint moves left
+  // The gimbal (see the frames above): off nadir 0 looks straight down; 90 would be the horizon.
+  double gimbal_azimuth_deg = 0;    // clockwise from the nose
+  double gimbal_off_nadir_deg = 0;  // 0 .. 90
 
   // Rotation taking camera axes (x right, y down, z along the optical axis) to ground-frame axes
   // (east, north, up).

@@ -40,6 +40,7 @@ constexpr double kMinRoadLoopM = 200;
 // within centimetres of the curve and the heading smoothing sees many segments per window.
 constexpr int kLemniscateSamples = 4096;
 constexpr int kTurnSamples = 64;
+constexpr int kOrbitSamples = 1440;
 
 // Sinusoids per wander channel and their frequency band: periods from about 3 s to 50 s.
 constexpr int kWanderTerms = 4;
@@ -149,6 +150,8 @@ const char* ScenarioName(Scenario scenario) {
       return "raster";
     case Scenario::kStraight:
       return "straight";
+    case Scenario::kOrbit:
+      return "orbit";
   }
   return "unknown";
 }
@@ -161,8 +164,8 @@ std::optional<Scenario> ParseScenario(std::string_view name) {
 }
 
 std::vector<Scenario> AllScenarios() {
-  return {Scenario::kRoundaboutLoop, Scenario::kFigureEight, Scenario::kRaster,
-          Scenario::kStraight};
+  return {Scenario::kRoundaboutLoop, Scenario::kFigureEight, Scenario::kRaster, Scenario::kStraight,
+          Scenario::kOrbit};
 }
 
 const char* ScenarioDescription(Scenario scenario) {
@@ -175,6 +178,8 @@ const char* ScenarioDescription(Scenario scenario) {
       return "east-west survey rows joined by semicircular turns, adjacent rows overlapping";
     case Scenario::kStraight:
       return "a straight line through the centre of the world";
+    case Scenario::kOrbit:
+      return "circles the centre of the world anticlockwise, the camera staring at it";
   }
   return "unknown scenario";
 }
@@ -197,6 +202,9 @@ Status FlightOptions::Validate() const {
   SAKER_RETURN_IF_ERROR(CheckFraction("raster_sidelap", raster_sidelap));
   SAKER_RETURN_IF_ERROR(CheckRange("straight_length_m", straight_length_m, 1, 1e6, "m"));
   SAKER_RETURN_IF_ERROR(CheckRange("straight_heading_deg", straight_heading_deg, -360, 360, "deg"));
+  SAKER_RETURN_IF_ERROR(CheckRange("orbit_radius_m", orbit_radius_m, 10, 1e5, "m"));
+  SAKER_RETURN_IF_ERROR(CheckRange("gimbal_off_nadir_deg", gimbal_off_nadir_deg, 0, 60, "deg"));
+  SAKER_RETURN_IF_ERROR(CheckRange("gimbal_azimuth_deg", gimbal_azimuth_deg, -360, 360, "deg"));
   return Status::Ok();
 }
 
@@ -326,8 +334,19 @@ StatusOr<Flight> Flight::Create(Scenario scenario, const FlightOptions& options,
       points = {site.centre - half, site.centre + half};
       break;
     }
+    case Scenario::kOrbit: {
+      // Anticlockwise from the south of the centre, heading east, once round.
+      const double r = options.orbit_radius_m;
+      for (int i = 0; i <= kOrbitSamples; ++i) {
+        const double angle = -0.5 * kPi + 2.0 * kPi * i / kOrbitSamples;
+        points.push_back(site.centre + r * Eigen::Vector2d(std::cos(angle), std::sin(angle)));
+      }
+      break;
+    }
   }
-  return Flight(scenario, options, GroundTrack(std::move(points)));
+  Flight flight(scenario, options, GroundTrack(std::move(points)));
+  flight.stare_point_ = site.centre;
+  return flight;
 }
 
 double Flight::duration_s() const { return track_.length_m() / options_.speed_mps; }
@@ -338,9 +357,24 @@ CameraPose Flight::PoseAt(double t_s) const {
   CameraPose pose;
   const Eigen::Vector2d ground = track_.PointAt(s);
   pose.position_m = {ground.x(), ground.y(), options_.altitude_m + altitude_.At(t)};
-  pose.heading_deg = WrapPositive(track_.HeadingAt(s) + heading_.At(t));
+  const double track_heading = track_.HeadingAt(s);
+  pose.heading_deg = WrapPositive(track_heading + heading_.At(t));
   pose.pitch_deg = pitch_.At(t);
   pose.roll_deg = roll_.At(t);
+  if (scenario_ == Scenario::kOrbit) {
+    // Stare: point the gimbal at the centre from the level platform on its track; the attitude
+    // wander then moves the view about it as a real stabilised gimbal's residual motion does.
+    const Eigen::Vector2d to_point = stare_point_ - ground;
+    const double h = Radians(track_heading);
+    const double forward = to_point.y() * std::cos(h) + to_point.x() * std::sin(h);
+    const double right = -to_point.y() * std::sin(h) + to_point.x() * std::cos(h);
+    pose.gimbal_azimuth_deg = WrapPositive(Degrees(std::atan2(right, forward)));
+    pose.gimbal_off_nadir_deg =
+        Degrees(std::atan2(std::hypot(forward, right), pose.position_m.z()));
+  } else {
+    pose.gimbal_azimuth_deg = options_.gimbal_azimuth_deg;
+    pose.gimbal_off_nadir_deg = options_.gimbal_off_nadir_deg;
+  }
   return pose;
 }
 

@@ -20,8 +20,14 @@
 //                    flown east, joined by semicircular turns; row spacing =
 //                    (1 - raster_sidelap) x across-track footprint.
 //   straight         a straight line through the site centre at straight_heading_deg.
+//   orbit            a circle of orbit_radius_m round the site centre, flown anticlockwise (the
+//                    centre on the left), the camera staring at the centre: the most common
+//                    pattern of real full-motion video. One turn; --duration cuts it short.
 //
 // The gimbal is assumed to hold the camera level: turns do not bank it; only the jitter tilts it.
+// It points the camera gimbal_off_nadir_deg off nadir towards gimbal_azimuth_deg (0 forward, 90
+// to the right), except in the orbit, where it stares at the centre (off nadir by
+// atan(radius / altitude)).
 
 #include "core/sim/camera.h"
 #include "core/util/status.h"
@@ -35,7 +41,7 @@
 
 namespace saker::sim {
 
-enum class Scenario { kRoundaboutLoop, kFigureEight, kRaster, kStraight };
+enum class Scenario { kRoundaboutLoop, kFigureEight, kRaster, kStraight, kOrbit };
 
 // "roundabout-loop", "figure-eight", "raster", "straight".
 const char* ScenarioName(Scenario scenario);
@@ -63,6 +69,12 @@ struct FlightOptions {
   // Straight line through the site centre.
   double straight_length_m = 1000;
   double straight_heading_deg = 90;  // clockwise from north
+  // Orbit: radius of the circle round the site centre.
+  double orbit_radius_m = 400;
+  // Oblique views (every scenario but the orbit): the camera's angle off nadir (0 .. 60 degrees)
+  // and the direction it leans, clockwise from the nose (0 forward, 90 right, 270 left).
+  double gimbal_off_nadir_deg = 0;
+  double gimbal_azimuth_deg = 0;
 
   Status Validate() const;
 };
@@ -138,6 +150,7 @@ class Flight {
   Scenario scenario_;
   FlightOptions options_;
   GroundTrack track_;
+  Eigen::Vector2d stare_point_{0, 0};  // orbit: the point the camera stares at
   Wander heading_, pitch_, roll_, altitude_;
 };
 

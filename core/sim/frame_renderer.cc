@@ -12,7 +12,45 @@
 
 namespace saker::sim {
 
+const char* SensorLookName(SensorLook look) {
+  switch (look) {
+    case SensorLook::kEo:
+      return "eo";
+    case SensorLook::kIrWhiteHot:
+      return "ir-white-hot";
+    case SensorLook::kIrBlackHot:
+      return "ir-black-hot";
+  }
+  return "eo";
+}
+
+std::optional<SensorLook> ParseSensorLook(std::string_view name) {
+  for (SensorLook look : {SensorLook::kEo, SensorLook::kIrWhiteHot, SensorLook::kIrBlackHot}) {
+    if (name == SensorLookName(look)) return look;
+  }
+  return std::nullopt;
+}
+
+bool ImagingOptions::WhiteHotAt(double time_s) const {
+  const bool white_hot = look == SensorLook::kIrWhiteHot;
+  const bool switched = polarity_switch_s >= 0 && time_s >= polarity_switch_s;
+  return white_hot != switched;
+}
+
 Status ImagingOptions::Validate() const {
+  if (!(haze >= 0 && haze <= 0.8)) return InvalidArgumentError("imaging: haze must be in [0, 0.8]");
+  if (!(motion_blur_px >= 0 && motion_blur_px <= 50)) {
+    return InvalidArgumentError("imaging: motion blur must be between 0 and 50 pixels");
+  }
+  if (!(lens_k1 >= -0.3 && lens_k1 <= 0.3)) {
+    return InvalidArgumentError("imaging: lens distortion k1 must be in [-0.3, 0.3]");
+  }
+  if (!std::isfinite(polarity_switch_s)) {
+    return InvalidArgumentError("imaging: the polarity switch time must be a number");
+  }
+  if (polarity_switch_s >= 0 && !infrared()) {
+    return InvalidArgumentError("imaging: a polarity switch needs an infrared look");
+  }
   if (!(noise_sigma >= 0 && noise_sigma <= 100)) {
     return InvalidArgumentError("imaging: noise must be between 0 and 100 grey levels");
   }
@@ -33,30 +71,72 @@ bool ImagingOptions::IsBlank(double time_s) const {
   return blank_start_s >= 0 && time_s >= blank_start_s && time_s < blank_start_s + blank_duration_s;
 }
 
+Eigen::Vector2d LensDistort(const Eigen::Vector2d& pixel, int width, int height, double k1) {
+  if (k1 == 0) return pixel;
+  const Eigen::Vector2d centre(0.5 * (width - 1), 0.5 * (height - 1));
+  const double half_diagonal = 0.5 * std::hypot(double(width), double(height));
+  const Eigen::Vector2d u = (pixel - centre) / half_diagonal;
+  return centre + u * (1 + k1 * u.squaredNorm()) * half_diagonal;
+}
+
 FrameRenderer::FrameRenderer(const GroundSource& ground, const CameraIntrinsics& camera,
                              const ImagingOptions& imaging, uint64_t seed)
-    : ground_(ground), camera_(camera), imaging_(imaging), seed_(seed) {}
+    : ground_(ground), camera_(camera), imaging_(imaging), seed_(seed) {
+  if (imaging_.lens_k1 != 0) {
+    // For each distorted pixel, the ideal one it shows: invert r_d = r_u (1 + k1 r_u^2) by
+    // fixed-point iteration (it converges for |k1| <= 0.3 within the image).
+    const int w = camera_.width, h = camera_.height;
+    const double cx = 0.5 * (w - 1), cy = 0.5 * (h - 1);
+    const double half_diagonal = 0.5 * std::hypot(double(w), double(h));
+    distortion_x_.create(h, w, CV_32F);
+    distortion_y_.create(h, w, CV_32F);
+    for (int y = 0; y < h; ++y) {
+      for (int x = 0; x < w; ++x) {
+        const double dx = (x - cx) / half_diagonal, dy = (y - cy) / half_diagonal;
+        double ux = dx, uy = dy;
+        for (int k = 0; k < 20; ++k) {
+          const double scale = 1 + imaging_.lens_k1 * (ux * ux + uy * uy);
+          ux = dx / scale, uy = dy / scale;
+        }
+        distortion_x_.at<float>(y, x) = float(cx + ux * half_diagonal);
+        distortion_y_.at<float>(y, x) = float(cy + uy * half_diagonal);
+      }
+    }
+  }
+}
 
-cv::Mat FrameRenderer::RenderGround(const Eigen::Matrix3d& frame_from_ground,
-                                    cv::Mat* valid) const {
-  const double gsd = ground_.gsd_m();
-  const Eigen::Matrix3d raster_from_frame = RasterFromGround(gsd) * frame_from_ground.inverse();
-  // The raster area under the frame: its corners, with a margin for the interpolation kernel.
+void FrameRenderer::SetCoarserLevels(std::vector<const GroundSource*> coarser_levels) {
+  coarser_levels_ = std::move(coarser_levels);
+}
+
+int FrameRenderer::LevelFor(double ratio) {
+  // Above ~1.5 raster pixels per frame pixel, sample a reduced level of the raster to avoid
+  // aliasing (the warp's bilinear kernel only filters one pixel).
+  int level = 0;
+  while (level < 6 && ratio / double(1 << level) > 1.5) ++level;
+  return level;
+}
+
+void FrameRenderer::RenderRows(const Eigen::Matrix3d& frame_from_ground, int row0, int row1,
+                               int level, cv::Mat* bgr_out, cv::Mat* valid) const {
+  // A coarser source when there is one for this level; else the full-detail raster, reduced.
+  const bool direct = level > 0 && size_t(level) <= coarser_levels_.size();
+  const GroundSource& source = direct ? *coarser_levels_[size_t(level) - 1] : ground_;
+  const int levels = direct ? 0 : level;
+  const Eigen::Matrix3d raster_from_frame =
+      RasterFromGround(source.gsd_m()) * frame_from_ground.inverse();
+  // The raster area under the rows: their corners, with a margin for the interpolation kernel.
   double x0 = 1e300, y0 = 1e300, x1 = -1e300, y1 = -1e300;
-  std::vector<cv::Point2f> quad;
-  for (const Eigen::Vector2d& corner : ImageCorners(camera_)) {
+  const double left = -0.5, right = camera_.width - 0.5;
+  for (const Eigen::Vector2d& corner :
+       {Eigen::Vector2d(left, row0 - 0.5), Eigen::Vector2d(right, row0 - 0.5),
+        Eigen::Vector2d(right, row1 - 0.5), Eigen::Vector2d(left, row1 - 0.5)}) {
     const Eigen::Vector3d q = raster_from_frame * corner.homogeneous();
     SAKER_CHECK(q.z() > 0);  // every corner ray hits the ground in front of the camera
     const Eigen::Vector2d p = q.hnormalized();
     x0 = std::min(x0, p.x()), x1 = std::max(x1, p.x());
     y0 = std::min(y0, p.y()), y1 = std::max(y1, p.y());
-    quad.emplace_back(float(p.x()), float(p.y()));
   }
-  // Raster pixels per frame pixel: above ~1.5, sample a reduced level of the raster to avoid
-  // aliasing (the warp's bilinear kernel only filters one pixel).
-  const double ratio = std::sqrt(cv::contourArea(quad) / (double(camera_.width) * camera_.height));
-  int levels = 0;
-  while (levels < 6 && ratio / double(1 << levels) > 1.5) ++levels;
   const int step = 1 << levels;
   const int margin = 3 * step;
   cv::Rect region(int(std::floor(x0)) - margin, int(std::floor(y0)) - margin, 0, 0);
@@ -66,30 +146,140 @@ cv::Mat FrameRenderer::RenderGround(const Eigen::Matrix3d& frame_from_ground,
   region.height += (step - region.height % step) % step;
   SAKER_CHECK(double(region.width) * region.height < 400e6);
   cv::Mat bgr, mask;
-  ground_.Render(region, &bgr, &mask);
+  source.Render(region, &bgr, &mask);
   for (int k = 0; k < levels; ++k) {
     cv::pyrDown(bgr, bgr);
     cv::pyrDown(mask, mask);
   }
-  // frame_from_level = frame_from_raster * raster_from_level; pyrDown keeps the even pixels, so
-  // level pixel i sits on raster pixel region.x + step * i.
+  // rows_from_level = rows_from_frame * frame_from_raster * raster_from_level; pyrDown keeps the
+  // even pixels, so level pixel i sits on raster pixel region.x + step * i.
   Eigen::Matrix3d raster_from_level;
   raster_from_level << step, 0, region.x, 0, step, region.y, 0, 0, 1;
-  const Eigen::Matrix3d frame_from_level = raster_from_frame.inverse() * raster_from_level;
+  Eigen::Matrix3d rows_from_level = raster_from_frame.inverse() * raster_from_level;
+  if (row0 != 0) {
+    Eigen::Matrix3d rows_from_frame = Eigen::Matrix3d::Identity();
+    rows_from_frame(1, 2) = -row0;
+    rows_from_level = rows_from_frame * rows_from_level;
+  }
   cv::Mat m(3, 3, CV_64F);
   for (int r = 0; r < 3; ++r) {
-    for (int c = 0; c < 3; ++c) m.at<double>(r, c) = frame_from_level(r, c);
+    for (int c = 0; c < 3; ++c) m.at<double>(r, c) = rows_from_level(r, c);
   }
-  cv::Mat frame;
-  const cv::Size size(camera_.width, camera_.height);
-  cv::warpPerspective(bgr, frame, m, size, cv::INTER_LINEAR, cv::BORDER_CONSTANT,
+  const cv::Size size(camera_.width, row1 - row0);
+  cv::warpPerspective(bgr, *bgr_out, m, size, cv::INTER_LINEAR, cv::BORDER_CONSTANT,
                       cv::Scalar::all(0));
   if (valid != nullptr) {
     cv::warpPerspective(mask, *valid, m, size, cv::INTER_LINEAR, cv::BORDER_CONSTANT,
                         cv::Scalar(0));
-    cv::threshold(*valid, *valid, 254, 255, cv::THRESH_BINARY);
+  }
+}
+
+cv::Mat FrameRenderer::RenderGround(const Eigen::Matrix3d& frame_from_ground,
+                                    cv::Mat* valid) const {
+  const int width = camera_.width, height = camera_.height;
+  const Eigen::Matrix3d raster_from_frame =
+      RasterFromGround(ground_.gsd_m()) * frame_from_ground.inverse();
+  // Raster pixels per frame pixel at a frame point: the square root of the Jacobian determinant
+  // of raster_from_frame there, det(M) / w^3 for a homography M with w the point's third
+  // coordinate.
+  const double det = std::abs(raster_from_frame.determinant());
+  const auto ratio_at = [&](double x, double y) {
+    const double w = (raster_from_frame * Eigen::Vector3d(x, y, 1)).z();
+    return std::sqrt(det / std::abs(w * w * w));
+  };
+  std::vector<Eigen::Vector2d> quad;
+  for (const Eigen::Vector2d& corner : ImageCorners(camera_)) quad.push_back(corner);
+  double least = 1e300, most = 0;
+  for (const Eigen::Vector2d& p : quad) {
+    least = std::min(least, ratio_at(p.x(), p.y()));
+    most = std::max(most, ratio_at(p.x(), p.y()));
+  }
+  cv::Mat frame, weight_valid;
+  if (most < 1.5 * least) {
+    // One scale (nadir views): one level for the whole frame, from the area it covers.
+    std::vector<cv::Point2f> raster_quad;
+    for (const Eigen::Vector2d& p : quad) {
+      const Eigen::Vector2d q = (raster_from_frame * p.homogeneous()).hnormalized();
+      raster_quad.emplace_back(float(q.x()), float(q.y()));
+    }
+    const double ratio = std::sqrt(cv::contourArea(raster_quad) / (double(width) * double(height)));
+    RenderRows(frame_from_ground, 0, height, LevelFor(ratio), &frame, valid);
+    if (valid != nullptr) cv::threshold(*valid, *valid, 254, 255, cv::THRESH_BINARY);
+    return frame;
+  }
+  // Bands of rows needing the same level (the coarser of the row's two ends), merged until each
+  // is at least two blending widths high.
+  constexpr int kBlendRows = 8;
+  std::vector<std::pair<int, int>> bands;  // (first row, level)
+  for (int r = 0; r < height; ++r) {
+    const int level = LevelFor(std::max(ratio_at(-0.5, r), ratio_at(width - 0.5, r)));
+    if (bands.empty() || bands.back().second != level) bands.emplace_back(r, level);
+  }
+  for (size_t i = 1; i < bands.size();) {
+    const int end = i + 1 < bands.size() ? bands[i + 1].first : height;
+    if (bands[i].first - bands[i - 1].first < 2 * kBlendRows ||
+        end - bands[i].first < 2 * kBlendRows) {
+      bands.erase(bands.begin() + ptrdiff_t(i));  // the band above takes its rows
+    } else {
+      ++i;
+    }
+  }
+  cv::Mat sum = cv::Mat::zeros(height, width, CV_32FC3);
+  cv::Mat sum_valid = cv::Mat::zeros(height, width, CV_32F);
+  for (size_t i = 0; i < bands.size(); ++i) {
+    const int top = bands[i].first;
+    const int bottom = i + 1 < bands.size() ? bands[i + 1].first : height;
+    const int row0 = i == 0 ? 0 : top - kBlendRows;
+    const int row1 = i + 1 == bands.size() ? height : bottom + kBlendRows;
+    cv::Mat band, band_valid;
+    RenderRows(frame_from_ground, row0, row1, bands[i].second, &band,
+               valid != nullptr ? &band_valid : nullptr);
+    for (int r = row0; r < row1; ++r) {
+      // Weights ramp over the 2 kBlendRows rows about each boundary and add up to one.
+      float w = 1.f;
+      if (i > 0 && r < top + kBlendRows) w = (r - (top - kBlendRows) + 0.5f) / (2 * kBlendRows);
+      if (i + 1 < bands.size() && r >= bottom - kBlendRows)
+        w = std::min(w, (bottom + kBlendRows - r - 0.5f) / (2 * kBlendRows));
+      cv::Mat row;
+      band.row(r - row0).convertTo(row, CV_32FC3, w);
+      sum.row(r) += row;
+      if (valid != nullptr) {
+        band_valid.row(r - row0).convertTo(row, CV_32F, w);
+        sum_valid.row(r) += row;
+      }
+    }
+  }
+  sum.convertTo(frame, CV_8UC3);
+  if (valid != nullptr) {
+    sum_valid.convertTo(*valid, CV_8U);
+    cv::threshold(*valid, *valid, 253, 255, cv::THRESH_BINARY);
   }
   return frame;
+}
+
+// Thermal ground seen white-hot, from the visible ground: dark surfaces (asphalt, roofs) soak up
+// the sun and glow, vegetation and pale surfaces stay cool, all within a narrow band of grey
+// levels (a thermal scene has far less contrast than a visible one). Black stays black (no data).
+cv::Mat FrameRenderer::ThermalGround(const cv::Mat& bgr) {
+  cv::Mat grey;
+  cv::cvtColor(bgr, grey, cv::COLOR_BGR2GRAY);
+  cv::Mat thermal;
+  grey.convertTo(thermal, CV_8U, -0.35, 150.0 + 0.35 * 128.0);
+  thermal.setTo(0, grey == 0);
+  cv::Mat out;
+  cv::cvtColor(thermal, out, cv::COLOR_GRAY2BGR);
+  return out;
+}
+
+std::vector<Target> FrameRenderer::ThermalTargets(const std::vector<Target>& targets) {
+  // Running engines and bodies are warm: vehicles bright with cool (sky-reflecting) glass, people
+  // a little less bright.
+  std::vector<Target> warm = targets;
+  for (Target& t : warm) {
+    t.look.body_bgr = cv::Scalar::all(220);
+    t.clothes_bgr = cv::Scalar::all(205);
+  }
+  return warm;
 }
 
 cv::Mat FrameRenderer::Render(const Eigen::Matrix3d& frame_from_ground,
@@ -109,12 +299,37 @@ cv::Mat FrameRenderer::Render(const Eigen::Matrix3d& frame_from_ground,
     }
     cv::resize(small, frame, cv::Size(camera_.width, camera_.height), 0, 0, cv::INTER_CUBIC);
     if (valid != nullptr) *valid = cv::Mat::zeros(frame.size(), CV_8U);
+  } else if (imaging_.infrared()) {
+    frame = ThermalGround(RenderGround(frame_from_ground, valid));
+    DrawTargets(ThermalTargets(targets), Eigen::Vector2d::Zero(), frame_from_ground, &frame);
   } else {
     frame = RenderGround(frame_from_ground, valid);
     DrawTargets(targets, shadow_per_m, frame_from_ground, &frame);
   }
+  if (!distortion_x_.empty()) {
+    cv::Mat distorted;
+    cv::remap(frame, distorted, distortion_x_, distortion_y_, cv::INTER_LINEAR, cv::BORDER_CONSTANT,
+              cv::Scalar::all(0));
+    frame = distorted;
+    if (valid != nullptr) {
+      cv::remap(*valid, distorted, distortion_x_, distortion_y_, cv::INTER_NEAREST,
+                cv::BORDER_CONSTANT, cv::Scalar(0));
+      *valid = distorted;
+    }
+  }
   if (imaging_.blur_sigma_px > 0) {
     cv::GaussianBlur(frame, frame, cv::Size(), imaging_.blur_sigma_px);
+  }
+  if (imaging_.motion_blur_px > 0) {
+    // A box smear along the image's vertical axis: the ground's motion in a forward flight.
+    const int length = std::max(1, int(std::lround(imaging_.motion_blur_px)));
+    cv::blur(frame, frame, cv::Size(1, length));
+  }
+  if (imaging_.haze > 0) {
+    frame.convertTo(frame, -1, 1.0 - imaging_.haze, 205.0 * imaging_.haze);
+  }
+  if (imaging_.infrared() && !imaging_.WhiteHotAt(time_s)) {
+    cv::bitwise_not(frame, frame);  // black-hot
   }
   if (imaging_.gain_drift > 0) {
     const double gain =

@@ -13,10 +13,28 @@
 #include <opencv2/core/mat.hpp>
 
 #include <cstdint>
+#include <optional>
+#include <string_view>
+#include <vector>
 
 namespace saker::sim {
 
+// What the sensor sees: visible colour, or thermal infrared shown white-hot (warm is bright) or
+// black-hot (warm is dark).
+enum class SensorLook { kEo, kIrWhiteHot, kIrBlackHot };
+const char* SensorLookName(SensorLook look);  // "eo", "ir-white-hot", "ir-black-hot"
+std::optional<SensorLook> ParseSensorLook(std::string_view name);
+
 struct ImagingOptions {
+  SensorLook look = SensorLook::kEo;
+  // Infrared: the operator switches polarity (white-hot <-> black-hot) at this time; < 0: never.
+  double polarity_switch_s = -1;
+  double haze = 0;            // 0 .. 0.8: a veil of bright airlight that takes that much contrast
+  double motion_blur_px = 0;  // length of a smear along the image's vertical axis, pixels
+  // Radial lens distortion: a pixel at distance r from the image centre (as a fraction of the
+  // half diagonal) moves to r (1 + k1 r^2); negative is barrel, positive pincushion. Frames then
+  // relate to the ground by homographies only approximately (see LensDistort).
+  double lens_k1 = 0;
   double noise_sigma = 1.5;     // sensor noise, grey levels (1 sigma), per pixel and channel
   double blur_sigma_px = 0.0;   // extra Gaussian blur (optics, motion), pixels
   double gain_drift = 0.0;      // relative amplitude of a slow brightness drift (0.1 = +-10 %)
@@ -25,7 +43,13 @@ struct ImagingOptions {
   double blank_duration_s = 0;  // its length
   Status Validate() const;
   bool IsBlank(double time_s) const;
+  bool infrared() const { return look != SensorLook::kEo; }
+  // Whether warm things are bright at `time_s` (infrared looks, after any polarity switch).
+  bool WhiteHotAt(double time_s) const;
 };
+
+// Where the lens puts an ideal pinhole pixel (ImagingOptions::lens_k1); the identity for k1 = 0.
+Eigen::Vector2d LensDistort(const Eigen::Vector2d& pixel, int width, int height, double k1);
 
 class FrameRenderer {
  public:
@@ -42,10 +66,33 @@ class FrameRenderer {
                  cv::Mat* valid = nullptr) const;
 
   // Only the ground, no targets and no imaging effects (for tests and the truth check).
+  //
+  // The ground is sampled from the level of detail that fits each part of the frame: a nadir view
+  // has one scale, but in an oblique view the far rows see many times more ground per pixel than
+  // the near ones. Rows are then rendered in bands, each from its own level (a coarser source of
+  // `coarser_levels` when there is one, else the ground reduced by image pyramid), blended over a
+  // few rows where bands meet.
   cv::Mat RenderGround(const Eigen::Matrix3d& frame_from_ground, cv::Mat* valid = nullptr) const;
 
+  // Sources of the same ground at 2, 4, 8... times the ground's metres per pixel (element k at
+  // 2^(k+1) times), used instead of reducing the full-detail raster where a frame needs them.
+  // They must outlive the renderer.
+  void SetCoarserLevels(std::vector<const GroundSource*> coarser_levels);
+
  private:
+  // Frame rows [row0, row1) rendered from level `level` (raster pixels of 2^level times the
+  // ground's size), into `bgr` and `valid` of (row1 - row0) rows.
+  void RenderRows(const Eigen::Matrix3d& frame_from_ground, int row0, int row1, int level,
+                  cv::Mat* bgr, cv::Mat* valid) const;
+  // Infrared: the ground's thermal image (white-hot) and the targets made warm.
+  static cv::Mat ThermalGround(const cv::Mat& bgr);
+  static std::vector<Target> ThermalTargets(const std::vector<Target>& targets);
+  // The level of detail for a part of the frame whose raster pixels per frame pixel are `ratio`.
+  static int LevelFor(double ratio);
+
   const GroundSource& ground_;
+  std::vector<const GroundSource*> coarser_levels_;
+  cv::Mat distortion_x_, distortion_y_;  // remap tables of the lens distortion (CV_32F), if any
   CameraIntrinsics camera_;
   ImagingOptions imaging_;
   uint64_t seed_;

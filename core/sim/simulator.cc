@@ -12,8 +12,10 @@
 #include <algorithm>
 #include <cmath>
 #include <future>
+#include <map>
 #include <system_error>
 #include <tuple>
+#include <type_traits>
 
 namespace saker::sim {
 namespace {
@@ -32,13 +34,128 @@ void RemoveQuietly(const std::filesystem::path& path) {
   std::filesystem::remove(path, ignored);
 }
 
+// Coarser renderings of the procedural ground for oblique views: up to 16 times the detail
+// ground's metres per pixel, each with a smaller tile cache than the detail level's.
+constexpr int kCoarserGroundLevels = 4;
+constexpr int kCoarserGroundCacheMegabytes = 64;
+
 std::filesystem::path PartPath(const std::filesystem::path& path) {
   std::filesystem::path part = path;
   part += ".part";
   return part;
 }
 
+// One camera frame as the encoder takes it (FrameClock).
+struct FrameSlot {
+  int64_t slot = 0;     // the writer's time slot (frame intervals; quarters at a variable rate)
+  double video_s = 0;   // its presentation time
+  double camera_s = 0;  // the moment of the flight it shows (later than video_s after a cut)
+  int64_t target_steps = 0;  // steps of FrameClock::step_s() the traffic moves before it
+  bool dropped = false;      // lost: not in the video
+  bool repeated = false;     // the previous picture again
+  bool cut = false;          // the first frame after a splice
+};
+
+// The camera's frames at the nominal rate, as the encoder samples them (SamplingOptions) and an
+// edit splices them (CutOptions). Without either, frame k is slot k at k frame intervals.
+class FrameClock {
+ public:
+  FrameClock(const SimulationOptions& options, double frame_interval_s, int64_t frame_count)
+      : sampling_(options.sampling),
+        cut_(options.cut),
+        slots_per_frame_(options.sampling.variable_rate ? kVariableRateSlots : 1),
+        step_s_(frame_interval_s / slots_per_frame_),
+        end_slot_(frame_count * slots_per_frame_),
+        random_(HashCombine(options.seed, 0x53414D50u)) {}
+
+  // The time slots per nominal frame interval (the writer's frame rate is this many times the
+  // nominal one).
+  int slots_per_frame() const { return slots_per_frame_; }
+  double step_s() const { return step_s_; }
+  double fraction_done() const { return std::min(1.0, double(next_slot_) / double(end_slot_)); }
+
+  // The next camera frame, or false at the end of the video.
+  bool Next(FrameSlot* slot) {
+    if (next_slot_ >= end_slot_) return false;
+    *slot = FrameSlot();
+    slot->slot = next_slot_;
+    slot->video_s = double(next_slot_) * step_s_;
+    slot->target_steps = next_slot_ - last_slot_;
+    last_slot_ = next_slot_;
+    const bool sampled = sampling_.drop_probability > 0 || sampling_.repeat_probability > 0;
+    if (cut_.enabled() && !cut_done_ && slot->video_s >= cut_.at_s) {
+      cut_done_ = true;
+      slot->cut = true;
+      slot->target_steps += int64_t(std::llround(cut_.jump_s / step_s_));
+    } else if (sampled && slot->slot > 0) {
+      const double u = random_.Uniform();
+      slot->dropped = u < sampling_.drop_probability;
+      slot->repeated =
+          !slot->dropped && u < sampling_.drop_probability + sampling_.repeat_probability;
+    }
+    slot->camera_s = cut_done_ ? slot->video_s + cut_.jump_s : slot->video_s;
+    next_slot_ +=
+        slots_per_frame_ == 1 ? 1 : random_.UniformInt(slots_per_frame_ - 1, slots_per_frame_ + 1);
+    return true;
+  }
+
+ private:
+  // A variable rate's intervals are 3, 4 or 5 quarters of the nominal one.
+  static constexpr int kVariableRateSlots = 4;
+
+  SamplingOptions sampling_;
+  CutOptions cut_;
+  int slots_per_frame_;
+  double step_s_;
+  int64_t end_slot_;
+  Random random_;
+  int64_t next_slot_ = 0, last_slot_ = 0;
+  bool cut_done_ = false;
+};
+
+// The KLV packet of a frame: its footprint, centre and sensor position with the metadata's noise
+// and bias (drawn from `random` in a fixed order: the four corners, the centre, the sensor).
+StatusOr<std::vector<uint8_t>> FrameKlv(const geo::LocalTangentPlane& plane, uint64_t utc_us,
+                                        const CameraIntrinsics& lens, const CameraPose& pose,
+                                        const SimulationOptions& options,
+                                        const std::string& mission, Random* random) {
+  const auto footprint = GroundFootprint(lens, pose);
+  const auto centre = GroundCentre(lens, pose);
+  if (!footprint || !centre) {
+    return InvalidArgumentError("simulate: the camera looks above the horizon");
+  }
+  const Vector2d bias(options.metadata.bias_east_m, options.metadata.bias_north_m);
+  const double sigma = options.metadata.position_noise_m;
+  const auto noisy = [&](const Vector2d& p) {
+    const double e = random->Normal(), n = random->Normal();
+    return Vector2d(p + bias + sigma * Vector2d(e, n));
+  };
+  std::array<Vector2d, 4> corners;
+  for (int k = 0; k < 4; ++k) corners[k] = noisy((*footprint)[k]);
+  const Vector2d centre_noisy = noisy(*centre);
+  const Vector2d sensor_xy = noisy(pose.position_m.head<2>());
+  const Eigen::Vector3d sensor(sensor_xy.x(), sensor_xy.y(), pose.position_m.z());
+  return EncodeFrameKlv(plane, utc_us, lens, pose, sensor, centre_noisy, corners, mission);
+}
+
 }  // namespace
+
+Status SamplingOptions::Validate() const {
+  if (!(drop_probability >= 0 && drop_probability <= 0.5) ||
+      !(repeat_probability >= 0 && repeat_probability <= 0.5)) {
+    return InvalidArgumentError(
+        "sampling: the chances of dropped and of repeated frames must each be in [0, 0.5]");
+  }
+  return Status::Ok();
+}
+
+Status CutOptions::Validate() const {
+  if (!enabled()) return Status::Ok();
+  if (!std::isfinite(at_s) || !(jump_s >= 1 && jump_s <= 24 * 3600)) {
+    return InvalidArgumentError("cut: needs a time >= 0 and a jump of 1 s .. 24 h");
+  }
+  return Status::Ok();
+}
 
 Status MetadataOptions::Validate() const {
   if (every_n_frames < 0) return InvalidArgumentError("metadata: --klv-every must be >= 0");
@@ -74,6 +191,7 @@ Status SimulationOptions::Validate() const {
     return InvalidArgumentError("simulate: duration must be between 0 (whole flight) and 24 h");
   }
   SAKER_RETURN_IF_ERROR(camera.Validate());
+  SAKER_RETURN_IF_ERROR(zoom.Validate());
   if (camera.width % 2 != 0 || camera.height % 2 != 0) {
     return InvalidArgumentError("simulate: H.264 needs an even width and height, got " +
                                 std::to_string(camera.width) + "x" + std::to_string(camera.height));
@@ -82,11 +200,21 @@ Status SimulationOptions::Validate() const {
   SAKER_RETURN_IF_ERROR(world.Validate());
   SAKER_RETURN_IF_ERROR(targets.Validate());
   SAKER_RETURN_IF_ERROR(imaging.Validate());
+  SAKER_RETURN_IF_ERROR(overlay.Validate());
+  SAKER_RETURN_IF_ERROR(sampling.Validate());
+  SAKER_RETURN_IF_ERROR(cut.Validate());
+  if (cut.enabled() && duration_s > 0 && cut.at_s >= duration_s) {
+    return InvalidArgumentError("cut: --cut-at must fall inside the video's duration");
+  }
   SAKER_RETURN_IF_ERROR(metadata.Validate());
   if (!(crf >= 0 && crf <= 51))
     return InvalidArgumentError("simulate: --crf must be between 0 and 51");
   if (ground_image.empty() && ground_gsd_m != 0) {
     return InvalidArgumentError("simulate: --gsd applies to --ground only");
+  }
+  if (ground_image.empty() && ground_paths.enabled()) {
+    return InvalidArgumentError(
+        "simulate: --target-paths applies to --ground only (the town has its own roads)");
   }
   if (!ground_image.empty() && scenario == Scenario::kRoundaboutLoop) {
     return InvalidArgumentError(
@@ -111,54 +239,200 @@ std::filesystem::path SimulationOptions::TruthPath() const {
   return path;
 }
 
+namespace {
+
+// Every option once, for ToJson and ApplyOptionsJson: `visit(group, key, field)` with group ""
+// for top-level keys. Output paths are not options.
+template <class Options, class Visitor>
+void VisitOptions(Options& o, Visitor&& visit) {
+  visit("", "scenario", o.scenario);
+  visit("", "seed", o.seed);
+  visit("", "fps", o.fps);
+  visit("", "duration_s", o.duration_s);
+  visit("camera", "width", o.camera.width);
+  visit("camera", "height", o.camera.height);
+  visit("camera", "hfov_deg", o.camera.hfov_deg);
+  visit("zoom", "start_s", o.zoom.start_s);
+  visit("zoom", "duration_s", o.zoom.duration_s);
+  visit("zoom", "to_hfov_deg", o.zoom.to_hfov_deg);
+  visit("flight", "altitude_m", o.flight.altitude_m);
+  visit("flight", "speed_mps", o.flight.speed_mps);
+  visit("flight", "attitude_jitter_deg", o.flight.attitude_jitter_deg);
+  visit("flight", "altitude_jitter_m", o.flight.altitude_jitter_m);
+  visit("flight", "figure_eight_key_frames", o.flight.figure_eight_key_frames);
+  visit("flight", "key_frame_overlap", o.flight.key_frame_overlap);
+  visit("flight", "raster_rows", o.flight.raster_rows);
+  visit("flight", "raster_row_length_m", o.flight.raster_row_length_m);
+  visit("flight", "raster_sidelap", o.flight.raster_sidelap);
+  visit("flight", "straight_length_m", o.flight.straight_length_m);
+  visit("flight", "straight_heading_deg", o.flight.straight_heading_deg);
+  visit("flight", "orbit_radius_m", o.flight.orbit_radius_m);
+  visit("flight", "gimbal_off_nadir_deg", o.flight.gimbal_off_nadir_deg);
+  visit("flight", "gimbal_azimuth_deg", o.flight.gimbal_azimuth_deg);
+  visit("world", "loop_length_m", o.world.loop_length_m);
+  visit("targets", "cars", o.targets.cars);
+  visit("targets", "vans", o.targets.vans);
+  visit("targets", "people", o.targets.people);
+  visit("targets", "slow_walker_fraction", o.targets.slow_walker_fraction);
+  visit("targets", "group_size", o.targets.group_size);
+  visit("targets", "stop_and_go", o.targets.stop_and_go);
+  visit("imaging", "look", o.imaging.look);
+  visit("imaging", "polarity_switch_s", o.imaging.polarity_switch_s);
+  visit("imaging", "haze", o.imaging.haze);
+  visit("imaging", "motion_blur_px", o.imaging.motion_blur_px);
+  visit("imaging", "lens_k1", o.imaging.lens_k1);
+  visit("imaging", "noise_sigma", o.imaging.noise_sigma);
+  visit("imaging", "blur_sigma_px", o.imaging.blur_sigma_px);
+  visit("imaging", "gain_drift", o.imaging.gain_drift);
+  visit("imaging", "gain_period_s", o.imaging.gain_period_s);
+  visit("imaging", "blank_start_s", o.imaging.blank_start_s);
+  visit("imaging", "blank_duration_s", o.imaging.blank_duration_s);
+  visit("sampling", "drop_probability", o.sampling.drop_probability);
+  visit("sampling", "repeat_probability", o.sampling.repeat_probability);
+  visit("sampling", "variable_rate", o.sampling.variable_rate);
+  visit("cut", "at_s", o.cut.at_s);
+  visit("cut", "jump_s", o.cut.jump_s);
+  visit("overlay", "hud_text", o.overlay.hud_text);
+  visit("overlay", "reticle", o.overlay.reticle);
+  visit("overlay", "logo", o.overlay.logo);
+  visit("overlay", "logo_turn_deg_per_s", o.overlay.logo_turn_deg_per_s);
+  visit("overlay", "logo_pulse_hz", o.overlay.logo_pulse_hz);
+  visit("overlay", "opacity", o.overlay.opacity);
+  visit("metadata", "every_n_frames", o.metadata.every_n_frames);
+  visit("metadata", "only_frames", o.metadata.only_frames);
+  visit("metadata", "position_noise_m", o.metadata.position_noise_m);
+  visit("metadata", "bias_east_m", o.metadata.bias_east_m);
+  visit("metadata", "bias_north_m", o.metadata.bias_north_m);
+  visit("metadata", "dropout_probability", o.metadata.dropout_probability);
+  visit("", "ground_image", o.ground_image);
+  visit("", "ground_gsd_m", o.ground_gsd_m);
+  visit("", "ground_nodata_bgr", o.ground_nodata_bgr);
+  visit("ground_paths", "geojson", o.ground_paths.geojson);
+  visit("ground_paths", "generated", o.ground_paths.generated);
+  visit("", "crf", o.crf);
+  visit("", "x264_preset", o.x264_preset);
+}
+
+nlohmann::json OptionToJson(Scenario scenario) { return ScenarioName(scenario); }
+nlohmann::json OptionToJson(LogoMotion motion) { return LogoMotionName(motion); }
+nlohmann::json OptionToJson(SensorLook look) { return SensorLookName(look); }
+nlohmann::json OptionToJson(const std::filesystem::path& path) { return path.string(); }
+nlohmann::json OptionToJson(const std::optional<cv::Vec3b>& bgr) {
+  if (!bgr) return nlohmann::json();
+  return nlohmann::json::array({(*bgr)[0], (*bgr)[1], (*bgr)[2]});
+}
+template <class T>
+nlohmann::json OptionToJson(const T& value) {
+  return value;
+}
+
+Status OptionFromJson(const nlohmann::json& j, Scenario* scenario) {
+  const std::optional<Scenario> parsed =
+      j.is_string() ? ParseScenario(j.get<std::string>()) : std::nullopt;
+  if (!parsed) return InvalidArgumentError("unknown scenario " + j.dump());
+  *scenario = *parsed;
+  return Status::Ok();
+}
+Status OptionFromJson(const nlohmann::json& j, SensorLook* look) {
+  const std::optional<SensorLook> parsed =
+      j.is_string() ? ParseSensorLook(j.get<std::string>()) : std::nullopt;
+  if (!parsed) return InvalidArgumentError("unknown sensor look " + j.dump());
+  *look = *parsed;
+  return Status::Ok();
+}
+Status OptionFromJson(const nlohmann::json& j, LogoMotion* motion) {
+  const std::optional<LogoMotion> parsed =
+      j.is_string() ? ParseLogoMotion(j.get<std::string>()) : std::nullopt;
+  if (!parsed) return InvalidArgumentError("unknown logo motion " + j.dump());
+  *motion = *parsed;
+  return Status::Ok();
+}
+Status OptionFromJson(const nlohmann::json& j, std::filesystem::path* path) {
+  *path = j.get<std::string>();
+  return Status::Ok();
+}
+Status OptionFromJson(const nlohmann::json& j, std::optional<cv::Vec3b>* bgr) {
+  if (j.is_null()) {
+    bgr->reset();
+    return Status::Ok();
+  }
+  const auto v = j.get<std::array<int, 3>>();
+  for (int c : v) {
+    if (c < 0 || c > 255) return InvalidArgumentError("colour components must be 0..255");
+  }
+  *bgr = cv::Vec3b(uint8_t(v[0]), uint8_t(v[1]), uint8_t(v[2]));
+  return Status::Ok();
+}
+Status OptionFromJson(const nlohmann::json& j, bool* value) {
+  if (!j.is_boolean()) return InvalidArgumentError("expected true or false, got " + j.dump());
+  *value = j.get<bool>();
+  return Status::Ok();
+}
+template <class T>
+Status OptionFromJson(const nlohmann::json& j, T* value) {
+  if constexpr (std::is_arithmetic_v<T>) {
+    if (!j.is_number()) return InvalidArgumentError("expected a number, got " + j.dump());
+    if constexpr (std::is_integral_v<T>) {
+      if (!j.is_number_integer() && !j.is_number_unsigned())
+        return InvalidArgumentError("expected a whole number, got " + j.dump());
+      if constexpr (std::is_unsigned_v<T>) {
+        if (j.is_number_integer() && j.get<int64_t>() < 0)
+          return InvalidArgumentError("expected a number >= 0, got " + j.dump());
+      }
+    }
+  }
+  *value = j.get<T>();
+  return Status::Ok();
+}
+
+}  // namespace
+
 nlohmann::json SimulationOptions::ToJson() const {
-  nlohmann::json only = nlohmann::json::array();
-  for (int64_t f : metadata.only_frames) only.push_back(f);
-  return {
-      {"simulator_version", kSimulatorVersion},
-      {"scenario", ScenarioName(scenario)},
-      {"seed", seed},
-      {"fps", fps},
-      {"duration_s", duration_s},
-      {"camera",
-       {{"width", camera.width}, {"height", camera.height}, {"hfov_deg", camera.hfov_deg}}},
-      {"flight",
-       {{"altitude_m", flight.altitude_m},
-        {"speed_mps", flight.speed_mps},
-        {"attitude_jitter_deg", flight.attitude_jitter_deg},
-        {"altitude_jitter_m", flight.altitude_jitter_m},
-        {"figure_eight_key_frames", flight.figure_eight_key_frames},
-        {"key_frame_overlap", flight.key_frame_overlap},
-        {"raster_rows", flight.raster_rows},
-        {"raster_row_length_m", flight.raster_row_length_m},
-        {"raster_sidelap", flight.raster_sidelap},
-        {"straight_length_m", flight.straight_length_m},
-        {"straight_heading_deg", flight.straight_heading_deg}}},
-      {"world", {{"loop_length_m", world.loop_length_m}}},
-      {"targets", {{"cars", targets.cars}, {"vans", targets.vans}, {"people", targets.people}}},
-      {"imaging",
-       {{"noise_sigma", imaging.noise_sigma},
-        {"blur_sigma_px", imaging.blur_sigma_px},
-        {"gain_drift", imaging.gain_drift},
-        {"gain_period_s", imaging.gain_period_s},
-        {"blank_start_s", imaging.blank_start_s},
-        {"blank_duration_s", imaging.blank_duration_s}}},
-      {"metadata",
-       {{"every_n_frames", metadata.every_n_frames},
-        {"only_frames", only},
-        {"position_noise_m", metadata.position_noise_m},
-        {"bias_east_m", metadata.bias_east_m},
-        {"bias_north_m", metadata.bias_north_m},
-        {"dropout_probability", metadata.dropout_probability}}},
-      {"ground_image", ground_image.string()},
-      {"ground_gsd_m", ground_gsd_m},
-      {"ground_nodata_bgr",
-       ground_nodata_bgr ? nlohmann::json::array({(*ground_nodata_bgr)[0], (*ground_nodata_bgr)[1],
-                                                  (*ground_nodata_bgr)[2]})
-                         : nlohmann::json()},
-      {"crf", crf},
-      {"x264_preset", x264_preset},
-  };
+  nlohmann::json j = {{"simulator_version", kSimulatorVersion}};
+  VisitOptions(*this, [&](const char* group, const char* key, const auto& field) {
+    if (*group == '\0') {
+      j[key] = OptionToJson(field);
+    } else {
+      j[group][key] = OptionToJson(field);
+    }
+  });
+  return j;
+}
+
+Status ApplyOptionsJson(const nlohmann::json& overrides, SimulationOptions* options) {
+  if (!overrides.is_object()) return InvalidArgumentError("simulation options must be an object");
+  SimulationOptions result = *options;
+  // Every key of `overrides` must be visited once; count them off.
+  std::map<std::string, bool> seen;
+  for (const auto& [key, value] : overrides.items()) {
+    if (key == "simulator_version") continue;
+    if (value.is_object()) {
+      for (const auto& item : value.items()) seen[key + "." + item.key()] = false;
+    } else {
+      seen[key] = false;
+    }
+  }
+  Status status = Status::Ok();
+  VisitOptions(result, [&](const char* group, const char* key, auto& field) {
+    const std::string name = *group == '\0' ? std::string(key) : std::string(group) + "." + key;
+    const auto found = seen.find(name);
+    if (found == seen.end() || !status.ok()) return;
+    found->second = true;
+    const nlohmann::json& value = *group == '\0' ? overrides.at(key) : overrides.at(group).at(key);
+    try {
+      Status parsed = OptionFromJson(value, &field);
+      if (!parsed.ok()) status = InvalidArgumentError("option " + name + ": " + parsed.message());
+    } catch (const nlohmann::json::exception&) {
+      status = InvalidArgumentError("option " + name + ": value " + value.dump() +
+                                    " has the wrong type");
+    }
+  });
+  SAKER_RETURN_IF_ERROR(status);
+  for (const auto& [name, used] : seen) {
+    if (!used) return InvalidArgumentError("unknown simulation option '" + name + "'");
+  }
+  *options = result;
+  return Status::Ok();
 }
 
 StatusOr<std::vector<uint8_t>> EncodeFrameKlv(
@@ -179,15 +453,15 @@ StatusOr<std::vector<uint8_t>> EncodeFrameKlv(
       .Add(6, pose.pitch_deg)
       .Add(7, pose.roll_deg)
       .AddString(10, "Saker simulator")
-      .AddString(11, "EO nadir")
+      .AddString(11, pose.gimbal_off_nadir_deg == 0 ? "EO nadir" : "EO gimbal")
       .AddString(12, "Geodetic WGS84")
       .Add(13, sensor.latitude_deg)
       .Add(14, sensor.longitude_deg)
       .Add(15, sensor.height_m)
       .Add(16, camera.hfov_deg)
       .Add(17, camera.vfov_deg())
-      .Add(18, 0.0)
-      .Add(19, -90.0)
+      .Add(18, std::fmod(std::fmod(pose.gimbal_azimuth_deg, 360.0) + 360.0, 360.0))
+      .Add(19, pose.gimbal_off_nadir_deg - 90.0)
       .Add(20, 0.0)
       .Add(21, (Eigen::Vector3d(centre_m.x(), centre_m.y(), 0) - pose.position_m).norm())
       .Add(23, centre.latitude_deg)
@@ -220,13 +494,31 @@ StatusOr<std::vector<uint8_t>> EncodeFrameKlv(
   return e.Finish();
 }
 
+std::vector<const GroundSource*> SimulationSetup::coarser_ground() const {
+  std::vector<const GroundSource*> levels;
+  for (const auto& level : coarser_ground_) levels.push_back(level.get());
+  return levels;
+}
+
+double SimulationSetup::CameraTimeAt(double video_s) const {
+  const CutOptions& cut = options_.cut;
+  return cut.enabled() && video_s >= cut.at_s ? video_s + cut.jump_s : video_s;
+}
+
+CameraIntrinsics SimulationSetup::CameraAt(double time_s) const {
+  CameraIntrinsics camera = options_.camera;
+  camera.hfov_deg = options_.zoom.HfovAt(time_s, camera.hfov_deg);
+  return camera;
+}
+
 double SimulationSetup::nominal_gsd_m() const {
   return NadirGsd(options_.camera, options_.flight.altitude_m);
 }
 
 std::unique_ptr<TargetSimulation> SimulationSetup::MakeTargets() const {
-  if (!world_) return nullptr;
-  return std::make_unique<TargetSimulation>(world_, options_.targets, options_.seed);
+  const std::shared_ptr<const World>& world = world_ ? world_ : path_world_;
+  if (!world) return nullptr;
+  return std::make_unique<TargetSimulation>(world, options_.targets, options_.seed);
 }
 
 StatusOr<SimulationSetup> SimulationSetup::Create(const SimulationOptions& options_in) {
@@ -261,18 +553,26 @@ StatusOr<SimulationSetup> SimulationSetup::Create(const SimulationOptions& optio
     }
     duration = options.duration_s;
   }
+  if (options.cut.enabled() && duration + options.cut.jump_s > setup.flight_->duration_s() + 1e-9) {
+    return InvalidArgumentError(
+        "simulate: a cut jumping " + std::to_string(options.cut.jump_s) + " s ahead needs a " +
+        std::to_string(duration + options.cut.jump_s) + " s flight; the " +
+        ScenarioName(options.scenario) + " flight lasts " +
+        std::to_string(setup.flight_->duration_s()) + " s: shorten --duration or the jump");
+  }
   setup.frame_count_ = std::max<int64_t>(1, int64_t(std::floor(duration / frame_interval + 1e-9)));
 
   // Everything the camera sees, to size the world; every frame, so that a pose looking above the
   // horizon is an error here rather than a failed check in the renderer.
   double x0 = 1e300, y0 = 1e300, x1 = -1e300, y1 = -1e300;
   for (int64_t i = 0; i < setup.frame_count_; ++i) {
-    const double t = double(i) * frame_interval;
-    const auto footprint = GroundFootprint(camera, setup.flight_->PoseAt(t));
+    const double t = setup.CameraTimeAt(double(i) * frame_interval);
+    const auto footprint = GroundFootprint(setup.CameraAt(t), setup.flight_->PoseAt(t));
     if (!footprint) {
       return InvalidArgumentError(
-          "simulate: at " + std::to_string(t) +
-          " s the camera sees above the horizon; reduce the attitude jitter");
+          "simulate: at " + std::to_string(t) + " s the camera sees above the horizon (or within " +
+          std::to_string(int(kMinRayDepressionDeg)) +
+          " degrees of it); reduce the angle off nadir, the field of view or the attitude jitter");
     }
     for (const Vector2d& p : *footprint) {
       x0 = std::min(x0, p.x()), x1 = std::max(x1, p.x());
@@ -283,9 +583,21 @@ StatusOr<SimulationSetup> SimulationSetup::Create(const SimulationOptions& optio
   if (options.ground_image.empty()) {
     SAKER_ASSIGN_OR_RETURN(World generated, GenerateWorld(options.world, seen));
     setup.world_ = std::make_shared<const World>(std::move(generated));
-    // A little finer than the frames, so the warp resamples rather than magnifies.
-    setup.ground_ = std::make_shared<ProceduralGround>(
-        setup.world_, std::clamp(0.8 * setup.nominal_gsd_m(), 0.02, 5.0));
+    // A little finer than the frames (at the narrowest field of view of a zoom), so the warp
+    // resamples rather than magnifies.
+    const double finest_gsd_m =
+        options.zoom.enabled()
+            ? NadirGsd(setup.CameraAt(options.zoom.start_s + options.zoom.duration_s),
+                       options.flight.altitude_m)
+            : setup.nominal_gsd_m();
+    const double gsd_m = std::clamp(0.8 * std::min(finest_gsd_m, setup.nominal_gsd_m()), 0.02, 5.0);
+    setup.ground_ = std::make_shared<ProceduralGround>(setup.world_, gsd_m);
+    const bool oblique = options.scenario == Scenario::kOrbit ||
+                         options.flight.gimbal_off_nadir_deg > 0 || options.zoom.enabled();
+    for (int level = 1; oblique && level <= kCoarserGroundLevels; ++level) {
+      setup.coarser_ground_.push_back(std::make_shared<ProceduralGround>(
+          setup.world_, gsd_m * double(1 << level), kCoarserGroundCacheMegabytes));
+    }
   } else {
     GroundImageOptions image_options;
     image_options.path = options.ground_image;
@@ -293,6 +605,14 @@ StatusOr<SimulationSetup> SimulationSetup::Create(const SimulationOptions& optio
     image_options.nodata_fill_bgr = options.ground_nodata_bgr;
     SAKER_ASSIGN_OR_RETURN(std::unique_ptr<GroundImage> image, GroundImage::Load(image_options));
     setup.ground_ = std::move(image);
+    if (options.ground_paths.enabled()) {
+      SAKER_ASSIGN_OR_RETURN(const geo::LocalTangentPlane plane,
+                             geo::LocalTangentPlane::Create(options.origin));
+      SAKER_ASSIGN_OR_RETURN(
+          World paths,
+          MakePathWorld(options.ground_paths, setup.ground_->extent_m(), plane, options.seed));
+      setup.path_world_ = std::make_shared<const World>(std::move(paths));
+    }
   }
   return setup;
 }
@@ -306,14 +626,17 @@ StatusOr<SimulationSummary> Simulate(const SimulationOptions& options_in, JobCon
   const int64_t frame_count = setup.frame_count();
   const double nominal_gsd = setup.nominal_gsd_m();
   const std::unique_ptr<TargetSimulation> targets = setup.MakeTargets();
-  const FrameRenderer renderer(setup.ground(), camera, options.imaging, options.seed);
+  FrameRenderer renderer(setup.ground(), camera, options.imaging, options.seed);
+  renderer.SetCoarserLevels(setup.coarser_ground());
+  const OverlayPainter overlay(options.overlay, camera.width, camera.height);
+  FrameClock clock(options, frame_interval, frame_count);
   SAKER_ASSIGN_OR_RETURN(const geo::LocalTangentPlane plane,
                          geo::LocalTangentPlane::Create(options.origin));
 
   video::TsWriterOptions writer_options;
   writer_options.width = camera.width;
   writer_options.height = camera.height;
-  writer_options.fps_num = setup.fps_num();
+  writer_options.fps_num = setup.fps_num() * clock.slots_per_frame();
   writer_options.fps_den = setup.fps_den();
   writer_options.gop_size = std::max(1, int(std::lround(options.fps)));
   writer_options.crf = options.crf;
@@ -341,6 +664,7 @@ StatusOr<SimulationSummary> Simulate(const SimulationOptions& options_in, JobCon
   truth.fx = camera.fx(), truth.fy = camera.fy(), truth.cx = camera.cx(), truth.cy = camera.cy();
   truth.fps = double(setup.fps_num()) / setup.fps_den();
   truth.start_utc_us = options.start_utc_us;
+  truth.overlays = overlay.regions();
   if (targets) {
     for (const Target& t : targets->targets()) {
       truth.targets.push_back(
@@ -353,84 +677,124 @@ StatusOr<SimulationSummary> Simulate(const SimulationOptions& options_in, JobCon
   const std::string mission = std::string("SAKER SIM ") + ScenarioName(options.scenario);
   SimulationSummary summary;
   const Eigen::Vector2d shadow = targets ? targets->shadow_per_m() : Eigen::Vector2d::Zero();
-  std::future<cv::Mat> pending;  // the previous frame, being rendered
-  for (int64_t i = 0; i < frame_count; ++i) {
+  std::shared_future<cv::Mat> pending;  // the previous frame, being rendered
+  int64_t pending_slot = 0;             // its time slot
+  int64_t next_slot = 0;                // the writer's next time slot
+  // Writes the pending frame at its time slot, leaving the slots before it empty.
+  const auto write_pending = [&]() -> Status {
+    SAKER_RETURN_IF_ERROR(writer->SkipFrames(pending_slot - next_slot));
+    next_slot = pending_slot + 1;
+    return writer->WriteFrame(pending.get());
+  };
+  FrameSlot slot;
+  for (int64_t k = 0; clock.Next(&slot); ++k) {
     if (job != nullptr && job->IsCancelled()) {
       if (pending.valid()) pending.wait();
       return fail(CancelledError("simulate: cancelled"));
     }
-    const double t = double(i) * frame_interval;
-    const CameraPose pose = flight.PoseAt(t);
-    const Eigen::Matrix3d frame_from_ground = FrameFromGround(camera, pose);
-    if (targets && i > 0) targets->Step(frame_interval);
+    for (int64_t step = 0; targets && step < slot.target_steps; ++step) {
+      targets->Step(clock.step_s());
+    }
+    if (slot.dropped) {
+      ++summary.dropped_frames;
+      continue;
+    }
+    const int64_t i = int64_t(truth.frames.size());  // the frame's index in the video
+    const double t = slot.video_s;
+    const CameraPose pose = flight.PoseAt(slot.camera_s);
+    const CameraIntrinsics lens = setup.CameraAt(slot.camera_s);
+    const Eigen::Matrix3d frame_from_ground = FrameFromGround(lens, pose);
 
-    FrameTruth frame;
-    frame.index = i;
-    frame.time_s = t;
-    frame.frame_from_ground = frame_from_ground;
-    frame.position_m = pose.position_m;
-    frame.heading_deg = pose.heading_deg, frame.pitch_deg = pose.pitch_deg,
-    frame.roll_deg = pose.roll_deg;
-    frame.blank = options.imaging.IsBlank(t);
-    if (targets) {
-      const std::vector<Target>& list = targets->targets();
-      for (size_t k = 0; k < list.size(); ++k) {
-        TargetSampleTruth s;
-        s.ground_m = list[k].position;
-        s.velocity_mps = list[k].velocity;
-        s.image_px = (frame_from_ground * list[k].position.homogeneous()).hnormalized();
-        s.visible = !frame.blank && s.image_px.x() >= -0.5 && s.image_px.y() >= -0.5 &&
-                    s.image_px.x() <= camera.width - 0.5 && s.image_px.y() <= camera.height - 0.5;
-        truth.targets[k].samples.push_back(s);
+    if (slot.repeated) {
+      // The previous picture again, with this frame's time: its truth is the previous frame's.
+      FrameTruth frame = truth.frames.back();
+      frame.index = i;
+      frame.time_s = t;
+      frame.repeated = true;
+      frame.klv = false;
+      frame.cut = false;
+      truth.frames.push_back(frame);
+      for (TargetTruth& target : truth.targets) target.samples.push_back(target.samples.back());
+      ++summary.repeated_frames;
+    } else {
+      FrameTruth frame;
+      frame.index = i;
+      frame.time_s = t;
+      frame.frame_from_ground = frame_from_ground;
+      frame.position_m = pose.position_m;
+      frame.heading_deg = pose.heading_deg, frame.pitch_deg = pose.pitch_deg,
+      frame.roll_deg = pose.roll_deg;
+      frame.blank = options.imaging.IsBlank(t);
+      frame.cut = slot.cut;
+      frame.hfov_deg = lens.hfov_deg;
+      frame.gimbal_azimuth_deg = pose.gimbal_azimuth_deg;
+      frame.gimbal_off_nadir_deg = pose.gimbal_off_nadir_deg;
+      if (targets) {
+        const std::vector<Target>& list = targets->targets();
+        for (size_t n = 0; n < list.size(); ++n) {
+          TargetSampleTruth sample;
+          sample.ground_m = list[n].position;
+          sample.velocity_mps = list[n].velocity;
+          sample.image_px =
+              LensDistort((frame_from_ground * list[n].position.homogeneous()).hnormalized(),
+                          camera.width, camera.height, options.imaging.lens_k1);
+          sample.visible = !frame.blank && sample.image_px.x() >= -0.5 &&
+                           sample.image_px.y() >= -0.5 &&
+                           sample.image_px.x() <= camera.width - 0.5 &&
+                           sample.image_px.y() <= camera.height - 0.5;
+          truth.targets[n].samples.push_back(sample);
+        }
       }
+      if (options.metadata.Due(i) && !klv_random.Bernoulli(options.metadata.dropout_probability)) {
+        const uint64_t utc_us = options.start_utc_us + uint64_t(std::llround(slot.camera_s * 1e6));
+        StatusOr<std::vector<uint8_t>> packet =
+            FrameKlv(plane, utc_us, lens, pose, options, mission, &klv_random);
+        if (!packet.ok()) return fail(packet.status());
+        Status status = writer->WriteKlv(*packet, slot.slot);
+        if (!status.ok()) return fail(status);
+        frame.klv = true;
+        ++summary.klv_packets;
+      }
+      truth.frames.push_back(frame);
     }
-
-    if (options.metadata.Due(i) && !klv_random.Bernoulli(options.metadata.dropout_probability)) {
-      const auto footprint = GroundFootprint(camera, pose);
-      const auto centre = GroundCentre(camera, pose);
-      if (!footprint || !centre)
-        return fail(InvalidArgumentError("simulate: the camera looks above the horizon"));
-      const Vector2d bias(options.metadata.bias_east_m, options.metadata.bias_north_m);
-      const double sigma = options.metadata.position_noise_m;
-      const auto noisy = [&](const Vector2d& p) {
-        const double e = klv_random.Normal(), n = klv_random.Normal();
-        return Vector2d(p + bias + sigma * Vector2d(e, n));
-      };
-      std::array<Vector2d, 4> corners;
-      for (int k = 0; k < 4; ++k) corners[k] = noisy((*footprint)[k]);
-      const Vector2d centre_noisy = noisy(*centre);
-      const Vector2d sensor_xy = noisy(pose.position_m.head<2>());
-      const Eigen::Vector3d sensor(sensor_xy.x(), sensor_xy.y(), pose.position_m.z());
-      StatusOr<std::vector<uint8_t>> packet =
-          EncodeFrameKlv(plane, options.start_utc_us + uint64_t(std::llround(t * 1e6)), camera,
-                         pose, sensor, centre_noisy, corners, mission);
-      if (!packet.ok()) return fail(packet.status());
-      Status status = writer->WriteKlv(*packet, i);
-      if (!status.ok()) return fail(status);
-      frame.klv = true;
-      ++summary.klv_packets;
-    }
-    truth.frames.push_back(frame);
 
     // Render this frame on a worker while the previous one is encoded here (the encoder has its
-    // own threads too); targets are copied, so the simulation can step on.
-    std::future<cv::Mat> next =
-        std::async(std::launch::async,
-                   [&renderer, frame_from_ground,
-                    snapshot = targets ? targets->targets() : std::vector<Target>(), shadow, i,
-                    t] { return renderer.Render(frame_from_ground, snapshot, shadow, i, t); });
+    // own threads too); targets are copied, so the simulation can step on. A repeat shares the
+    // previous frame's picture.
+    std::shared_future<cv::Mat> next;
+    if (slot.repeated) {
+      next = pending;
+    } else {
+      HudTelemetry telemetry;
+      telemetry.utc_us = options.start_utc_us + uint64_t(std::llround(slot.camera_s * 1e6));
+      telemetry.frame_index = i;
+      const geo::Wgs84 sensor = plane.Wgs84FromEnu(pose.position_m);
+      telemetry.latitude_deg = sensor.latitude_deg, telemetry.longitude_deg = sensor.longitude_deg;
+      telemetry.height_m = sensor.height_m;
+      telemetry.heading_deg = pose.heading_deg;
+      telemetry.hfov_deg = lens.hfov_deg;
+      next = std::async(std::launch::async, [&renderer, &overlay, frame_from_ground,
+                                             snapshot = targets ? targets->targets()
+                                                                : std::vector<Target>(),
+                                             shadow, k, t, telemetry] {
+               cv::Mat picture = renderer.Render(frame_from_ground, snapshot, shadow, k, t);
+               overlay.Paint(telemetry, t, &picture);
+               return picture;
+             }).share();
+    }
     if (pending.valid()) {
-      Status status = writer->WriteFrame(pending.get());
+      Status status = write_pending();
       if (!status.ok()) {
         next.wait();
         return fail(status);
       }
-      if (job != nullptr) job->ReportProgress("simulate", double(i) / double(frame_count));
+      if (job != nullptr) job->ReportProgress("simulate", clock.fraction_done());
     }
     pending = std::move(next);
+    pending_slot = slot.slot;
   }
   if (pending.valid()) {
-    Status status = writer->WriteFrame(pending.get());
+    Status status = write_pending();
     if (!status.ok()) return fail(status);
     if (job != nullptr) job->ReportProgress("simulate", 1.0);
   }
@@ -447,7 +811,7 @@ StatusOr<SimulationSummary> Simulate(const SimulationOptions& options_in, JobCon
     return fail(IoError("cannot rename " + video_part.string() + " to " + options.output.string() +
                         ": " + error.message()));
   }
-  summary.frames = frame_count;
+  summary.frames = int64_t(truth.frames.size());
   summary.duration_s = double(frame_count) * frame_interval;
   summary.track_length_m = flight.track().length_m();
   summary.nominal_gsd_m = nominal_gsd;

@@ -120,6 +120,12 @@ Status TargetOptions::Validate() const {
   };
   SAKER_RETURN_IF_ERROR(check(cars, "cars"));
   SAKER_RETURN_IF_ERROR(check(vans, "vans"));
+  if (!(slow_walker_fraction >= 0 && slow_walker_fraction <= 1)) {
+    return InvalidArgumentError("targets: the fraction of slow walkers must be in [0, 1]");
+  }
+  if (group_size < 1 || group_size > 10) {
+    return InvalidArgumentError("targets: groups of walkers must have 1 to 10 people");
+  }
   return check(people, "people");
 }
 
@@ -154,6 +160,7 @@ struct TargetSimulation::Impl {
   std::vector<Target> targets;
   std::vector<Mover> movers;
   double time_s = 0;
+  bool stop_and_go = false;  // TargetOptions::stop_and_go
 
   // Chooses the road to take at `node` after arriving on `from_road`.
   int NextRoad(Mover& m, int node, int from_road) {
@@ -244,7 +251,7 @@ struct TargetSimulation::Impl {
   }
 
   Impl(std::shared_ptr<const World> w, const TargetOptions& options, uint64_t seed)
-      : world(std::move(w)) {
+      : world(std::move(w)), stop_and_go(options.stop_and_go) {
     Random random(HashCombine(seed, 0x7A56u));
     int next_id = 1;
     // Vehicles start on town roads, spread by length.
@@ -266,7 +273,7 @@ struct TargetSimulation::Impl {
       m.random = Random(HashCombine(seed, uint64_t(k) + 1000));
       t.look = RandomVehicleLook(m.random, t.target_class == TargetClass::kVan);
       m.cruise = t.look.van ? m.random.Uniform(8, 12) : m.random.Uniform(9, 14);
-      m.follows_loop = k % 4 == 0;
+      m.follows_loop = k % 4 == 0 && !world->road_loop.empty();
       int road = town_roads[0];
       double along = 0;
       if (m.follows_loop) {
@@ -306,7 +313,7 @@ struct TargetSimulation::Impl {
       along = m.random.Uniform(0, m.path.length() * 0.8);
       m.s = along;
       m.speed = m.cruise * m.random.Uniform(0.5, 1.0);
-      m.next_stop_s = m.random.Uniform(5, 60);
+      m.next_stop_s = options.stop_and_go ? m.random.Uniform(2, 20) : m.random.Uniform(5, 60);
       targets.push_back(t);
       movers.push_back(std::move(m));
       while (movers.back().path.length() < movers.back().s + 150) ExtendRoute(movers.back());
@@ -329,6 +336,23 @@ struct TargetSimulation::Impl {
       m.speed = m.cruise;
       m.lateral = m.random.Uniform(-0.6, 0.6);
       m.next_stop_s = m.random.Uniform(5, 40);
+      const int place = k % options.group_size;
+      if (place > 0) {
+        // A member of the group of the person `place` before: the same path, pace and pauses
+        // (the same random state), a little behind and beside.
+        const Mover& leader = movers[movers.size() - size_t(place)];
+        m.random = leader.random;
+        m.footpath = leader.footpath;
+        m.path = leader.path;
+        m.direction = leader.direction;
+        m.cruise = m.speed = leader.cruise;
+        m.next_stop_s = leader.next_stop_s;
+        m.s = std::clamp(leader.s - 0.8 * m.direction * place, 0.0, m.path.length());
+        m.lateral = leader.lateral + (place % 2 == 1 ? 0.7 : -0.7) * ((place + 1) / 2);
+      } else if (options.slow_walker_fraction > 0 && Random(HashCombine(seed, uint64_t(k) + 900000))
+                                                         .Bernoulli(options.slow_walker_fraction)) {
+        m.cruise = m.speed = m.random.Uniform(0.4, 0.6);
+      }
       targets.push_back(t);
       movers.push_back(std::move(m));
     }
@@ -379,9 +403,14 @@ struct TargetSimulation::Impl {
       Mover& m = movers[k];
       if (time_s >= m.next_stop_s && m.stopped_until_s < m.next_stop_s) {
         const bool person = targets[k].target_class == TargetClass::kPerson;
-        m.stopped_until_s = time_s + (person ? m.random.Uniform(2, 8) : m.random.Uniform(2, 10));
-        m.next_stop_s =
-            m.stopped_until_s + (person ? m.random.Uniform(10, 50) : m.random.Uniform(20, 70));
+        if (!person && stop_and_go) {
+          m.stopped_until_s = time_s + m.random.Uniform(2, 8);
+          m.next_stop_s = m.stopped_until_s + m.random.Uniform(5, 20);
+        } else {
+          m.stopped_until_s = time_s + (person ? m.random.Uniform(2, 8) : m.random.Uniform(2, 10));
+          m.next_stop_s =
+              m.stopped_until_s + (person ? m.random.Uniform(10, 50) : m.random.Uniform(20, 70));
+        }
       }
       const double accel = targets[k].target_class == TargetClass::kPerson ? 1.0 : 1.6;
       const double decel = targets[k].target_class == TargetClass::kPerson ? 2.0 : 3.0;

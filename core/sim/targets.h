@@ -31,6 +31,13 @@ struct TargetOptions {
   int cars = 24;
   int vans = 4;
   int people = 16;
+  // Harder traffic. Slow walkers: this fraction of people dawdle at 0.4-0.6 m/s.
+  double slow_walker_fraction = 0;
+  // People walk in groups of this many, side by side and in step (1: alone).
+  int group_size = 1;
+  // Vehicles stop every 5-20 s for 2-8 s (instead of every 20-70 s): stop-and-go traffic, with
+  // queues forming behind each stop.
+  bool stop_and_go = false;
   Status Validate() const;
 };
 

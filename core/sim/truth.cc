@@ -1,5 +1,6 @@
 #include "core/sim/truth.h"
 
+#include <algorithm>
 #include <fstream>
 #include <system_error>
 
@@ -45,7 +46,12 @@ json TruthToJson(const Truth& truth) {
                       {"pitch_deg", f.pitch_deg},
                       {"roll_deg", f.roll_deg},
                       {"blank", f.blank},
-                      {"klv", f.klv}});
+                      {"klv", f.klv},
+                      {"cut", f.cut},
+                      {"repeated", f.repeated},
+                      {"hfov_deg", f.hfov_deg},
+                      {"gimbal_azimuth_deg", f.gimbal_azimuth_deg},
+                      {"gimbal_off_nadir_deg", f.gimbal_off_nadir_deg}});
   }
   json targets = json::array();
   for (const TargetTruth& t : truth.targets) {
@@ -66,6 +72,10 @@ json TruthToJson(const Truth& truth) {
                        {"velocity_mps", velocity},
                        {"visible", visible}});
   }
+  json overlays = json::array();
+  for (const OverlayTruth& o : truth.overlays) {
+    overlays.push_back({{"kind", o.kind}, {"box_px", {o.x, o.y, o.width, o.height}}});
+  }
   return {{"format", kTruthFormat},
           {"version", kTruthVersion},
           {"generator", truth.generator},
@@ -85,7 +95,8 @@ json TruthToJson(const Truth& truth) {
           {"fps", truth.fps},
           {"start_utc_us", truth.start_utc_us},
           {"frames", frames},
-          {"targets", targets}};
+          {"targets", targets},
+          {"overlays", overlays}};
 }
 
 StatusOr<Truth> TruthFromJson(const json& j) {
@@ -128,6 +139,12 @@ StatusOr<Truth> TruthFromJson(const json& j) {
       frame.roll_deg = f.at("roll_deg").get<double>();
       frame.blank = f.at("blank").get<bool>();
       frame.klv = f.at("klv").get<bool>();
+      // Fields added after version 1 first shipped: older files lack them.
+      frame.cut = f.value("cut", false);
+      frame.repeated = f.value("repeated", false);
+      frame.hfov_deg = f.value("hfov_deg", 0.0);
+      frame.gimbal_azimuth_deg = f.value("gimbal_azimuth_deg", 0.0);
+      frame.gimbal_off_nadir_deg = f.value("gimbal_off_nadir_deg", 0.0);
       truth.frames.push_back(frame);
     }
     for (const json& t : j.at("targets")) {
@@ -155,10 +172,34 @@ StatusOr<Truth> TruthFromJson(const json& j) {
       }
       truth.targets.push_back(std::move(target));
     }
+    for (const json& o : j.value("overlays", json::array())) {
+      OverlayTruth overlay;
+      overlay.kind = o.at("kind").get<std::string>();
+      SAKER_ASSIGN_OR_RETURN(const auto box, ReadVector<4>(o.at("box_px"), "box_px"));
+      overlay.x = int(box[0]), overlay.y = int(box[1]);
+      overlay.width = int(box[2]), overlay.height = int(box[3]);
+      if (overlay.width < 0 || overlay.height < 0) {
+        return InvalidDataError("truth: overlay '" + overlay.kind + "' has a negative size");
+      }
+      truth.overlays.push_back(overlay);
+    }
     return truth;
   } catch (const json::exception& e) {
     return InvalidDataError(std::string("truth: ") + e.what());
   }
+}
+
+bool Truth::OnOverlay(const Eigen::Vector2d& pixel) const {
+  return std::any_of(overlays.begin(), overlays.end(),
+                     [&](const OverlayTruth& o) { return o.Contains(pixel); });
+}
+
+std::vector<int64_t> Truth::CutFrames() const {
+  std::vector<int64_t> cuts;
+  for (const FrameTruth& f : frames) {
+    if (f.cut) cuts.push_back(f.index);
+  }
+  return cuts;
 }
 
 Status WriteTruth(const Truth& truth, const std::filesystem::path& path) {

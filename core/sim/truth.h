@@ -29,11 +29,34 @@ struct FrameTruth {
   double heading_deg = 0, pitch_deg = 0, roll_deg = 0;
   bool blank = false;  // cloud / dropout: the frame shows no ground
   bool klv = false;    // a KLV packet was written for this frame
+  // The first frame after a splice (another place or time): no homography relates it to the
+  // frame before, and no target track should cross it.
+  bool cut = false;
+  // An encoder repeat: the same picture as the frame before (targets in it have not moved).
+  bool repeated = false;
+  // The camera's horizontal field of view in this frame (a zoom changes it) and the gimbal's
+  // pointing relative to the platform: azimuth clockwise from the nose, angle off nadir.
+  double hfov_deg = 0;
+  double gimbal_azimuth_deg = 0, gimbal_off_nadir_deg = 0;
+};
+
+// A burned-in overlay element (HUD text, reticle, logo): a box of image pixels that holds every
+// pixel the element draws in any frame. Targets under it are hidden from view; a track on it is a
+// false track by construction.
+struct OverlayTruth {
+  std::string kind;  // "hud-text", "reticle", "logo"
+  int x = 0, y = 0, width = 0, height = 0;
+  bool Contains(const Eigen::Vector2d& pixel) const {
+    return pixel.x() >= x - 0.5 && pixel.y() >= y - 0.5 && pixel.x() < x + width - 0.5 &&
+           pixel.y() < y + height - 0.5;
+  }
 };
 
 struct TargetSampleTruth {
   Eigen::Vector2d ground_m{0, 0};
-  Eigen::Vector2d image_px{0, 0};  // where the target's centre projects (may lie off the image)
+  // Where the target's centre projects (may lie off the image); through the lens distortion when
+  // the video has one (then not exactly frame_from_ground times ground_m).
+  Eigen::Vector2d image_px{0, 0};
   Eigen::Vector2d velocity_mps{0, 0};
   bool visible = false;  // centre inside the image and the frame not blank
 };
@@ -54,6 +77,12 @@ struct Truth {
   uint64_t start_utc_us = 0;
   std::vector<FrameTruth> frames;
   std::vector<TargetTruth> targets;
+  std::vector<OverlayTruth> overlays;  // empty: a clean image
+
+  // Whether `pixel` lies on a burned-in overlay (any element).
+  bool OnOverlay(const Eigen::Vector2d& pixel) const;
+  // Frames at which a cut starts a new shot (FrameTruth::cut), in order.
+  std::vector<int64_t> CutFrames() const;
 };
 
 nlohmann::json TruthToJson(const Truth& truth);

@@ -147,7 +147,8 @@ struct TsWriter::Impl {
   int64_t offset = 0;
 
   int64_t frames_written = 0;
-  Status failure;  // the error that stopped the writer
+  int64_t next_pts = 0;  // time slot of the next frame, in frame intervals (SkipFrames adds gaps)
+  Status failure;        // the error that stopped the writer
   bool closed = false;
   Status close_status;
 
@@ -435,12 +436,13 @@ struct TsWriter::Impl {
     int ret = av_frame_make_writable(frame.get());
     if (ret < 0) return Fail(FfmpegError("cannot allocate a picture", ret));
     SAKER_RETURN_IF_ERROR(Fill(image));
-    frame->pts = frames_written;
+    frame->pts = next_pts;
     frame->pict_type = AV_PICTURE_TYPE_NONE;
     if (options.codec == VideoCodec::kMpeg2) frame->quality = encoder->global_quality;
     ret = avcodec_send_frame(encoder.get(), frame.get());
     if (ret < 0) return Fail(FfmpegError("cannot encode " + which(), ret));
     ++frames_written;
+    ++next_pts;
     return Drain();
   }
 
@@ -572,6 +574,17 @@ Status TsWriter::WriteFrame(const cv::Mat& image) { return impl_->WriteFrame(ima
 Status TsWriter::Close() { return impl_->Close(); }
 
 int64_t TsWriter::frames_written() const { return impl_->frames_written; }
+
+Status TsWriter::SkipFrames(int64_t count) {
+  SAKER_RETURN_IF_ERROR(impl_->Usable("SkipFrames"));
+  if (count < 0 || impl_->next_pts + count > kMaxFrameIndex) {
+    return InvalidArgumentError(impl_->path + ": cannot skip " + std::to_string(count) +
+                                " frame times (at most up to frame time " +
+                                std::to_string(kMaxFrameIndex) + ")");
+  }
+  impl_->next_pts += count;
+  return Status::Ok();
+}
 
 const TsWriterOptions& TsWriter::options() const { return impl_->options; }
 

@@ -81,7 +81,13 @@ class TsWriter {
   // the writer.
   Status WriteKlv(std::span<const uint8_t> packet, int64_t frame_index);
 
-  // Encodes the next frame: frame n is the n-th call (time n * fps_den / fps_num). `image` is
+  // Leaves `count` frame times without a picture, as an encoder that drops frames does: the next
+  // frame's time stamp is that many frame intervals later. Frame indices of WriteKlv count frame
+  // times, skipped ones included. InvalidArgument for a negative count or beyond 2^40.
+  Status SkipFrames(int64_t count);
+
+  // Encodes the next frame: without SkipFrames, frame n is the n-th call (time n * fps_den /
+  // fps_num); each skipped frame time delays the frames after it by one interval. `image` is
   // exactly width x height, either CV_8UC3 BGR (converted to limited-range YUV 4:2:0 with the
   // BT.709 matrix from 720 lines up, else BT.601, and tagged so) or CV_8UC1, taken as the luma
   // plane as coded with neutral chroma (the convention of Frame::grey: VideoReader gives it back

@@ -75,7 +75,7 @@ bool SegmentsCross(const Eigen::Vector2d& p0, const Eigen::Vector2d& p1, const E
 }
 
 TEST(ScenarioTest, NamesRoundTrip) {
-  ASSERT_EQ(AllScenarios().size(), 4u);
+  ASSERT_EQ(AllScenarios().size(), 5u);
   for (Scenario scenario : AllScenarios()) {
     EXPECT_EQ(ParseScenario(ScenarioName(scenario)), scenario);
     EXPECT_GT(std::string(ScenarioDescription(scenario)).size(), 10u);

@@ -98,3 +98,67 @@ TEST(TargetsTest, CountsAndClasses) {
 
 }  // namespace
 }  // namespace saker::sim
+
+namespace saker::sim {
+namespace {
+
+// How many times each vehicle comes to a stop (from moving) in `seconds`.
+double StopsPerVehicleMinute(const TargetOptions& options, double seconds) {
+  TargetSimulation sim(TestWorld(), options, 7);
+  std::map<int, bool> was_stopped;
+  int stops = 0, vehicles = 0;
+  for (int step = 0; step < int(seconds / 0.04); ++step) {
+    sim.Step(0.04);
+    for (const Target& t : sim.targets()) {
+      if (t.target_class == TargetClass::kPerson) continue;
+      const bool stopped = t.velocity.norm() < 0.05;
+      if (stopped && was_stopped.count(int(t.id)) && !was_stopped[int(t.id)]) ++stops;
+      was_stopped[int(t.id)] = stopped;
+    }
+  }
+  for (const Target& t : sim.targets()) vehicles += t.target_class != TargetClass::kPerson;
+  return stops / double(vehicles) / (seconds / 60);
+}
+
+TEST(HarderTrafficTest, StopAndGoStopsMoreOften) {
+  TargetOptions normal, stop_and_go;
+  stop_and_go.stop_and_go = true;
+  const double usual = StopsPerVehicleMinute(normal, 120);
+  const double often = StopsPerVehicleMinute(stop_and_go, 120);
+  EXPECT_GT(often, 2.0 * usual) << usual << " against " << often;
+  EXPECT_GT(often, 2.0);
+}
+
+TEST(HarderTrafficTest, SlowWalkersAndGroups) {
+  TargetOptions options;
+  options.cars = options.vans = 0;
+  options.people = 12;
+  options.group_size = 3;
+  options.slow_walker_fraction = 1.0;
+  TargetSimulation sim(TestWorld(), options, 3);
+  double fastest = 0, widest_group = 0;
+  for (int step = 0; step < 25 * 60; ++step) {
+    sim.Step(0.04);
+    const std::vector<Target>& people = sim.targets();
+    ASSERT_EQ(people.size(), 12u);
+    for (size_t k = 0; k < people.size(); ++k) {
+      fastest = std::max(fastest, people[k].velocity.norm());
+      if (k % 3 != 0) {
+        widest_group =
+            std::max(widest_group, (people[k].position - people[k - k % 3].position).norm());
+      }
+    }
+  }
+  EXPECT_LE(fastest, 0.61) << "every leader dawdles, and the groups keep their pace";
+  EXPECT_GT(fastest, 0.35);
+  EXPECT_LT(widest_group, 3.5) << "a group walks together";
+  TargetOptions bad;
+  bad.group_size = 0;
+  EXPECT_FALSE(bad.Validate().ok());
+  bad = {};
+  bad.slow_walker_fraction = 1.5;
+  EXPECT_FALSE(bad.Validate().ok());
+}
+
+}  // namespace
+}  // namespace saker::sim
