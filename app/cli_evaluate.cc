@@ -2,11 +2,8 @@
 
 #include "app/cli_mosaic.h"
 #include "core/frontend/evaluate.h"
-#include "core/frontend/front_end.h"
-#include "core/mosaic/evaluate.h"
 #include "core/mosaic/mosaic_builder.h"
 #include "core/pipeline/evaluate.h"
-#include "core/pipeline/process.h"
 #include "core/sim/truth.h"
 
 #include <filesystem>
@@ -88,70 +85,22 @@ int EvaluateCommand::Run() const {
     std::cerr << "saker-cli: " << truth.status().message() << "\n";
     return 1;
   }
-  frontend::FrontEndOptions front_end;
-  front_end.change.enabled = !s.no_change;
-  StatusOr<frontend::FrontEndResult> result = frontend::RunFrontEnd(s.video, front_end);
-  if (!result.ok()) {
-    std::cerr << "saker-cli: " << result.status().message() << "\n";
-    return 1;
-  }
-  StatusOr<frontend::Evaluation> evaluation = frontend::Evaluate(*result, *truth, s.evaluation);
+  pipeline::VideoEvaluationOptions options;
+  options.front_end.change.enabled = !s.no_change;
+  options.evaluation = s.evaluation;
+  options.mosaic.use_metadata = !s.no_metadata;
+  options.mosaic.adjust_mode = *mosaic::ParseAdjustmentMode(s.adjust);
+  options.mosaic.decomposition = s.decomposition;
+  const StatusOr<pipeline::VideoEvaluation> evaluation =
+      pipeline::EvaluateVideo(s.video, *truth, options);
   if (!evaluation.ok()) {
-    std::cerr << "saker-cli: " << s.video << ": " << evaluation.status().message() << "\n";
+    std::cerr << "saker-cli: " << evaluation.status().message() << "\n";
     return 1;
   }
-  mosaic::MosaicOptions mosaic_options;
-  mosaic_options.use_metadata = !s.no_metadata;
-  mosaic_options.adjust_mode = *mosaic::ParseAdjustmentMode(s.adjust);
-  mosaic_options.decomposition = s.decomposition;
-  StatusOr<mosaic::MosaicResult> built = mosaic::BuildMosaic(*result, mosaic_options);
-  if (!built.ok()) {
-    std::cerr << "saker-cli: " << s.video << ": " << built.status().message() << "\n";
-    return 1;
-  }
-  StatusOr<mosaic::MosaicAccuracy> mosaic_accuracy = mosaic::EvaluateMosaic(*built, *truth);
-  if (!mosaic_accuracy.ok()) {
-    std::cerr << "saker-cli: " << s.video << ": " << mosaic_accuracy.status().message() << "\n";
-    return 1;
-  }
-  activity::ActivityOptions activity_options;
-  StatusOr<mission::Mission> mission = pipeline::MissionFromRun(*result, *built, activity_options);
-  if (!mission.ok()) {
-    std::cerr << "saker-cli: " << s.video << ": " << mission.status().message() << "\n";
-    return 1;
-  }
-  StatusOr<pipeline::ActivityAccuracy> activity_accuracy =
-      pipeline::EvaluateActivity(*mission, *truth, activity_options.visit_gap_s);
-  if (!activity_accuracy.ok()) {
-    std::cerr << "saker-cli: " << s.video << ": " << activity_accuracy.status().message() << "\n";
-    return 1;
-  }
-  StatusOr<mosaic::MetadataExperiment> experiment = mosaic::RunMetadataExperiment(*built, *truth);
-  StatusOr<mosaic::DecompositionExperiment> decomposition = mosaic::RunDecompositionExperiment(
-      *built, *truth, s.decomposition, mosaic_options.adjustment);
   if (s.json) {
-    nlohmann::json j = frontend::EvaluationToJson(*evaluation);
-    j["mosaic"] = mosaic::MosaicAccuracyToJson(*mosaic_accuracy);
-    j["activity"] = pipeline::ActivityAccuracyToJson(*activity_accuracy);
-    if (experiment.ok()) {
-      j["metadata_experiment"] = {{"start_error_m", experiment->start_error_m},
-                                  {"metadata_key_frames", experiment->metadata_key_frames},
-                                  {"metadata_sigma_m", experiment->metadata_sigma_m},
-                                  {"without_metadata_rms_m", experiment->without_metadata.rms_m},
-                                  {"without_metadata_max_m", experiment->without_metadata.max_m},
-                                  {"with_metadata_rms_m", experiment->with_metadata.rms_m},
-                                  {"with_metadata_max_m", experiment->with_metadata.max_m}};
-    }
-    if (decomposition.ok()) {
-      j["decomposition_experiment"] = mosaic::DecompositionExperimentToJson(*decomposition);
-    }
-    std::cout << j.dump(2) << "\n";
+    std::cout << pipeline::VideoEvaluationToJson(*evaluation).dump(2) << "\n";
   } else {
-    std::cout << frontend::EvaluationToText(*evaluation, s.details);
-    std::cout << mosaic::MosaicAccuracyToText(*mosaic_accuracy);
-    std::cout << pipeline::ActivityAccuracyToText(*activity_accuracy);
-    if (experiment.ok()) std::cout << mosaic::MetadataExperimentToText(*experiment);
-    if (decomposition.ok()) std::cout << mosaic::DecompositionExperimentToText(*decomposition);
+    std::cout << pipeline::VideoEvaluationToText(*evaluation, s.details);
   }
   return 0;
 }

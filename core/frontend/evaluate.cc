@@ -62,6 +62,7 @@ HomographyAccuracy EvaluateHomographies(const FrontEndResult& result, const sim:
     accuracy.p95_px = Percentile(errors, 95);
     accuracy.max_px = *std::max_element(errors.begin(), errors.end());
   }
+  accuracy.errors_px = std::move(errors);
   return accuracy;
 }
 
@@ -176,8 +177,9 @@ DetectionAccuracy EvaluateTargets(const FrontEndResult& result, const sim::Truth
         }
         if (!outcome.found && 2 * (last - first) >= mover_frames) {
           outcome.found = true;
+          outcome.latency_s = double(std::max<int64_t>(0, *first - first_mover)) / fps;
           ++a.found_targets;
-          latencies.push_back(double(std::max<int64_t>(0, *first - first_mover)) / fps);
+          latencies.push_back(outcome.latency_s);
         }
       }
       a.sightings.push_back(std::move(outcome));
@@ -206,9 +208,8 @@ DetectionAccuracy EvaluateTargets(const FrontEndResult& result, const sim::Truth
   a.track_precision =
       a.detected_tracks > 0 ? double(a.correct_tracks) / double(a.detected_tracks) : 1.0;
   a.frame_recall = a.truth_mover_frames > 0 ? double(a.paired) / double(a.truth_mover_frames) : 1.0;
-  int64_t paired_any = 0;
-  for (int n : track_paired_frames) paired_any += n;
-  a.frame_precision = a.detections > 0 ? double(paired_any) / double(a.detections) : 1.0;
+  for (int n : track_paired_frames) a.paired_detections += n;
+  a.frame_precision = a.detections > 0 ? double(a.paired_detections) / double(a.detections) : 1.0;
   a.median_latency_s = Percentile(latencies, 50);
   return a;
 }

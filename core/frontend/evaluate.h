@@ -42,6 +42,7 @@ struct HomographyAccuracy {
   int64_t frames = 0;  // frames with both an estimate and truth
   int64_t failed = 0;  // frames (after a segment's first) without an estimate
   double median_px = 0, mean_px = 0, p95_px = 0, max_px = 0;  // corner transfer error
+  std::vector<double> errors_px;  // per frame counted in `frames`, to pool several videos
 };
 
 // How one truth sighting fared: the track paired with it most, and in how many of its frames.
@@ -51,6 +52,7 @@ struct SightingOutcome {
   int64_t begin = 0, end = 0;  // frames [begin, end)
   int mover_frames = 0;
   bool found = false;
+  double latency_s = 0;    // found: first mover frame to the first frame the finding track pairs
   int64_t best_track = 0;  // id of the track paired with it most (0: none)
   int best_track_frames = 0;
   int tracks_paired = 0;  // distinct tracks paired with it in the sighting
@@ -75,7 +77,8 @@ struct DetectionAccuracy {
   double track_recall = 0, track_precision = 0;
   int64_t truth_mover_frames = 0;  // (target, frame) pairs
   int64_t detections = 0;          // (track, frame) observations
-  int64_t paired = 0;
+  int64_t paired = 0;              // pairs with a mover (frame recall's numerator)
+  int64_t paired_detections = 0;   // detections paired with any target (frame precision's)
   double frame_recall = 0, frame_precision = 0;
   double median_latency_s = 0;
   // Per sighting and per track, for finding out why a target was missed or a track is false

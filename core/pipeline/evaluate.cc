@@ -1,6 +1,7 @@
 #include "core/pipeline/evaluate.h"
 
 #include "core/activity/activity.h"
+#include "core/pipeline/process.h"
 
 #include <Eigen/Geometry>
 #include <Eigen/LU>
@@ -18,13 +19,6 @@ namespace {
 constexpr double kGatePx = 12;         // a track point follows a truth target this close
 constexpr double kPickToleranceM = 5;  // map units (metres when geo-referenced)
 constexpr double kPickWindowS = 0.5;   // the picked observation's time against the truth's
-
-double Quantile(std::vector<double> v, double q) {
-  if (v.empty()) return 0;
-  const size_t k = std::min(v.size() - 1, size_t(q * double(v.size() - 1) + 0.5));
-  std::nth_element(v.begin(), v.begin() + long(k), v.end());
-  return v[k];
-}
 
 // The truth target a track follows on most of its observations, or -1.
 int MatchTarget(const mission::ActivityTrack& track, const sim::Truth& truth) {
@@ -48,6 +42,13 @@ int MatchTarget(const mission::ActivityTrack& track, const sim::Truth& truth) {
 }
 
 }  // namespace
+
+double ActivityQuantile(std::vector<double> values, double q) {
+  if (values.empty()) return 0;
+  const size_t k = std::min(values.size() - 1, size_t(q * double(values.size() - 1) + 0.5));
+  std::nth_element(values.begin(), values.begin() + long(k), values.end());
+  return values[k];
+}
 
 StatusOr<ActivityAccuracy> EvaluateActivity(const mission::Mission& mission,
                                             const sim::Truth& truth, double visit_gap_s) {
@@ -160,14 +161,16 @@ StatusOr<ActivityAccuracy> EvaluateActivity(const mission::Mission& mission,
         (samples[size_t(picked.frame)].image_px - picked.image).norm() <= kGatePx;
     picks_ok += in_time && on_target;
   }
-  a.speed_median_error_mps = Quantile(speed_errors, 0.5);
-  a.speed_p90_error_mps = Quantile(speed_errors, 0.9);
-  a.speed_median_relative = Quantile(relative, 0.5);
-  a.direction_median_error_deg = Quantile(direction_errors, 0.5);
-  a.direction_p90_error_deg = Quantile(direction_errors, 0.9);
+  a.speed_median_error_mps = ActivityQuantile(speed_errors, 0.5);
+  a.speed_p90_error_mps = ActivityQuantile(speed_errors, 0.9);
+  a.speed_median_relative = ActivityQuantile(relative, 0.5);
+  a.speed_p90_relative = ActivityQuantile(relative, 0.9);
+  a.speed_relative_errors = std::move(relative);
+  a.direction_median_error_deg = ActivityQuantile(direction_errors, 0.5);
+  a.direction_p90_error_deg = ActivityQuantile(direction_errors, 0.9);
   a.visit_agreement = a.compared_visit > 0 ? double(visits_agree) / double(a.compared_visit) : 0;
   a.pick_accuracy = a.picks > 0 ? double(picks_ok) / double(a.picks) : 0;
-  a.pick_median_us = Quantile(pick_times, 0.5);
+  a.pick_median_us = ActivityQuantile(pick_times, 0.5);
   return a;
 }
 
@@ -178,7 +181,8 @@ nlohmann::json ActivityAccuracyToJson(const ActivityAccuracy& a) {
            {{"compared", a.compared_speed},
             {"median_error_mps", a.speed_median_error_mps},
             {"p90_error_mps", a.speed_p90_error_mps},
-            {"median_relative_error", a.speed_median_relative}}},
+            {"median_relative_error", a.speed_median_relative},
+            {"p90_relative_error", a.speed_p90_relative}}},
           {"direction",
            {{"compared", a.compared_direction},
             {"median_error_deg", a.direction_median_error_deg},
@@ -193,17 +197,90 @@ std::string ActivityAccuracyToText(const ActivityAccuracy& a) {
   std::snprintf(
       text, sizeof(text),
       "activity: %lld tracks, %lld following a truth target\n"
-      "  speed: median error %.2f m/s (%.0f %%), 90th percentile %.2f m/s over %lld "
-      "tracks\n"
+      "  speed: median error %.2f m/s (%.0f %%), 90th percentile %.2f m/s (%.0f %%) over "
+      "%lld tracks\n"
       "  direction: median error %.1f deg, 90th percentile %.1f deg over %lld tracks\n"
       "  visit: %.0f %% agree with the truth over %lld tracks\n"
       "  pick at the truth position: %.0f %% right (same target, within 0.5 s and 12 px) of "
       "%lld, %.1f us each\n",
       (long long)a.tracks, (long long)a.matched, a.speed_median_error_mps,
-      100 * a.speed_median_relative, a.speed_p90_error_mps, (long long)a.compared_speed,
-      a.direction_median_error_deg, a.direction_p90_error_deg, (long long)a.compared_direction,
-      100 * a.visit_agreement, (long long)a.compared_visit, 100 * a.pick_accuracy,
-      (long long)a.picks, a.pick_median_us);
+      100 * a.speed_median_relative, a.speed_p90_error_mps, 100 * a.speed_p90_relative,
+      (long long)a.compared_speed, a.direction_median_error_deg, a.direction_p90_error_deg,
+      (long long)a.compared_direction, 100 * a.visit_agreement, (long long)a.compared_visit,
+      100 * a.pick_accuracy, (long long)a.picks, a.pick_median_us);
+  return text;
+}
+
+namespace {
+
+// `status` with the video named first, as saker-cli reports a failure after the video was read.
+Status NamingVideo(const std::string& video, const Status& status) {
+  return Status(status.code(), video + ": " + status.message());
+}
+
+}  // namespace
+
+StatusOr<VideoEvaluation> EvaluateVideo(const std::string& video, const sim::Truth& truth,
+                                        const VideoEvaluationOptions& options, JobContext* job) {
+  VideoEvaluation e;
+  // The front end's errors name the video already.
+  SAKER_ASSIGN_OR_RETURN(e.front_end, frontend::RunFrontEnd(video, options.front_end, job));
+  StatusOr<frontend::Evaluation> detection =
+      frontend::Evaluate(e.front_end, truth, options.evaluation);
+  if (!detection.ok()) return NamingVideo(video, detection.status());
+  e.detection = std::move(*detection);
+  StatusOr<mosaic::MosaicResult> built = mosaic::BuildMosaic(e.front_end, options.mosaic, job);
+  if (!built.ok()) return NamingVideo(video, built.status());
+  StatusOr<mosaic::MosaicAccuracy> mosaic_accuracy = mosaic::EvaluateMosaic(*built, truth);
+  if (!mosaic_accuracy.ok()) return NamingVideo(video, mosaic_accuracy.status());
+  e.mosaic = std::move(*mosaic_accuracy);
+  const StatusOr<mission::Mission> mission = MissionFromRun(e.front_end, *built, options.activity);
+  if (!mission.ok()) return NamingVideo(video, mission.status());
+  StatusOr<ActivityAccuracy> activity =
+      EvaluateActivity(*mission, truth, options.activity.visit_gap_s);
+  if (!activity.ok()) return NamingVideo(video, activity.status());
+  e.activity = std::move(*activity);
+  if (options.experiments) {
+    if (auto experiment = mosaic::RunMetadataExperiment(*built, truth); experiment.ok()) {
+      e.metadata_experiment = std::move(*experiment);
+    }
+    if (auto experiment = mosaic::RunDecompositionExperiment(
+            *built, truth, options.mosaic.decomposition, options.mosaic.adjustment);
+        experiment.ok()) {
+      e.decomposition_experiment = std::move(*experiment);
+    }
+  }
+  return e;
+}
+
+nlohmann::json VideoEvaluationToJson(const VideoEvaluation& e) {
+  nlohmann::json j = frontend::EvaluationToJson(e.detection);
+  j["mosaic"] = mosaic::MosaicAccuracyToJson(e.mosaic);
+  j["activity"] = ActivityAccuracyToJson(e.activity);
+  if (const auto& m = e.metadata_experiment) {
+    j["metadata_experiment"] = {{"start_error_m", m->start_error_m},
+                                {"metadata_key_frames", m->metadata_key_frames},
+                                {"metadata_sigma_m", m->metadata_sigma_m},
+                                {"without_metadata_rms_m", m->without_metadata.rms_m},
+                                {"without_metadata_max_m", m->without_metadata.max_m},
+                                {"with_metadata_rms_m", m->with_metadata.rms_m},
+                                {"with_metadata_max_m", m->with_metadata.max_m}};
+  }
+  if (e.decomposition_experiment) {
+    j["decomposition_experiment"] =
+        mosaic::DecompositionExperimentToJson(*e.decomposition_experiment);
+  }
+  return j;
+}
+
+std::string VideoEvaluationToText(const VideoEvaluation& e, bool details) {
+  std::string text = frontend::EvaluationToText(e.detection, details);
+  text += mosaic::MosaicAccuracyToText(e.mosaic);
+  text += ActivityAccuracyToText(e.activity);
+  if (e.metadata_experiment) text += mosaic::MetadataExperimentToText(*e.metadata_experiment);
+  if (e.decomposition_experiment) {
+    text += mosaic::DecompositionExperimentToText(*e.decomposition_experiment);
+  }
   return text;
 }
 

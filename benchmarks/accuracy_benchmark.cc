@@ -1,0 +1,81 @@
+// saker-bench-accuracy: the front end and the mosaic over the accuracy corpus, a manifest of
+// simulated conditions (frame rates, traffic, imaging, metadata, ...) each flown over several
+// worlds, scored against the simulator's truth (docs/accuracy.md).
+//
+//   saker-bench-accuracy [MANIFEST] [--seeds tuning|reporting|all] [--only TEXT] [--jobs N]
+//                        [--cache DIR] [--json]
+//
+// MANIFEST defaults to benchmarks/corpus/corpus.json in the source tree. Each case is simulated
+// once into the cache (default build/accuracy-cache in the source tree), so a rerun only
+// evaluates. It prints a row per case, a summary per condition and an overall one (--json: the
+// same as JSON); progress goes to stderr. Exit code 1 when a case failed or the manifest is bad.
+
+#include "benchmarks/accuracy_corpus.h"
+#include "benchmarks/bench_stats.h"
+
+#include <CLI/CLI.hpp>
+
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <string>
+
+int main(int argc, char** argv) {
+  using namespace saker;
+  namespace fs = std::filesystem;
+  CLI::App app{"Accuracy of the front end and the mosaic over a corpus of simulated flights"};
+  std::string manifest = (fs::path(SAKER_SOURCE_DIR) / "benchmarks/corpus/corpus.json").string();
+  std::string seeds_name = "reporting";
+  std::string only;
+  std::string cache = (fs::path(SAKER_SOURCE_DIR) / "build/accuracy-cache").string();
+  int jobs = 1;
+  bool json = false;
+  app.add_option("MANIFEST", manifest, "Corpus manifest (docs/accuracy.md)")->capture_default_str();
+  app.add_option("--seeds", seeds_name,
+                 "Seeds to run: tuning (defaults may be tuned on these), reporting (the figures "
+                 "quoted in docs) or all")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"tuning", "reporting", "all"}));
+  app.add_option("--only", only, "Only the conditions whose name contains this text");
+  app.add_option("--jobs", jobs, "Cases run at once (each is multi-threaded already)")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 64));
+  app.add_option("--cache", cache, "Folder of simulated videos, kept between runs")
+      ->capture_default_str();
+  app.add_flag("--json", json, "Print the figures as JSON");
+  CLI11_PARSE(app, argc, argv);
+
+  const StatusOr<bench::Corpus> corpus = bench::ReadCorpus(manifest);
+  if (!corpus.ok()) {
+    std::cerr << "saker-bench-accuracy: " << corpus.status().message() << "\n";
+    return 1;
+  }
+  const bench::SeedSet seeds = *bench::ParseSeedSet(seeds_name);
+  const std::vector<bench::CorpusCase> cases = bench::CorpusCases(*corpus, seeds, only);
+  if (cases.empty()) {
+    std::cerr << "saker-bench-accuracy: " << manifest << ": no case to run (no " << seeds_name
+              << " seeds" << (only.empty() ? "" : ", or no condition name contains '" + only + "'")
+              << ")\n";
+    return 1;
+  }
+  std::cerr << "saker-bench-accuracy: " << cases.size() << " cases from " << manifest << ", cache "
+            << cache << ", " << jobs << (jobs == 1 ? " job" : " jobs") << "\n";
+
+  bench::CorpusRunOptions options;
+  options.cache_dir = cache;
+  options.jobs = jobs;
+  options.progress = [](const std::string& line) { std::cerr << line << std::endl; };
+  const bench::Clock::time_point start = bench::Clock::now();
+  const std::vector<bench::CaseResult> results = bench::RunCorpus(cases, options);
+  std::fprintf(stderr, "saker-bench-accuracy: done in %.0f s\n", bench::Seconds(start));
+
+  if (json) {
+    std::cout << bench::CorpusReportJson(*corpus, seeds, results).dump(2) << "\n";
+  } else {
+    std::cout << bench::CorpusReportText(results);
+  }
+  for (const bench::CaseResult& r : results) {
+    if (!r.error.empty()) return 1;
+  }
+  return 0;
+}
