@@ -210,14 +210,19 @@ SimulateCommand::SimulateCommand(CLI::App& app) : state_(std::make_unique<State>
                 "in degrees clockwise from the nose")
       ->capture_default_str()
       ->group(pointing);
-  c->add_option("--zoom-start", o.zoom.start_s, "Start of a zoom, seconds (none by default)")
-      ->group(pointing);
+  CLI::Option* zoom_start =
+      c->add_option("--zoom-start", o.zoom.start_s, "Start of a zoom, seconds (none by default)")
+          ->group(pointing);
   c->add_option("--zoom-duration", o.zoom.duration_s, "Length of the zoom, seconds")
       ->capture_default_str()
+      ->needs(zoom_start)
       ->group(pointing);
-  c->add_option("--zoom-to", o.zoom.to_hfov_deg,
-                "Horizontal field of view at the end of the zoom, degrees (from --hfov)")
-      ->group(pointing);
+  CLI::Option* zoom_to =
+      c->add_option("--zoom-to", o.zoom.to_hfov_deg,
+                    "Horizontal field of view at the end of the zoom, degrees (from --hfov)")
+          ->group(pointing);
+  zoom_start->needs(zoom_to);
+  zoom_to->needs(zoom_start);
 
   auto* world = "World";
   c->add_option("--loop-length", o.world.loop_length_m, "Length of the town's road loop, metres")
@@ -317,11 +322,14 @@ SimulateCommand::SimulateCommand(CLI::App& app) : state_(std::make_unique<State>
   c->add_flag("--variable-rate", o.sampling.variable_rate,
               "Frame intervals of 3/4 to 5/4 of the nominal one (a variable frame rate)")
       ->group(sampling);
-  c->add_option("--cut-at", o.cut.at_s,
-                "A splice at this video time, seconds: the video then shows the flight later on")
-      ->group(sampling);
+  CLI::Option* cut_at =
+      c->add_option(
+           "--cut-at", o.cut.at_s,
+           "A splice at this video time, seconds: the video then shows the flight later on")
+          ->group(sampling);
   c->add_option("--cut-jump", o.cut.jump_s, "How much later the video resumes after --cut-at, s")
       ->capture_default_str()
+      ->needs(cut_at)
       ->group(sampling);
 
   auto* overlays = "Burned-in overlays";

@@ -45,10 +45,17 @@ int main(int argc, char** argv) {
   app.add_flag("--json", json, "Print the figures as JSON");
   CLI11_PARSE(app, argc, argv);
 
+  bench::SetDefaultTestDataDir(SAKER_DEFAULT_TEST_DATA_DIR);
   const StatusOr<bench::Corpus> corpus = bench::ReadCorpus(manifest);
   if (!corpus.ok()) {
     std::cerr << "saker-bench-accuracy: " << corpus.status().message() << "\n";
     return 1;
+  }
+  for (const bench::CorpusCondition& condition : corpus->conditions) {
+    if (!condition.unavailable.empty() && condition.name.find(only) != std::string::npos) {
+      std::cerr << "saker-bench-accuracy: skipping " << condition.name << ": "
+                << condition.unavailable << "\n";
+    }
   }
   const bench::SeedSet seeds = *bench::ParseSeedSet(seeds_name);
   const std::vector<bench::CorpusCase> cases = bench::CorpusCases(*corpus, seeds, only);

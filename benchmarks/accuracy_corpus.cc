@@ -12,6 +12,8 @@
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
+#include <cstring>
 #include <fstream>
 #include <map>
 #include <mutex>
@@ -28,6 +30,17 @@ constexpr const char* kVideoName = "video.ts";
 constexpr const char* kTruthName = "video.truth.json";
 constexpr const char* kOptionsName = "options.json";
 constexpr const char* kTemporaryPrefix = ".tmp-";
+
+fs::path& DefaultTestDataDir() {
+  static fs::path dir;
+  return dir;
+}
+
+// The real third-party test data: $SAKER_TEST_DATA, else the default given by the executable.
+fs::path TestDataDir() {
+  if (const char* env = std::getenv("SAKER_TEST_DATA"); env != nullptr && *env != '\0') return env;
+  return DefaultTestDataDir();
+}
 
 // ---- The manifest ----------------------------------------------------------------------------
 
@@ -82,8 +95,12 @@ class ManifestReader {
     }
     const Status applied = sim::ApplyOptionsJson(overrides, options);
     if (!applied.ok()) return Error(where, applied.message());
-    // An orthophoto named relative to the manifest, so that the corpus can carry its own.
-    if (!options->ground_image.empty() && options->ground_image.is_relative()) {
+    // An orthophoto of the test data, or named relative to the manifest, so that the corpus can
+    // carry its own.
+    const std::string image = options->ground_image.string();
+    if (image.rfind(kTestDataPrefix, 0) == 0) {
+      options->ground_image = TestDataDir() / image.substr(std::strlen(kTestDataPrefix));
+    } else if (!options->ground_image.empty() && options->ground_image.is_relative()) {
       options->ground_image = fs::absolute(manifest_).parent_path() / options->ground_image;
     }
     return Status::Ok();
@@ -489,6 +506,11 @@ StatusOr<Corpus> ReadCorpus(const fs::path& manifest) {
     if (const Status valid = check.Validate(); !valid.ok()) {
       return reader.Error(where + ".options", valid.message());
     }
+    if (!condition.simulation.ground_image.empty() &&
+        !fs::exists(condition.simulation.ground_image)) {
+      condition.unavailable = "its ground image " + condition.simulation.ground_image.string() +
+                              " is missing (the real test data: set SAKER_TEST_DATA)";
+    }
     condition.scoring = scoring;
     if (c.contains("evaluation")) {
       SAKER_RETURN_IF_ERROR(
@@ -497,6 +519,10 @@ StatusOr<Corpus> ReadCorpus(const fs::path& manifest) {
     corpus.conditions.push_back(std::move(condition));
   }
   return corpus;
+}
+
+void SetDefaultTestDataDir(const std::filesystem::path& default_test_data) {
+  DefaultTestDataDir() = default_test_data;
 }
 
 std::vector<CorpusCase> CorpusCases(const Corpus& corpus, SeedSet seeds, const std::string& only) {
@@ -509,7 +535,7 @@ std::vector<CorpusCase> CorpusCases(const Corpus& corpus, SeedSet seeds, const s
   }
   std::vector<CorpusCase> cases;
   for (const CorpusCondition& condition : corpus.conditions) {
-    if (condition.name.find(only) == std::string::npos) continue;
+    if (condition.name.find(only) == std::string::npos || !condition.unavailable.empty()) continue;
     for (const auto& [seed, tuning] : chosen) {
       CorpusCase c;
       c.condition = condition.name;

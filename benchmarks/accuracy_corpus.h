@@ -49,6 +49,9 @@ struct CorpusCondition {
   sim::SimulationOptions simulation;  // defaults, then the condition's options; seed and output
                                       // paths are set per case
   CorpusScoring scoring;
+  // Why the condition cannot run here (its orthophoto is in the test data folder, which is
+  // absent); empty when it can. CorpusCases leaves such conditions out.
+  std::string unavailable;
 };
 
 // A manifest read and checked: every condition's options are valid simulation options.
@@ -68,12 +71,19 @@ struct CorpusCase {
   std::string Name() const { return condition + "/" + std::to_string(seed); }
 };
 
+// A `ground_image` that starts with "$SAKER_TEST_DATA/" names a file of the real third-party test
+// data: the folder of the environment variable SAKER_TEST_DATA, else `default_test_data` (the
+// shared data folder beside the source tree). Other relative paths are relative to the manifest.
+inline constexpr const char* kTestDataPrefix = "$SAKER_TEST_DATA/";
+void SetDefaultTestDataDir(const std::filesystem::path& default_test_data);
+
 // Reads a manifest (format in docs/accuracy.md). Errors name the manifest and the key at fault
 // ("corpus.json: conditions[3] "nadir-2fps": options: unknown simulation option 'flight.alt'").
 StatusOr<Corpus> ReadCorpus(const std::filesystem::path& manifest);
 
 // The cases of `seeds` for the conditions whose name contains `only` (every condition when
-// empty), condition by condition in manifest order, seeds in manifest order.
+// empty) that are available here (CorpusCondition::unavailable), condition by condition in manifest
+// order, seeds in manifest order.
 std::vector<CorpusCase> CorpusCases(const Corpus& corpus, SeedSet seeds,
                                     const std::string& only = "");
 

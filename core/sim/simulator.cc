@@ -569,10 +569,12 @@ StatusOr<SimulationSetup> SimulationSetup::Create(const SimulationOptions& optio
     const double t = setup.CameraTimeAt(double(i) * frame_interval);
     const auto footprint = GroundFootprint(setup.CameraAt(t), setup.flight_->PoseAt(t));
     if (!footprint) {
-      return InvalidArgumentError(
-          "simulate: at " + std::to_string(t) + " s the camera sees above the horizon (or within " +
-          std::to_string(int(kMinRayDepressionDeg)) +
-          " degrees of it); reduce the angle off nadir, the field of view or the attitude jitter");
+      return InvalidArgumentError("simulate: at " + std::to_string(t) +
+                                  " s the camera sees above the horizon (or within " +
+                                  std::to_string(int(kMinRayDepressionDeg)) +
+                                  " degrees of it); reduce the angle off nadir (in an orbit: the "
+                                  "radius against the altitude), "
+                                  "the field of view or the attitude jitter");
     }
     for (const Vector2d& p : *footprint) {
       x0 = std::min(x0, p.x()), x1 = std::max(x1, p.x());

@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include <cmath>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <functional>
@@ -44,6 +45,7 @@ fs::path WriteManifest(const json& manifest, const std::string& name) {
 }
 
 TEST(AccuracyCorpusTest, TheRepositoryManifestsReadWithApartSeeds) {
+  if (const auto data = saker::testing::TestDataDir()) SetDefaultTestDataDir(*data);
   for (const char* name : {"corpus.json", "smoke.json"}) {
     const StatusOr<Corpus> corpus = ReadCorpus(kCorpusDir / name);
     ASSERT_TRUE(corpus.ok()) << corpus.status().ToString();
@@ -52,9 +54,18 @@ TEST(AccuracyCorpusTest, TheRepositoryManifestsReadWithApartSeeds) {
       // The defaults were tuned on worlds 1 to 3.
       EXPECT_GT(seed, 3u) << name;
     }
-    EXPECT_EQ(
-        CorpusCases(*corpus, SeedSet::kAll).size(),
-        corpus->conditions.size() * (corpus->tuning_seeds.size() + corpus->reporting_seeds.size()));
+    // Every condition runs, but one whose orthophoto is in the real test data when that is
+    // absent.
+    size_t available = 0;
+    for (const CorpusCondition& condition : corpus->conditions) {
+      available += condition.unavailable.empty();
+      if (!condition.unavailable.empty()) {
+        EXPECT_NE(condition.unavailable.find("SAKER_TEST_DATA"), std::string::npos);
+      }
+    }
+    EXPECT_GE(available + 1, corpus->conditions.size()) << name;
+    EXPECT_EQ(CorpusCases(*corpus, SeedSet::kAll).size(),
+              available * (corpus->tuning_seeds.size() + corpus->reporting_seeds.size()));
   }
   const StatusOr<Corpus> corpus = ReadCorpus(kCorpusDir / "corpus.json");
   ASSERT_TRUE(corpus.ok());
@@ -74,6 +85,43 @@ TEST(AccuracyCorpusTest, TheRepositoryManifestsReadWithApartSeeds) {
   EXPECT_EQ(slow[0].evaluation.min_mover_frames, CorpusScoring::kMinMoverFrames);
   EXPECT_EQ(slow[0].evaluation.max_sighting_gap_frames, 4);
   EXPECT_FALSE(slow[0].tuning);
+}
+
+TEST(AccuracyCorpusTest, AnOrthophotoOfTheTestDataIsFoundOrTheConditionIsLeftOut) {
+  const fs::path empty = saker::testing::MakeTempDir("saker-corpus-no-data");
+  const nlohmann::json manifest = {
+      {"format", "saker-accuracy-corpus"},
+      {"version", 1},
+      {"tuning_seeds", nlohmann::json::array()},
+      {"reporting_seeds", {101}},
+      {"conditions",
+       {{{"name", "ortho"},
+         {"options",
+          {{"scenario", "straight"},
+           {"ground_image", "$SAKER_TEST_DATA/imagery/odm_aukerman_orthomosaic.png"},
+           {"ground_gsd_m", 0.3}}}}}}};
+  const fs::path path = WriteManifest(manifest, "ortho.json");
+  SetDefaultTestDataDir(empty);
+  const char* env = std::getenv("SAKER_TEST_DATA");
+  const std::string saved = env != nullptr ? env : "";
+  unsetenv("SAKER_TEST_DATA");
+  StatusOr<Corpus> corpus = ReadCorpus(path);
+  ASSERT_TRUE(corpus.ok()) << corpus.status().ToString();
+  EXPECT_EQ(corpus->conditions[0].simulation.ground_image,
+            empty / "imagery/odm_aukerman_orthomosaic.png");
+  EXPECT_NE(corpus->conditions[0].unavailable.find("is missing"), std::string::npos);
+  EXPECT_TRUE(CorpusCases(*corpus, SeedSet::kAll).empty());
+  // The variable wins over the default.
+  setenv("SAKER_TEST_DATA", "/elsewhere", 1);
+  corpus = ReadCorpus(path);
+  ASSERT_TRUE(corpus.ok());
+  EXPECT_EQ(corpus->conditions[0].simulation.ground_image,
+            fs::path("/elsewhere/imagery/odm_aukerman_orthomosaic.png"));
+  if (env != nullptr) {
+    setenv("SAKER_TEST_DATA", saved.c_str(), 1);
+  } else {
+    unsetenv("SAKER_TEST_DATA");
+  }
 }
 
 TEST(AccuracyCorpusTest, ConditionOptionsGoOverTheDefaults) {
