@@ -71,12 +71,26 @@ bool ImagingOptions::IsBlank(double time_s) const {
   return blank_start_s >= 0 && time_s >= blank_start_s && time_s < blank_start_s + blank_duration_s;
 }
 
+namespace {
+
+// The lens model's units: pixels from the image centre, as fractions of the half diagonal.
+struct LensFrame {
+  Eigen::Vector2d centre;
+  double half_diagonal;
+};
+
+LensFrame LensFrameOf(int width, int height) {
+  return {Eigen::Vector2d(0.5 * (width - 1), 0.5 * (height - 1)),
+          0.5 * std::hypot(double(width), double(height))};
+}
+
+}  // namespace
+
 Eigen::Vector2d LensDistort(const Eigen::Vector2d& pixel, int width, int height, double k1) {
   if (k1 == 0) return pixel;
-  const Eigen::Vector2d centre(0.5 * (width - 1), 0.5 * (height - 1));
-  const double half_diagonal = 0.5 * std::hypot(double(width), double(height));
-  const Eigen::Vector2d u = (pixel - centre) / half_diagonal;
-  return centre + u * (1 + k1 * u.squaredNorm()) * half_diagonal;
+  const LensFrame lens = LensFrameOf(width, height);
+  const Eigen::Vector2d u = (pixel - lens.centre) / lens.half_diagonal;
+  return lens.centre + u * (1 + k1 * u.squaredNorm()) * lens.half_diagonal;
 }
 
 FrameRenderer::FrameRenderer(const GroundSource& ground, const CameraIntrinsics& camera,
@@ -86,20 +100,17 @@ FrameRenderer::FrameRenderer(const GroundSource& ground, const CameraIntrinsics&
     // For each distorted pixel, the ideal one it shows: invert r_d = r_u (1 + k1 r_u^2) by
     // fixed-point iteration (it converges for |k1| <= 0.3 within the image).
     const int w = camera_.width, h = camera_.height;
-    const double cx = 0.5 * (w - 1), cy = 0.5 * (h - 1);
-    const double half_diagonal = 0.5 * std::hypot(double(w), double(h));
+    const LensFrame lens = LensFrameOf(w, h);
     distortion_x_.create(h, w, CV_32F);
     distortion_y_.create(h, w, CV_32F);
     for (int y = 0; y < h; ++y) {
       for (int x = 0; x < w; ++x) {
-        const double dx = (x - cx) / half_diagonal, dy = (y - cy) / half_diagonal;
-        double ux = dx, uy = dy;
-        for (int k = 0; k < 20; ++k) {
-          const double scale = 1 + imaging_.lens_k1 * (ux * ux + uy * uy);
-          ux = dx / scale, uy = dy / scale;
-        }
-        distortion_x_.at<float>(y, x) = float(cx + ux * half_diagonal);
-        distortion_y_.at<float>(y, x) = float(cy + uy * half_diagonal);
+        const Eigen::Vector2d d = (Eigen::Vector2d(x, y) - lens.centre) / lens.half_diagonal;
+        Eigen::Vector2d u = d;
+        for (int k = 0; k < 20; ++k) u = d / (1 + imaging_.lens_k1 * u.squaredNorm());
+        const Eigen::Vector2d ideal = lens.centre + u * lens.half_diagonal;
+        distortion_x_.at<float>(y, x) = float(ideal.x());
+        distortion_y_.at<float>(y, x) = float(ideal.y());
       }
     }
   }
@@ -234,18 +245,20 @@ cv::Mat FrameRenderer::RenderGround(const Eigen::Matrix3d& frame_from_ground,
     cv::Mat band, band_valid;
     RenderRows(frame_from_ground, row0, row1, bands[i].second, &band,
                valid != nullptr ? &band_valid : nullptr);
+    band.convertTo(band, CV_32FC3);
+    if (valid != nullptr) band_valid.convertTo(band_valid, CV_32F);
     for (int r = row0; r < row1; ++r) {
       // Weights ramp over the 2 kBlendRows rows about each boundary and add up to one.
-      float w = 1.f;
-      if (i > 0 && r < top + kBlendRows) w = (r - (top - kBlendRows) + 0.5f) / (2 * kBlendRows);
+      double w = 1;
+      if (i > 0 && r < top + kBlendRows) w = (r - (top - kBlendRows) + 0.5) / (2 * kBlendRows);
       if (i + 1 < bands.size() && r >= bottom - kBlendRows)
-        w = std::min(w, (bottom + kBlendRows - r - 0.5f) / (2 * kBlendRows));
-      cv::Mat row;
-      band.row(r - row0).convertTo(row, CV_32FC3, w);
-      sum.row(r) += row;
+        w = std::min(w, (bottom + kBlendRows - r - 0.5) / (2 * kBlendRows));
+      // sum.row(r) += w * band row, in place (the row headers allocate nothing).
+      cv::Mat sum_row = sum.row(r);
+      cv::scaleAdd(band.row(r - row0), w, sum_row, sum_row);
       if (valid != nullptr) {
-        band_valid.row(r - row0).convertTo(row, CV_32F, w);
-        sum_valid.row(r) += row;
+        cv::Mat valid_row = sum_valid.row(r);
+        cv::scaleAdd(band_valid.row(r - row0), w, valid_row, valid_row);
       }
     }
   }

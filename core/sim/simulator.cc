@@ -706,6 +706,8 @@ StatusOr<SimulationSummary> Simulate(const SimulationOptions& options_in, JobCon
     const CameraPose pose = flight.PoseAt(slot.camera_s);
     const CameraIntrinsics lens = setup.CameraAt(slot.camera_s);
     const Eigen::Matrix3d frame_from_ground = FrameFromGround(lens, pose);
+    // UTC of the moment shown (after a cut, later than the video time says).
+    const uint64_t utc_us = options.start_utc_us + uint64_t(std::llround(slot.camera_s * 1e6));
 
     if (slot.repeated) {
       // The previous picture again, with this frame's time: its truth is the previous frame's.
@@ -748,7 +750,6 @@ StatusOr<SimulationSummary> Simulate(const SimulationOptions& options_in, JobCon
         }
       }
       if (options.metadata.Due(i) && !klv_random.Bernoulli(options.metadata.dropout_probability)) {
-        const uint64_t utc_us = options.start_utc_us + uint64_t(std::llround(slot.camera_s * 1e6));
         StatusOr<std::vector<uint8_t>> packet =
             FrameKlv(plane, utc_us, lens, pose, options, mission, &klv_random);
         if (!packet.ok()) return fail(packet.status());
@@ -768,7 +769,7 @@ StatusOr<SimulationSummary> Simulate(const SimulationOptions& options_in, JobCon
       next = pending;
     } else {
       HudTelemetry telemetry;
-      telemetry.utc_us = options.start_utc_us + uint64_t(std::llround(slot.camera_s * 1e6));
+      telemetry.utc_us = utc_us;
       telemetry.frame_index = i;
       const geo::Wgs84 sensor = plane.Wgs84FromEnu(pose.position_m);
       telemetry.latitude_deg = sensor.latitude_deg, telemetry.longitude_deg = sensor.longitude_deg;
