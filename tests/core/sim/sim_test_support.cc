@@ -1,6 +1,7 @@
 #include "tests/core/sim/sim_test_support.h"
 
 #include "core/video/video_reader.h"
+#include "tests/core/video/read_all.h"
 
 #include <Eigen/Geometry>
 #include <Eigen/LU>
@@ -26,35 +27,30 @@ SimulationOptions SmallOptions(const std::filesystem::path& output) {
 
 namespace {
 
-// Calls `use` with every decoded frame of the video, in order.
-template <class Use>
-void ForEachFrame(const std::filesystem::path& path, bool want_bgr, Use&& use) {
+// Every frame of the video (with BGR images when `want_bgr`).
+video::Pass ReadVideo(const std::filesystem::path& path, bool want_bgr) {
   video::ReaderOptions options;
   options.want_bgr = want_bgr;
+  video::Pass pass;
   auto reader = video::VideoReader::Open(path.string(), options);
   EXPECT_TRUE(reader.ok()) << reader.status().ToString();
-  if (!reader.ok()) return;
-  video::Frame frame;
-  std::vector<video::DataPacket> data;
-  while (true) {
-    StatusOr<bool> more = (*reader)->ReadNext(&frame, &data);
-    EXPECT_TRUE(more.ok());
-    if (!more.ok() || !*more) break;
-    use(frame);
-  }
+  if (!reader.ok()) return pass;
+  const Status status = video::ReadAll(reader->get(), &pass);
+  EXPECT_TRUE(status.ok()) << status.ToString();
+  return pass;
 }
 
 }  // namespace
 
 std::vector<double> DecodeTimes(const std::filesystem::path& path) {
   std::vector<double> times;
-  ForEachFrame(path, false, [&](const video::Frame& frame) { times.push_back(frame.time_s); });
+  for (const video::Frame& frame : ReadVideo(path, false).frames) times.push_back(frame.time_s);
   return times;
 }
 
 std::vector<cv::Mat> DecodeAll(const std::filesystem::path& path) {
   std::vector<cv::Mat> frames;
-  ForEachFrame(path, true, [&](const video::Frame& frame) { frames.push_back(frame.bgr.clone()); });
+  for (const video::Frame& frame : ReadVideo(path, true).frames) frames.push_back(frame.bgr);
   return frames;
 }
 

@@ -417,6 +417,34 @@ TEST(TsWriterTest, ReorderedFramesKeepExactTimesAtNtscAndSlowRates) {
   }
 }
 
+TEST(TsWriterTest, SkippedFrameTimesLeaveGapsInTheTimeStamps) {
+  const fs::path path = TempFile("skipped.ts");
+  auto writer = OpenOrDie(path, SmallH264());  // 25 fps
+  ASSERT_NE(writer, nullptr);
+  // Frames at slots 0, 1, 4 and 5; KLV for slot 4 goes with the third picture.
+  ASSERT_TRUE(writer->WriteFrame(TexturedFrame(0, 128, 96)).ok());
+  ASSERT_TRUE(writer->WriteFrame(TexturedFrame(1, 128, 96)).ok());
+  ASSERT_TRUE(writer->SkipFrames(2).ok());
+  ASSERT_TRUE(writer->WriteKlv(Packet(4, 30), 4).ok());
+  ASSERT_TRUE(writer->WriteFrame(TexturedFrame(4, 128, 96)).ok());
+  ASSERT_TRUE(writer->SkipFrames(0).ok());
+  ASSERT_TRUE(writer->WriteFrame(TexturedFrame(5, 128, 96)).ok());
+  const Status negative = writer->SkipFrames(-1);
+  EXPECT_EQ(negative.code(), StatusCode::kInvalidArgument);
+  EXPECT_NE(negative.message().find(path.string()), std::string::npos) << negative.message();
+  ASSERT_TRUE(writer->Close().ok());
+  EXPECT_EQ(writer->frames_written(), 4);
+  EXPECT_EQ(writer->SkipFrames(1).code(), StatusCode::kInvalidArgument) << "after Close";
+  const Pass pass = ReadBack(path);
+  ASSERT_EQ(pass.frames.size(), 4u);
+  const int slots[] = {0, 1, 4, 5};
+  for (size_t i = 0; i < 4; ++i) {
+    EXPECT_NEAR(pass.frames[i].time_s, slots[i] / 25.0, kTimeTolerance) << "frame " << i;
+  }
+  ASSERT_EQ(pass.data.size(), 1u);
+  EXPECT_NEAR(pass.data[0].time_s, 4 / 25.0, kTimeTolerance);
+}
+
 // --- Determinism -------------------------------------------------------------------------------
 
 TEST(TsWriterTest, SameInputGivesByteIdenticalFiles) {
