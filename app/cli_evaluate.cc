@@ -1,9 +1,10 @@
 #include "app/cli_evaluate.h"
 
+#include "app/cli_common.h"
 #include "app/cli_mosaic.h"
-#include "core/frontend/evaluate.h"
+#include "core/eval/front_end_accuracy.h"
+#include "core/eval/video_evaluation.h"
 #include "core/mosaic/mosaic_builder.h"
-#include "core/pipeline/evaluate.h"
 #include "core/sim/truth.h"
 
 #include <filesystem>
@@ -21,7 +22,7 @@ struct EvaluateCommand::State {
   bool no_change = false;
   std::string adjust = "decomposed";
   mosaic::DecompositionOptions decomposition;
-  frontend::EvaluationOptions evaluation;
+  eval::FrontEndEvaluationOptions evaluation;
 };
 
 EvaluateCommand::EvaluateCommand(CLI::App& app) : state_(std::make_unique<State>()) {
@@ -81,26 +82,19 @@ int EvaluateCommand::Run() const {
   if (truth_path.empty())
     truth_path = std::filesystem::path(s.video).replace_extension(".truth.json");
   StatusOr<sim::Truth> truth = sim::ReadTruth(truth_path);
-  if (!truth.ok()) {
-    std::cerr << "saker-cli: " << truth.status().message() << "\n";
-    return 1;
-  }
-  pipeline::VideoEvaluationOptions options;
+  if (!truth.ok()) return Fail(truth.status());
+  eval::VideoEvaluationOptions options;
   options.front_end.change.enabled = !s.no_change;
   options.evaluation = s.evaluation;
   options.mosaic.use_metadata = !s.no_metadata;
   options.mosaic.adjust_mode = *mosaic::ParseAdjustmentMode(s.adjust);
   options.mosaic.decomposition = s.decomposition;
-  const StatusOr<pipeline::VideoEvaluation> evaluation =
-      pipeline::EvaluateVideo(s.video, *truth, options);
-  if (!evaluation.ok()) {
-    std::cerr << "saker-cli: " << evaluation.status().message() << "\n";
-    return 1;
-  }
+  const StatusOr<eval::VideoEvaluation> evaluation = eval::EvaluateVideo(s.video, *truth, options);
+  if (!evaluation.ok()) return Fail(evaluation.status());
   if (s.json) {
-    std::cout << pipeline::VideoEvaluationToJson(*evaluation).dump(2) << "\n";
+    std::cout << eval::VideoEvaluationToJson(*evaluation).dump(2) << "\n";
   } else {
-    std::cout << pipeline::VideoEvaluationToText(*evaluation, s.details);
+    std::cout << eval::VideoEvaluationToText(*evaluation, s.details);
   }
   return 0;
 }

@@ -2,6 +2,7 @@
 // do is reachable from here: `probe`, `klv`, `simulate`, `evaluate`, `mosaic`,
 // `process`, `export`, `copy`, `info` and `demo`.
 
+#include "app/cli_common.h"
 #include "app/cli_evaluate.h"
 #include "app/cli_mission.h"
 #include "app/cli_mosaic.h"
@@ -26,10 +27,10 @@ namespace {
 constexpr const char* kVersion = SAKER_VERSION;
 
 // Exit codes, documented in --help.
-constexpr int kExitOk = 0;
-constexpr int kExitInputError = 1;  // the file could not be read as a video
-constexpr int kExitUsage = 2;       // bad command line
-constexpr int kExitBug = 3;         // an internal check failed
+using saker::app::kExitBug;
+using saker::app::kExitOk;
+using saker::app::kExitUsage;
+constexpr int kExitInputError = saker::app::kExitFailed;  // the file could not be read as a video
 
 int RunScan(const std::string& file, bool json, bool dump_klv, double tolerance_s) {
   saker::ingest::ScanOptions options;

@@ -1,5 +1,6 @@
 #include "app/cli_mission.h"
 
+#include "app/cli_common.h"
 #include "app/cli_interrupt.h"
 #include "app/cli_mosaic.h"
 #include "core/activity/colours.h"
@@ -7,6 +8,7 @@
 #include "core/mosaic/decomposition.h"
 #include "core/pipeline/checkpoint.h"
 #include "core/pipeline/export_mission.h"
+#include "core/pipeline/open_mission.h"
 #include "core/pipeline/process.h"
 #include "core/render/activity_map.h"
 #include "core/util/memory.h"
@@ -19,23 +21,6 @@
 #include <map>
 
 namespace saker::app {
-namespace {
-
-constexpr int kExitOk = 0;
-constexpr int kExitFailed = 1;
-constexpr int kExitCancelled = 130;  // as a shell reports a job stopped by Ctrl-C
-
-int Fail(const Status& status) {
-  std::cerr << "saker-cli: " << status.message() << "\n";
-  return status.code() == StatusCode::kCancelled ? kExitCancelled : kExitFailed;
-}
-
-void ClearProgressLine(bool shown) {
-  if (shown && isatty(STDERR_FILENO) != 0) std::cerr << "\r" << std::string(60, ' ') << "\r";
-}
-
-}  // namespace
-
 // ---------------------------------------------------------------------------------------------
 struct ProcessCommand::State {
   CLI::App* command = nullptr;
@@ -197,7 +182,7 @@ int ExportCommand::Run() const {
   if (s.png.empty() && s.geotiff.empty() && s.geojson.empty() && s.kml.empty() && s.csv.empty()) {
     std::cerr << "saker-cli export: give at least one of --png, --geotiff, --geojson, --kml, "
                  "--csv\n";
-    return 2;
+    return kExitUsage;
   }
   StatusOr<std::unique_ptr<mission::MissionStore>> store = mission::MissionStore::Open(s.mission);
   if (!store.ok()) return Fail(store.status());
@@ -288,24 +273,26 @@ bool InfoCommand::parsed() const { return state_->command->parsed(); }
 
 int InfoCommand::Run() const {
   const State& s = *state_;
-  StatusOr<std::unique_ptr<mission::MissionStore>> store = mission::MissionStore::Open(s.mission);
-  if (!store.ok()) return Fail(store.status());
-  StatusOr<mission::Mission> m = (*store)->Load();
-  if (!m.ok()) return Fail(m.status());
-  StatusOr<int64_t> tiles = (*store)->CountTiles();
-  if (!tiles.ok()) return Fail(tiles.status());
-  StatusOr<std::optional<pipeline::CheckpointState>> checkpoint_state =
-      pipeline::ReadCheckpointState(**store);
-  if (!checkpoint_state.ok()) return Fail(checkpoint_state.status());
-  const std::optional<pipeline::CheckpointState>& checkpoint = *checkpoint_state;
+  pipeline::OpenMissionOptions open_options;
+  open_options.read_previews = false;
+  StatusOr<pipeline::OpenedMission> opened = pipeline::OpenMission(s.mission, open_options);
+  if (!opened.ok()) return Fail(opened.status());
+  const mission::Mission* m = &opened->mission;
+  const int64_t* tiles = &opened->tiles;
+  const std::optional<pipeline::CheckpointState>& checkpoint = opened->checkpoint;
   // Is the video still there, and the same file?
-  std::string video_state = "missing: frame recall needs it (the mosaic and tracks do not)";
-  std::error_code error;
-  if (std::filesystem::is_regular_file(m->source.path, error)) {
-    const StatusOr<std::string> fingerprint = mission::FingerprintFile(m->source.path);
-    video_state = fingerprint.ok() && *fingerprint == m->source.fingerprint
-                      ? "present"
-                      : "changed: the file at that path is not the video that was processed";
+  std::string video_state;
+  const pipeline::VideoLocation& video = opened->video;
+  switch (video.state) {
+    case pipeline::VideoLocation::State::kFound:
+      video_state = video.path == m->source.path ? "present" : "moved: found at " + video.path;
+      break;
+    case pipeline::VideoLocation::State::kChanged:
+      video_state = "changed: the file at " + video.path + " is not the video that was processed";
+      break;
+    case pipeline::VideoLocation::State::kMissing:
+      video_state = "missing: frame recall needs it (the mosaic and tracks do not)";
+      break;
   }
   std::map<int, int> visits;
   int64_t observations = 0;

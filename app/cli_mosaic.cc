@@ -1,8 +1,10 @@
 #include "app/cli_mosaic.h"
 
+#include "app/cli_common.h"
 #include "core/frontend/front_end.h"
 #include "core/mosaic/mosaic_builder.h"
 #include "core/mosaic/render.h"
+#include "core/pipeline/stages.h"
 #include "core/render/activity_map.h"
 
 #include <nlohmann/json.hpp>
@@ -29,27 +31,6 @@ struct MosaicCommand::State {
   mosaic::MosaicOptions mosaic;
   mosaic::RenderOptions render;
 };
-
-CLI::Option* AddAdjustOption(CLI::App* command, std::string* mode) {
-  return command
-      ->add_option("--adjust", *mode,
-                   "Bundle adjustment of every key frame (full) or of the nodes of the node/arc "
-                   "decomposition, the other key frames then placed along the arcs (decomposed)")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"full", "decomposed"}));
-}
-
-JobContext ProgressContext(bool quiet) {
-  if (quiet || isatty(STDERR_FILENO) == 0) return JobContext();
-  return JobContext(
-      [last = std::string(), percent = -1](const std::string& stage, double fraction) mutable {
-        const int p = int(fraction * 100);
-        if (stage == last && p == percent) return;
-        last = stage;
-        percent = p;
-        std::cerr << "\r" << stage << ": " << p << " %   " << std::flush;
-      });
-}
 
 MosaicCommand::MosaicCommand(CLI::App& app) : state_(std::make_unique<State>()) {
   State& s = *state_;
@@ -94,11 +75,7 @@ int MosaicCommand::Run() const { return RunOn(state_->video, state_->output.stri
 int MosaicCommand::RunOn(const std::string& video, const std::string& output) const {
   const State& s = *state_;
   JobContext job = ProgressContext(s.quiet || s.json);
-  const auto fail = [&](const Status& status) {
-    if (!s.quiet && !s.json && isatty(STDERR_FILENO) != 0) std::cerr << "\n";
-    std::cerr << "saker-cli: " << status.message() << "\n";
-    return 1;
-  };
+  const auto fail = [&](const Status& status) { return Fail(status, !s.quiet && !s.json); };
   // Fail before the work, not after it, when the picture cannot be written there.
   const std::filesystem::path folder = std::filesystem::absolute(output).parent_path();
   if (std::error_code error; !std::filesystem::is_directory(folder, error)) {
@@ -106,14 +83,25 @@ int MosaicCommand::RunOn(const std::string& video, const std::string& output) co
               << " does not exist\n";
     return 1;
   }
-  StatusOr<frontend::FrontEndResult> front = frontend::RunFrontEnd(video, {}, &job);
-  if (!front.ok()) return fail(front.status());
-  mosaic::MosaicOptions options = s.mosaic;
-  options.use_metadata = !s.no_metadata;
-  options.adjust_mode = *mosaic::ParseAdjustmentMode(s.adjust);
-  StatusOr<mosaic::MosaicResult> result = mosaic::BuildMosaic(*front, options, &job);
-  if (!result.ok())
-    return fail(Status(result.status().code(), video + ": " + result.status().message()));
+  // The engine's stages up to the mosaic, as a processing job runs them.
+  pipeline::StageOptions options;
+  options.mosaic = s.mosaic;
+  options.mosaic.use_metadata = !s.no_metadata;
+  options.mosaic.adjust_mode = *mosaic::ParseAdjustmentMode(s.adjust);
+  pipeline::StageHooks hooks;
+  hooks.last = pipeline::Stage::kMosaic;
+  pipeline::MissionRun run;
+  const Status ran = pipeline::RunStages(video, options, hooks, &job, &run);
+  if (!ran.ok()) {
+    // The front end names the video in its errors, and so does the mosaic but for a cancellation.
+    const bool named =
+        run.failed == pipeline::Stage::kFrontEnd || ran.code() != StatusCode::kCancelled;
+    return fail(named ? ran : Status(ran.code(), video + ": " + ran.message()));
+  }
+  if (!run.mosaic)
+    return fail(Status(run.no_mosaic.code(), video + ": " + run.no_mosaic.message()));
+  const frontend::FrontEndResult* front = &run.front;
+  const mosaic::MosaicResult* result = &*run.mosaic;
   mosaic::RenderOptions render = s.render;
   render.outlines = render.links = s.outlines;
   mosaic::LinkGraph drawn = result->graph;

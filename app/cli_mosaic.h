@@ -13,14 +13,6 @@
 
 namespace saker::app {
 
-// `--adjust full|decomposed` (mosaic::ParseAdjustmentMode reads it), shared by the subcommands
-// that build a mosaic.
-CLI::Option* AddAdjustOption(CLI::App* command, std::string* mode);
-
-// Progress on one stderr line, rewritten in place; silent when quiet or when stderr is not a
-// terminal (a log file would collect every update).
-JobContext ProgressContext(bool quiet);
-
 class MosaicCommand {
  public:
   explicit MosaicCommand(CLI::App& app);

@@ -1,5 +1,6 @@
 #include "app/cli_simulate.h"
 
+#include "app/cli_common.h"
 #include "app/cli_interrupt.h"
 #include "core/sim/simulator.h"
 #include "core/util/job_context.h"
@@ -17,10 +18,6 @@
 
 namespace saker::app {
 namespace {
-
-constexpr int kExitOk = 0;
-constexpr int kExitFailed = 1;
-constexpr int kExitUsage = 2;
 
 // A one-line progress bar on stderr when it is a terminal; silent otherwise.
 class ProgressBar {

@@ -1,7 +1,7 @@
 #include "benchmarks/accuracy_corpus.h"
 
 #include "benchmarks/bench_stats.h"
-#include "core/pipeline/evaluate.h"
+#include "core/eval/video_evaluation.h"
 
 #include <signal.h>
 #include <unistd.h>
@@ -199,10 +199,10 @@ const char* MosaicUnitName(CorpusFigures::MosaicUnit unit) {
   return "none";
 }
 
-CorpusFigures FiguresOf(const pipeline::VideoEvaluation& e, const sim::Truth& truth) {
+CorpusFigures FiguresOf(const eval::VideoEvaluation& e, const sim::Truth& truth) {
   CorpusFigures f;
   f.cases = 1;
-  const frontend::DetectionAccuracy& t = e.detection.targets;
+  const eval::DetectionAccuracy& t = e.detection.targets;
   f.truth_targets = t.truth_targets;
   f.found_targets = t.found_targets;
   f.detected_tracks = t.detected_tracks;
@@ -211,14 +211,14 @@ CorpusFigures FiguresOf(const pipeline::VideoEvaluation& e, const sim::Truth& tr
   f.paired_movers = t.paired;
   f.detections = t.detections;
   f.paired_detections = t.paired_detections;
-  for (const frontend::SightingOutcome& s : t.sightings) {
+  for (const eval::SightingOutcome& s : t.sightings) {
     if (s.found) f.latencies_s.push_back(s.latency_s);
   }
   f.overlay_tracks = CountOverlayTracks(e.front_end, truth);
   f.speed_relative_errors = e.activity.speed_relative_errors;
   f.homography_errors_px = e.detection.homography.errors_px;
   f.homography_failed = e.detection.homography.failed;
-  const mosaic::MosaicAccuracy& m = e.mosaic;
+  const eval::MosaicAccuracy& m = e.mosaic;
   if (m.key_frames > 0) {
     const bool metres = m.geo_referenced && m.before_absolute && m.after_absolute;
     f.mosaic_unit =
@@ -392,11 +392,11 @@ Status MeasureCase(const fs::path& cache_dir, CaseResult* result) {
   result->simulated = cached.simulated;
   const Clock::time_point start = Clock::now();
   SAKER_ASSIGN_OR_RETURN(const sim::Truth truth, sim::ReadTruth(cached.truth));
-  pipeline::VideoEvaluationOptions options;
+  eval::VideoEvaluationOptions options;
   options.evaluation = result->corpus_case.evaluation;
   options.experiments = false;
-  SAKER_ASSIGN_OR_RETURN(const pipeline::VideoEvaluation evaluation,
-                         pipeline::EvaluateVideo(cached.video.string(), truth, options));
+  SAKER_ASSIGN_OR_RETURN(const eval::VideoEvaluation evaluation,
+                         eval::EvaluateVideo(cached.video.string(), truth, options));
   result->figures = FiguresOf(evaluation, truth);
   result->figures.process_s = Seconds(start);
   result->figures.simulate_s = cached.simulate_s;
@@ -412,8 +412,8 @@ std::optional<SeedSet> ParseSeedSet(const std::string& name) {
   return std::nullopt;
 }
 
-frontend::EvaluationOptions CorpusScoring::ForFrameRate(double fps) const {
-  frontend::EvaluationOptions options;
+eval::FrontEndEvaluationOptions CorpusScoring::ForFrameRate(double fps) const {
+  eval::FrontEndEvaluationOptions options;
   options.min_speed_mps = min_speed_mps;
   options.gate_px = gate_px;
   options.min_mover_frames = std::max(kMinMoverFrames, int(std::lround(min_mover_s * fps)));
@@ -699,7 +699,7 @@ std::optional<double> CorpusFigures::FramePrecision() const {
 std::optional<double> CorpusFigures::FrameRecall() const {
   return Ratio(paired_movers, truth_mover_frames);
 }
-// Nearest-rank, as frontend::Evaluate computes one video's median latency and homography error.
+// Nearest-rank, as eval::EvaluateFrontEnd computes one video's median latency and homography error.
 std::optional<double> CorpusFigures::MedianLatency() const {
   if (latencies_s.empty()) return std::nullopt;
   return Percentile(latencies_s, 50);
@@ -710,7 +710,7 @@ std::optional<double> CorpusFigures::HomographyMedian() const {
 }
 std::optional<double> CorpusFigures::SpeedError(double quantile) const {
   if (speed_relative_errors.empty()) return std::nullopt;
-  return pipeline::ActivityQuantile(speed_relative_errors, quantile);
+  return eval::ActivityQuantile(speed_relative_errors, quantile);
 }
 std::optional<double> CorpusFigures::MosaicBeforeRms() const {
   return PooledRms(mosaic_before_sq, mosaic_key_frames, mosaic_unit);

@@ -6,7 +6,7 @@
 // the figures are summed per condition. saker-bench-accuracy prints them; its test runs the smoke
 // manifest through the same code.
 
-#include "core/frontend/evaluate.h"
+#include "core/eval/front_end_accuracy.h"
 #include "core/frontend/front_end.h"
 #include "core/sim/simulator.h"
 #include "core/sim/truth.h"
@@ -39,7 +39,7 @@ struct CorpusScoring {
   double min_mover_s = 1.0;         // a sighting counts with this long moving in view...
   double max_sighting_gap_s = 2.0;  // ...and ends when out of view longer than this
   // In frames at `fps`; never fewer than kMinMoverFrames mover frames.
-  frontend::EvaluationOptions ForFrameRate(double fps) const;
+  eval::FrontEndEvaluationOptions ForFrameRate(double fps) const;
   static constexpr int kMinMoverFrames = 3;
 };
 
@@ -67,7 +67,7 @@ struct CorpusCase {
   uint64_t seed = 0;
   bool tuning = false;                // a tuning seed, else a reporting one
   sim::SimulationOptions simulation;  // output paths empty: the cache gives them
-  frontend::EvaluationOptions evaluation;
+  eval::FrontEndEvaluationOptions evaluation;
   std::string Name() const { return condition + "/" + std::to_string(seed); }
 };
 
@@ -118,7 +118,7 @@ CutScore ScoreCuts(const std::vector<int64_t>& cut_frames,
 // come from summed counts and quantiles from the pooled samples, never from averaging cases.
 struct CorpusFigures {
   int cases = 0, failed_cases = 0;
-  // Target tracks (frontend::DetectionAccuracy, every class).
+  // Target tracks (eval::DetectionAccuracy, every class).
   int64_t truth_targets = 0, found_targets = 0;
   int64_t detected_tracks = 0, correct_tracks = 0;
   int64_t truth_mover_frames = 0, paired_movers = 0;

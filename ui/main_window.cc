@@ -4,6 +4,7 @@
 #include "core/mission/mission_store.h"
 #include "core/pipeline/checkpoint.h"
 #include "core/pipeline/export_mission.h"
+#include "core/pipeline/open_mission.h"
 #include "core/pipeline/process.h"
 #include "core/util/memory.h"
 #include "ui/frame_panel.h"
@@ -85,9 +86,8 @@ QString LatLonText(double latitude, double longitude) {
 struct MainWindow::Loaded {
   QString path;
   std::shared_ptr<const mission::Mission> mission;
-  QString video;           // the video to recall frames from; empty when not found
-  QString problem;         // why not, for a person
-  QStringList candidates;  // where to look for the video (remembered location, beside the mission)
+  QString video;    // the video to recall frames from; empty when not found
+  QString problem;  // why not, for a person
   std::optional<pipeline::CheckpointState> checkpoint;  // an interrupted job's
   // Its key frames, placed as the front end placed them, to show until there is a mosaic.
   std::vector<frontend::KeyFramePreview> previews;
@@ -426,41 +426,33 @@ void MainWindow::startLoad(const QString& path) {
     remembered[k.toStdString()] = settings.value("videoLocations/" + k).toString();
   loading_ = loaded;
   loader_->start(tr("Open"), [loaded, remembered](JobContext*) -> Status {
-    SAKER_ASSIGN_OR_RETURN(const std::unique_ptr<mission::MissionStore> store,
-                           mission::MissionStore::Open(loaded->path.toStdString()));
-    SAKER_ASSIGN_OR_RETURN(mission::Mission m, store->Load());
-    SAKER_ASSIGN_OR_RETURN(loaded->checkpoint, pipeline::ReadCheckpointState(*store));
-    if (loaded->checkpoint && !m.progress.mosaic) {
-      SAKER_ASSIGN_OR_RETURN(std::optional<frontend::FrontEndCheckpoint> checkpoint,
-                             pipeline::ReadCheckpoint(*store));
-      if (checkpoint) loaded->previews = std::move(checkpoint->key_frame_images);
-    }
-    // The video: where it was processed, where the analyst last located it, or beside the
-    // mission file; recognised by its fingerprint.
-    QStringList candidates{FromStd(m.source.path)};
-    if (auto it = remembered.find(m.source.fingerprint); it != remembered.end())
-      candidates << it->second;
-    candidates
-        << QFileInfo(loaded->path).dir().filePath(QFileInfo(FromStd(m.source.path)).fileName());
-    for (const QString& candidate : candidates) {
-      if (candidate.isEmpty() || !QFileInfo::exists(candidate)) continue;
-      const StatusOr<std::string> fingerprint = mission::FingerprintFile(candidate.toStdString());
-      if (fingerprint.ok() && *fingerprint == m.source.fingerprint) {
-        loaded->video = candidate;
+    pipeline::OpenMissionOptions options;
+    options.remembered_video = [&remembered](const std::string& fingerprint) {
+      const auto it = remembered.find(fingerprint);
+      return it == remembered.end() ? std::nullopt
+                                    : std::optional<std::string>(it->second.toStdString());
+    };
+    SAKER_ASSIGN_OR_RETURN(pipeline::OpenedMission opened,
+                           pipeline::OpenMission(loaded->path.toStdString(), options));
+    loaded->checkpoint = opened.checkpoint;
+    loaded->previews = std::move(opened.previews);
+    const pipeline::VideoLocation& video = opened.video;
+    switch (video.state) {
+      case pipeline::VideoLocation::State::kFound:
+        loaded->video = FromStd(video.path);
         break;
-      }
-      if (loaded->problem.isEmpty()) {
+      case pipeline::VideoLocation::State::kChanged:
         loaded->problem = QObject::tr(
                               "The file at %1 is not the video this mission was made "
                               "from (its content differs).")
-                              .arg(candidate);
-      }
+                              .arg(FromStd(video.path));
+        break;
+      case pipeline::VideoLocation::State::kMissing:
+        loaded->problem = QObject::tr("The video of this mission is not at %1.")
+                              .arg(FromStd(opened.mission.source.path));
+        break;
     }
-    if (loaded->video.isEmpty() && loaded->problem.isEmpty()) {
-      loaded->problem =
-          QObject::tr("The video of this mission is not at %1.").arg(FromStd(m.source.path));
-    }
-    loaded->mission = std::make_shared<const mission::Mission>(std::move(m));
+    loaded->mission = std::make_shared<const mission::Mission>(std::move(opened.mission));
     return Status();
   });
 }
@@ -574,7 +566,9 @@ void MainWindow::processVideo(const QString& video, const QString& mission_path,
   options.front_end.max_memory_mib = DefaultMemoryLimitMiB();
   // Both callbacks run on the worker; the runner is joined before this window is destroyed.
   options.on_commit = [this](const std::string& stage) {
-    if (stage == "source" || stage == "cancelled") return;  // nothing to show yet
+    if (stage == pipeline::kStageSource || stage == pipeline::kStageCancelled) {
+      return;  // nothing to show yet
+    }
     mailbox_->post([this] { reloadMission(); });
   };
   options.front_end.on_key_frame = [this](const frontend::KeyFramePreview& preview) {

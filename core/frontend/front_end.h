@@ -32,12 +32,7 @@
 
 namespace saker::frontend {
 
-struct KeyFrameImage {
-  track::KeyFrameId id{};
-  int64_t frame_index = 0;
-  cv::Mat grey;      // downscaled copy
-  double scale = 1;  // full-resolution pixels per pixel of `grey`
-};
+using KeyFrameImage = track::KeyFrameImage;
 
 // A key frame as the front end first places it, so that a viewer can show the mosaic growing
 // while the video is processed: `preview_from_frame` chains the frame-to-frame homographies from

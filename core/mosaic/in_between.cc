@@ -23,7 +23,7 @@ std::string InBetweenFrames::ToString() const {
   return line;
 }
 
-StatusOr<InBetweenFrames> PlaceInBetweenFrames(const std::vector<frontend::FrameResult>& frames,
+StatusOr<InBetweenFrames> PlaceInBetweenFrames(const std::vector<MosaicFrame>& frames,
                                                const LinkGraph& graph, const ChainOptions& options,
                                                JobContext* job) {
   SAKER_RETURN_IF_ERROR(options.Validate());

@@ -13,9 +13,9 @@
 // - frames before the run's first key frame or after its last are chained from it (one end only);
 // - a run without a key frame is not placed.
 // Time and memory are linear in the number of frames.
-#include "core/frontend/front_end.h"
 #include "core/mosaic/chain_solver.h"
 #include "core/mosaic/link_graph.h"
+#include "core/mosaic/mosaic_input.h"
 #include "core/util/job_context.h"
 #include "core/util/status.h"
 
@@ -38,12 +38,12 @@ struct InBetweenFrames {
   std::string ToString() const;  // one line
 };
 
-// `frames` is the front end's per-frame record (index == position), `graph` the adjusted key
+// `frames` is every video frame (index == position), `graph` the adjusted key
 // frames (their frame_index within `frames`). InvalidArgument when a key frame's frame index is
 // outside `frames` or two key frames share a frame; InvalidData from the chain solver (a
 // degenerate frame homography, named); Cancelled through `job` (checked between key frames).
 // Progress: job->ReportProgress("in-between frames", f).
-StatusOr<InBetweenFrames> PlaceInBetweenFrames(const std::vector<frontend::FrameResult>& frames,
+StatusOr<InBetweenFrames> PlaceInBetweenFrames(const std::vector<MosaicFrame>& frames,
                                                const LinkGraph& graph,
                                                const ChainOptions& options = {},
                                                JobContext* job = nullptr);

@@ -71,60 +71,32 @@ Eigen::Matrix2d PredictionCovariance(const Eigen::Matrix3d& map_from_k,
 }
 
 struct Builder {
-  const frontend::FrontEndResult& front;
+  const MosaicInput& input;
   const MosaicOptions& options;
   JobContext* job;
   MosaicResult result;
-  std::optional<geo::LocalTangentPlane> plane;
   std::vector<KeyFrameFeatures> features;
   AppearanceIndex index;
   int metadata_since_adjustment = 0;
   bool dirty = false;  // links or metadata added since the last adjustment
 
-  Builder(const frontend::FrontEndResult& f, const MosaicOptions& o, JobContext* j)
-      : front(f), options(o), job(j), index(o.index) {}
+  Builder(const MosaicInput& i, const MosaicOptions& o, JobContext* j)
+      : input(i), options(o), job(j), index(o.index) {}
 
   int width() const { return result.graph.image_width; }
   int height() const { return result.graph.image_height; }
 
-  // The map frame: ENU around the first key frame's metadata footprint, when there is one.
-  Status ChooseMapFrame() {
-    if (!options.use_metadata) return Status::Ok();
-    for (const track::KeyFrame& kf : front.key_frames) {
-      const klv::FrameMetadata* m = front.scan.MetadataOf(size_t(kf.frame_index));
-      if (m == nullptr || !m->corners) continue;
-      geo::Wgs84 origin;
-      for (const klv::LatLon& c : *m->corners) {
-        origin.latitude_deg += c.latitude_deg / 4;
-        origin.longitude_deg += c.longitude_deg / 4;
-      }
-      origin.height_m = m->frame_center_elevation_m.value_or(0.0);
-      StatusOr<geo::LocalTangentPlane> p = geo::LocalTangentPlane::Create(origin);
-      if (!p.ok()) continue;  // corners off the Earth: treat as no metadata
-      plane = std::move(p).value();
-      result.origin = origin;
-      result.graph.geo_referenced = true;
-      return Status::Ok();
+  // The metadata corners of a frame on the map, when the map is geo-referenced.
+  std::optional<MapCorners> MetadataCorners(int64_t frame_index) const {
+    if (!result.graph.geo_referenced || size_t(frame_index) >= input.metadata_corners.size()) {
+      return std::nullopt;
     }
-    return Status::Ok();
-  }
-
-  std::optional<std::array<Eigen::Vector2d, 4>> MetadataCorners(int64_t frame_index) const {
-    if (!plane) return std::nullopt;
-    const klv::FrameMetadata* m = front.scan.MetadataOf(size_t(frame_index));
-    if (m == nullptr || !m->corners) return std::nullopt;
-    std::array<Eigen::Vector2d, 4> corners;
-    for (int i = 0; i < 4; ++i) {
-      const klv::LatLon& c = (*m->corners)[size_t(i)];
-      corners[size_t(i)] = plane->MapFromLatLon(c.latitude_deg, c.longitude_deg);
-      if (!corners[size_t(i)].allFinite()) return std::nullopt;
-    }
-    return corners;
+    return input.metadata_corners[size_t(frame_index)];
   }
 
   // The sequential link of the front end that ends at key frame `k`, if any.
   const track::SequentialLink* LinkInto(int k) const {
-    for (const track::SequentialLink& l : front.links) {
+    for (const track::SequentialLink& l : input.links) {
       if (int(l.to) == k) return &l;
     }
     return nullptr;
@@ -293,28 +265,32 @@ struct Builder {
   StatusOr<MosaicResult> Run() {
     const auto start = Clock::now();
     LinkGraph& graph = result.graph;
-    graph.image_width = front.video.width;
-    graph.image_height = front.video.height;
-    if (front.key_frames.empty()) {
+    graph.image_width = input.image_width;
+    graph.image_height = input.image_height;
+    if (input.key_frames.empty()) {
       return InvalidDataError(
           "mosaic: the front end found no key frame (no trackable ground in the video)");
     }
-    SAKER_RETURN_IF_ERROR(ChooseMapFrame());
+    SAKER_RETURN_IF_ERROR(input.Validate());
+    if (options.use_metadata && input.origin) {
+      result.origin = input.origin;
+      graph.geo_referenced = true;
+    }
 
     // The chain alone, for the "before" figures.
     std::optional<HomographyWithCovariance> previous_chained;
-    const size_t count = front.key_frames.size();
+    const size_t count = input.key_frames.size();
     features.resize(count);
     for (size_t k = 0; k < count; ++k) {
       if (job != nullptr && job->IsCancelled()) return CancelledError("mosaic: cancelled");
-      const track::KeyFrame& kf = front.key_frames[k];
+      const track::KeyFrame& kf = input.key_frames[k];
       SAKER_CHECK(size_t(kf.id) == k) << "key frame ids must be their indices";
       Node node;
       node.id = kf.id;
       node.frame_index = kf.frame_index;
       node.segment = kf.segment;
-      if (size_t(kf.frame_index) < front.frames.size())
-        node.time_s = front.frames[size_t(kf.frame_index)].time_s;
+      if (size_t(kf.frame_index) < input.frames.size())
+        node.time_s = input.frames[size_t(kf.frame_index)].time_s;
       node.metadata_corners = MetadataCorners(kf.frame_index);
       result.key_frames_with_metadata += node.metadata_corners.has_value();
 
@@ -349,8 +325,8 @@ struct Builder {
       }
 
       auto describe_start = Clock::now();
-      if (k < front.key_frame_images.size() && front.key_frame_images[k].id == kf.id) {
-        const frontend::KeyFrameImage& image = front.key_frame_images[k];
+      if (k < input.key_frame_images.size() && input.key_frame_images[k].id == kf.id) {
+        const track::KeyFrameImage& image = input.key_frame_images[k];
         features[k] = DescribeKeyFrame(kf.id, image.grey, image.scale, kf.points, options.describe);
       } else {
         features[k].id = kf.id;
@@ -374,7 +350,7 @@ struct Builder {
       const auto place_start = Clock::now();
       SAKER_ASSIGN_OR_RETURN(
           result.in_between,
-          PlaceInBetweenFrames(front.frames, graph, options.decomposition.placement, job));
+          PlaceInBetweenFrames(input.frames, graph, options.decomposition.placement, job));
       result.timing.in_between_s = SecondsSince(place_start);
     }
     result.timing.total_s = SecondsSince(start);
@@ -439,10 +415,10 @@ StatusOr<HomographyWithCovariance> HomographyFromCorners(
   return h;
 }
 
-StatusOr<MosaicResult> BuildMosaic(const frontend::FrontEndResult& front,
-                                   const MosaicOptions& options, JobContext* job) {
+StatusOr<MosaicResult> BuildMosaic(const MosaicInput& input, const MosaicOptions& options,
+                                   JobContext* job) {
   SAKER_RETURN_IF_ERROR(options.Validate());
-  Builder builder(front, options, job);
+  Builder builder(input, options, job);
   return builder.Run();
 }
 

@@ -23,13 +23,13 @@
 //     `adjust_every_metadata` key frames with metadata corners, and once at the end. The
 //     adjustment is full or decomposed into nodes and arcs (decomposition.h, `adjust_mode`).
 // At the end every video frame is placed on the map (in_between.h).
-#include "core/frontend/front_end.h"
 #include "core/geo/local_tangent_plane.h"
 #include "core/mosaic/adjustment.h"
 #include "core/mosaic/decomposition.h"
 #include "core/mosaic/in_between.h"
 #include "core/mosaic/link_graph.h"
 #include "core/mosaic/loop_closure.h"
+#include "core/mosaic/mosaic_input.h"
 #include "core/util/job_context.h"
 #include "core/util/status.h"
 
@@ -100,11 +100,12 @@ struct MosaicResult {
   MosaicTiming timing;
 };
 
-// Builds the mosaic from a front end run. InvalidData when the front end found no key frame (no
-// trackable ground in the whole video); Cancelled through `job` (between key frames, and inside
-// an adjustment, which keeps its best solution).
-StatusOr<MosaicResult> BuildMosaic(const frontend::FrontEndResult& front,
-                                   const MosaicOptions& options, JobContext* job = nullptr);
+// Builds the mosaic of one video. InvalidData when the input has no key frame (no trackable
+// ground in the whole video); InvalidArgument when its parts do not fit (MosaicInput::Validate);
+// Cancelled through `job` (between key frames, and inside an adjustment, which keeps its best
+// solution). The map is geo-referenced when the input has an origin and `use_metadata`.
+StatusOr<MosaicResult> BuildMosaic(const MosaicInput& input, const MosaicOptions& options,
+                                   JobContext* job = nullptr);
 
 // The homography taking the four image corners to four map points, with the 8x8 covariance
 // implied by an isotropic standard deviation `sigma` on each map coordinate. InvalidData when the

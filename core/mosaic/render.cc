@@ -42,13 +42,13 @@ Status RenderOptions::Validate() const {
 }
 
 StatusOr<MosaicImage> RenderMosaic(const LinkGraph& graph,
-                                   const std::vector<frontend::KeyFrameImage>& images,
+                                   const std::vector<track::KeyFrameImage>& images,
                                    const RenderOptions& options,
                                    const std::vector<track::HomographyCovariance>& covariances) {
   SAKER_RETURN_IF_ERROR(options.Validate());
   SAKER_RETURN_IF_ERROR(graph.Validate());
-  std::map<int, const frontend::KeyFrameImage*> by_id;
-  for (const frontend::KeyFrameImage& image : images) {
+  std::map<int, const track::KeyFrameImage*> by_id;
+  for (const track::KeyFrameImage& image : images) {
     if (!image.grey.empty()) by_id[int(image.id)] = &image;
   }
   // Extent and resolution from the key frames' footprints.
@@ -95,7 +95,7 @@ StatusOr<MosaicImage> RenderMosaic(const LinkGraph& graph,
   for (const Node& node : graph.nodes) {
     const auto it = by_id.find(int(node.id));
     if (it == by_id.end()) continue;
-    const frontend::KeyFrameImage& image = *it->second;
+    const track::KeyFrameImage& image = *it->second;
     if (image.grey.size() != feather_size) {
       // Weight: distance to the border, so that overlapping frames fade into each other.
       cv::Mat inside(image.grey.size(), CV_8U, cv::Scalar(255));

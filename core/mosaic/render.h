@@ -6,8 +6,8 @@
 //
 // The picture's pixels relate to the map by `image_from_map`: north up for a geo-referenced map
 // (east right), the first key frame's orientation otherwise.
-#include "core/frontend/front_end.h"
 #include "core/mosaic/link_graph.h"
+#include "core/track/key_frames.h"
 #include "core/util/status.h"
 
 #include <Eigen/Core>
@@ -37,7 +37,7 @@ struct MosaicImage {
 // `images` are the front end's key frame images (matched to nodes by id; nodes without one are
 // skipped). InvalidData when no key frame can be drawn or the map extent is not finite.
 StatusOr<MosaicImage> RenderMosaic(
-    const LinkGraph& graph, const std::vector<frontend::KeyFrameImage>& images,
+    const LinkGraph& graph, const std::vector<track::KeyFrameImage>& images,
     const RenderOptions& options, const std::vector<track::HomographyCovariance>& covariances = {});
 
 }  // namespace saker::mosaic

@@ -2,6 +2,7 @@
 
 #include "core/mission/mission_store.h"
 #include "core/pipeline/checkpoint.h"
+#include "core/pipeline/stages.h"
 #include "core/video/video_reader.h"
 
 #include <nlohmann/json.hpp>
@@ -45,50 +46,59 @@ std::string OptionsJson(const ProcessOptions& options) {
   return j.dump();
 }
 
-mission::LinkKind MissionLinkKind(mosaic::LinkKind kind) {
-  switch (kind) {
-    case mosaic::LinkKind::kSequential:
-      return mission::LinkKind::kSequential;
-    case mosaic::LinkKind::kGeometric:
-      return mission::LinkKind::kGeometric;
-    case mosaic::LinkKind::kAppearance:
-      return mission::LinkKind::kAppearance;
+// The source record of `video`, which must open as a video: size, rate, duration, fingerprint.
+StatusOr<mission::SourceVideo> SourceOf(const std::string& video) {
+  SAKER_ASSIGN_OR_RETURN(std::unique_ptr<video::VideoReader> reader,
+                         video::VideoReader::Open(video));
+  const video::VideoInfo& info = reader->info();
+  mission::SourceVideo source;
+  std::error_code error;
+  source.path = std::filesystem::absolute(video, error).string();
+  if (error) source.path = video;
+  source.width = info.width;
+  source.height = info.height;
+  source.frame_rate = info.fps;
+  source.duration_s = info.duration_s;
+  source.frame_count = info.declared_frame_count;
+  if (std::filesystem::is_regular_file(video, error)) {
+    source.size_bytes = int64_t(std::filesystem::file_size(video, error));
+    SAKER_ASSIGN_OR_RETURN(source.fingerprint, mission::FingerprintFile(video));
   }
-  return mission::LinkKind::kSequential;
+  return source;
 }
 
-// Key frames and links of the adjusted graph, nodes of the last decomposition marked.
-void GraphRecords(const mosaic::MosaicResult& result, mission::Mission* m) {
-  std::vector<bool> node(result.graph.nodes.size(), false);
-  if (result.decomposition) {
-    for (const mosaic::KeyFrameId id : result.decomposition->decomposition.nodes) {
-      if (size_t(id) < node.size()) node[size_t(id)] = true;
-    }
-  } else {
-    node.assign(node.size(), true);  // the full adjustment: every key frame a node
+// Opens the mission of an interrupted job made from the same video, with its checkpoint. A
+// mission that is complete is left as it is (summary->already_complete).
+StatusOr<std::unique_ptr<mission::MissionStore>> OpenToResume(
+    const std::string& video, const mission::SourceVideo& source, const std::string& mission_path,
+    const ProcessOptions& options, std::optional<frontend::FrontEndCheckpoint>* checkpoint,
+    ProcessSummary* summary) {
+  SAKER_ASSIGN_OR_RETURN(std::unique_ptr<mission::MissionStore> store,
+                         mission::MissionStore::Open(mission_path, mission::OpenMode::kReadWrite));
+  SAKER_ASSIGN_OR_RETURN(const mission::Mission previous, store->Load());
+  if (!previous.source.fingerprint.empty() && !source.fingerprint.empty() &&
+      previous.source.fingerprint != source.fingerprint) {
+    return InvalidArgumentError(mission_path + ": cannot resume with " + video +
+                                ": the mission was made from another video (" +
+                                previous.source.path + ")");
   }
-  m->key_frames.clear();
-  for (const mosaic::Node& n : result.graph.nodes) {
-    mission::KeyFrameRecord k;
-    k.id = int32_t(n.id);
-    k.frame_index = n.frame_index;
-    k.segment = n.segment;
-    k.map_from_frame = n.map_from_frame;
-    if (size_t(n.id) < result.covariances.size()) k.covariance = result.covariances[size_t(n.id)];
-    k.node = node[size_t(n.id)];
-    m->key_frames.push_back(k);
+  SAKER_ASSIGN_OR_RETURN(*checkpoint, ReadCheckpoint(*store));
+  const mission::Progress& p = previous.progress;
+  if (!*checkpoint && !p.cancelled && p.front_end && p.mosaic && p.activity &&
+      (p.tiles || !options.render_tiles)) {
+    summary->already_complete = true;
+    summary->progress = p;
+    summary->frames = int64_t(previous.frames.size());
+    summary->key_frames = int64_t(previous.key_frames.size());
+    summary->tracks = int64_t(previous.tracks.size());
+    summary->geo_referenced = previous.map.geo_referenced;
+    return store;
   }
-  m->links.clear();
-  for (const mosaic::Link& l : result.graph.links) {
-    mission::LinkRecord r;
-    r.from = int32_t(l.from);
-    r.to = int32_t(l.to);
-    r.kind = MissionLinkKind(l.kind);
-    r.to_from_from = l.to_from_from;
-    r.covariance = l.covariance;
-    r.correspondences = int32_t(l.correspondences.size());
-    m->links.push_back(r);
+  if (!*checkpoint) {
+    summary->warnings.push_back(mission_path +
+                                ": no checkpoint to resume from: processed from the start");
   }
+  return store;
 }
 
 }  // namespace
@@ -133,142 +143,29 @@ std::string ProcessSummary::ToText() const {
   return out.str();
 }
 
-std::vector<mission::FrameRecord> FrameRecords(const frontend::FrontEndResult& front,
-                                               const mosaic::MosaicResult* mosaic) {
-  std::optional<geo::LocalTangentPlane> plane;
-  if (mosaic && mosaic->origin) {
-    if (auto created = geo::LocalTangentPlane::Create(*mosaic->origin); created.ok()) {
-      plane = std::move(*created);
-    }
-  }
-  std::vector<mission::FrameRecord> frames;
-  frames.reserve(front.frames.size());
-  for (size_t i = 0; i < front.frames.size(); ++i) {
-    mission::FrameRecord f;
-    f.index = front.frames[i].index;
-    f.time_s = front.frames[i].time_s;
-    f.pts = front.frames[i].pts;
-    f.key_frame = front.frames[i].key_frame;
-    if (mosaic && i < mosaic->in_between.map_from_frame.size()) {
-      f.map_from_frame = mosaic->in_between.map_from_frame[i];
-    }
-    if (const klv::FrameMetadata* metadata = front.scan.MetadataOf(i)) {
-      if (metadata->unix_time_us) f.utc_us = int64_t(*metadata->unix_time_us);
-      if (metadata->sensor_latitude_deg && metadata->sensor_longitude_deg) {
-        f.sensor = geo::Wgs84{*metadata->sensor_latitude_deg, *metadata->sensor_longitude_deg,
-                              metadata->sensor_altitude_m.value_or(0)};
-      }
-      if (plane && metadata->corners) {
-        std::array<Eigen::Vector2d, 4> corners;
-        for (size_t c = 0; c < 4; ++c) {
-          corners[c] = plane->MapFromLatLon((*metadata->corners)[c].latitude_deg,
-                                            (*metadata->corners)[c].longitude_deg);
-        }
-        f.metadata_corners = corners;
-      }
-    }
-    frames.push_back(std::move(f));
-  }
-  return frames;
-}
-
-std::vector<mission::ActivityTrack> TrackRecords(const frontend::FrontEndResult& front) {
-  std::vector<mission::ActivityTrack> tracks;
-  tracks.reserve(front.targets.size());
-  for (const track::TargetTrack& target : front.targets) {
-    mission::ActivityTrack t;
-    t.id = int64_t(target.id);
-    for (const track::TargetObservation& o : target.observations) {
-      mission::TrackPoint p;
-      p.frame = o.frame;
-      p.image = o.position;
-      p.box_min = o.box_min;
-      p.box_max = o.box_max;
-      t.points.push_back(p);
-    }
-    if (!t.points.empty()) tracks.push_back(std::move(t));
-  }
-  return tracks;
-}
-
-StatusOr<mission::Mission> MissionFromRun(const frontend::FrontEndResult& front,
-                                          const mosaic::MosaicResult& mosaic,
-                                          const activity::ActivityOptions& options) {
-  mission::Mission m;
-  m.source.path = front.video.path;
-  m.source.width = front.video.width;
-  m.source.height = front.video.height;
-  m.source.frame_rate = front.video.fps;
-  m.source.frame_count = int64_t(front.frames.size());
-  m.map.geo_referenced = mosaic.graph.geo_referenced;
-  m.map.origin = mosaic.origin;
-  m.frames = FrameRecords(front, &mosaic);
-  GraphRecords(mosaic, &m);
-  m.tracks = TrackRecords(front);
-  SAKER_RETURN_IF_ERROR(activity::MapActivity(m, &m.tracks, options).status());
-  m.progress.front_end = m.progress.mosaic = m.progress.activity = true;
-  return m;
-}
-
 StatusOr<ProcessSummary> ProcessVideo(const std::string& video, const std::string& mission_path,
                                       const ProcessOptions& options, JobContext* job) {
   SAKER_RETURN_IF_ERROR(options.Validate());
   const auto start = Clock::now();
   ProcessSummary summary;
   // Open the video first: a file that is not a video must not leave (or replace) a mission.
-  mission::Mission m;
-  m.saker_version = options.saker_version;
-  m.options_json = OptionsJson(options);
-  {
-    SAKER_ASSIGN_OR_RETURN(std::unique_ptr<video::VideoReader> reader,
-                           video::VideoReader::Open(video));
-    const video::VideoInfo& info = reader->info();
-    std::error_code error;
-    m.source.path = std::filesystem::absolute(video, error).string();
-    if (error) m.source.path = video;
-    m.source.width = info.width;
-    m.source.height = info.height;
-    m.source.frame_rate = info.fps;
-    m.source.duration_s = info.duration_s;
-    m.source.frame_count = info.declared_frame_count;
-    if (std::filesystem::is_regular_file(video, error)) {
-      m.source.size_bytes = int64_t(std::filesystem::file_size(video, error));
-      SAKER_ASSIGN_OR_RETURN(m.source.fingerprint, mission::FingerprintFile(video));
-    }
-  }
+  MissionRun run;
+  run.mission.saker_version = options.saker_version;
+  run.mission.options_json = OptionsJson(options);
+  SAKER_ASSIGN_OR_RETURN(run.mission.source, SourceOf(video));
   std::unique_ptr<mission::MissionStore> store;
   std::optional<frontend::FrontEndCheckpoint> checkpoint;
   if (options.resume) {
-    SAKER_ASSIGN_OR_RETURN(
-        store, mission::MissionStore::Open(mission_path, mission::OpenMode::kReadWrite));
-    SAKER_ASSIGN_OR_RETURN(const mission::Mission previous, store->Load());
-    if (!previous.source.fingerprint.empty() && !m.source.fingerprint.empty() &&
-        previous.source.fingerprint != m.source.fingerprint) {
-      return InvalidArgumentError(mission_path + ": cannot resume with " + video +
-                                  ": the mission was made from another video (" +
-                                  previous.source.path + ")");
-    }
-    SAKER_ASSIGN_OR_RETURN(checkpoint, ReadCheckpoint(*store));
-    const mission::Progress& p = previous.progress;
-    if (!checkpoint && !p.cancelled && p.front_end && p.mosaic && p.activity &&
-        (p.tiles || !options.render_tiles)) {
-      summary.already_complete = true;
-      summary.progress = p;
-      summary.frames = int64_t(previous.frames.size());
-      summary.key_frames = int64_t(previous.key_frames.size());
-      summary.tracks = int64_t(previous.tracks.size());
-      summary.geo_referenced = previous.map.geo_referenced;
+    SAKER_ASSIGN_OR_RETURN(store, OpenToResume(video, run.mission.source, mission_path, options,
+                                               &checkpoint, &summary));
+    if (summary.already_complete) {
       summary.total_s = Seconds(start);
       return summary;
-    }
-    if (!checkpoint) {
-      summary.warnings.push_back(mission_path +
-                                 ": no checkpoint to resume from: processed from the start");
     }
   } else {
     SAKER_ASSIGN_OR_RETURN(store, mission::MissionStore::Create(mission_path, options.replace));
   }
-  const auto commit = [&](unsigned parts, const char* stage) -> Status {
+  const auto commit = [&](const mission::Mission& m, unsigned parts, const char* stage) -> Status {
     const auto begin = Clock::now();
     SAKER_RETURN_IF_ERROR(store->Save(m, parts));
     summary.save_s += Seconds(begin);
@@ -277,128 +174,69 @@ StatusOr<ProcessSummary> ProcessVideo(const std::string& video, const std::strin
   };
   // A cancelled stage: mark the mission, keep what completed, and say so.
   const auto cancelled = [&](const Status& status) -> Status {
-    m.progress.cancelled = true;
-    SAKER_RETURN_IF_ERROR(commit(0, "cancelled"));
-    summary.progress = m.progress;
+    run.mission.progress.cancelled = true;
+    SAKER_RETURN_IF_ERROR(commit(run.mission, 0, kStageCancelled));
+    summary.progress = run.mission.progress;
     return CancelledError(mission_path +
                           ": processing cancelled; the mission keeps the stages that completed "
                           "and its checkpoint, so that --resume carries on from there (" +
                           status.message() + ")");
   };
-  SAKER_RETURN_IF_ERROR(commit(0, "source"));
+  SAKER_RETURN_IF_ERROR(commit(run.mission, 0, kStageSource));
 
-  // Front end, with its checkpoints going into the mission as it goes.
-  auto begin = Clock::now();
+  // The stages, with the front end's checkpoints going into the mission as it goes and the
+  // mission committed after each stage.
   CheckpointWriter checkpoints(store.get(), checkpoint ? &*checkpoint : nullptr);
-  frontend::FrontEndOptions front_options = options.front_end;
-  front_options.on_checkpoint = [&](const frontend::FrontEndCheckpoint& c) -> Status {
+  StageOptions stage_options = options;
+  stage_options.front_end.on_checkpoint = [&](const frontend::FrontEndCheckpoint& c) -> Status {
     SAKER_RETURN_IF_ERROR(checkpoints.Write(c));
     return options.front_end.on_checkpoint ? options.front_end.on_checkpoint(c) : Status::Ok();
   };
   if (checkpoint) summary.resumed_from_frame = checkpoint->through_frame;
-  StatusOr<frontend::FrontEndResult> front =
-      frontend::RunFrontEnd(video, front_options, job, checkpoint ? &*checkpoint : nullptr);
-  checkpoint.reset();  // the result holds what it had
-  if (!front.ok()) {
-    if (front.status().code() == StatusCode::kCancelled) return cancelled(front.status());
-    return front.status();
-  }
-  summary.front_end_s = Seconds(begin);
-  summary.frames = int64_t(front->frames.size());
-  summary.video_duration_s = m.source.duration_s;
-  m.source.frame_count = summary.frames;
-  if (!front->frames.empty() && m.source.frame_rate > 0) {
-    summary.video_duration_s = front->frames.back().time_s + 1.0 / m.source.frame_rate;
-  }
-  m.frames = FrameRecords(*front, nullptr);
-  m.progress.front_end = true;
-  SAKER_RETURN_IF_ERROR(commit(mission::kSaveFrames, "front end"));
-
-  // Mosaic: key frames, loop closure, adjustment, in-between frames.
-  begin = Clock::now();
-  StatusOr<mosaic::MosaicResult> mosaic_result = mosaic::BuildMosaic(*front, options.mosaic, job);
-  summary.mosaic_s = Seconds(begin);
-  if (!mosaic_result.ok()) {
-    if (mosaic_result.status().code() == StatusCode::kCancelled) {
-      return cancelled(mosaic_result.status());
+  StageHooks hooks;
+  hooks.resume = checkpoint ? &*checkpoint : nullptr;
+  hooks.on_done = [&](Stage stage, MissionRun* done) -> Status {
+    if (stage == Stage::kFrontEnd) {
+      checkpoint.reset();  // the result holds what it had
+      if (!done->front.frames.empty() && done->mission.source.frame_rate > 0) {
+        summary.video_duration_s =
+            done->front.frames.back().time_s + 1.0 / done->mission.source.frame_rate;
+      }
     }
-    if (mosaic_result.status().code() != StatusCode::kInvalidData) {
-      return Status(mosaic_result.status().code(), video + ": " + mosaic_result.status().message());
-    }
-    // No key frame: a mission without a mosaic (frames and metadata only).
-    summary.warnings.push_back(video + ": no mosaic: " + mosaic_result.status().message());
-    SAKER_RETURN_IF_ERROR(store->ClearCheckpoint());
-    summary.progress = m.progress;
-    summary.total_s = Seconds(start);
-    return summary;
+    static constexpr unsigned kParts[] = {
+        mission::kSaveFrames, mission::kSaveFrames | mission::kSaveGraph, mission::kSaveTracks, 0};
+    return commit(done->mission, kParts[int(stage)], StageName(stage));
+  };
+  if (options.render_tiles) {
+    hooks.clear_tiles = [&] { return store->ClearTiles(); };
+    hooks.write_tiles = [&](const std::vector<mission::EncodedTile>& batch) {
+      return store->WriteTiles(batch);
+    };
   }
-  const mosaic::MosaicResult& result = *mosaic_result;
-  m.map.geo_referenced = result.graph.geo_referenced;
-  m.map.origin = result.origin;
-  m.frames = FrameRecords(*front, &result);
-  GraphRecords(result, &m);
-  m.progress.mosaic = true;
+  summary.video_duration_s = run.mission.source.duration_s;
+  const Status ran = RunStages(video, stage_options, hooks, job, &run);
+  summary.front_end_s = run.seconds[int(Stage::kFrontEnd)];
+  summary.mosaic_s = run.seconds[int(Stage::kMosaic)];
+  summary.activity_s = run.seconds[int(Stage::kActivity)];
+  summary.tiles_s = run.seconds[int(Stage::kTiles)];
+  summary.warnings.insert(summary.warnings.end(), run.warnings.begin(), run.warnings.end());
+  if (!ran.ok()) {
+    if (ran.code() == StatusCode::kCancelled) return cancelled(ran);
+    if (run.failed == Stage::kTiles) return Status(ran.code(), mission_path + ": " + ran.message());
+    return ran;
+  }
+  const mission::Mission& m = run.mission;
+  summary.frames = int64_t(m.frames.size());
   summary.geo_referenced = m.map.geo_referenced;
   summary.key_frames = int64_t(m.key_frames.size());
   for (const mission::LinkRecord& l : m.links) {
     summary.cross_links += l.kind != mission::LinkKind::kSequential;
   }
-  for (const mission::FrameRecord& f : m.frames)
+  for (const mission::FrameRecord& f : m.frames) {
     summary.frames_placed += f.map_from_frame.has_value();
-  SAKER_RETURN_IF_ERROR(commit(mission::kSaveFrames | mission::kSaveGraph, "mosaic"));
-
-  // Activity: tracks on the map with their attributes.
-  if (job && job->IsCancelled()) return cancelled(CancelledError("before activity mapping"));
-  begin = Clock::now();
-  if (job) job->ReportProgress("Activity", 0);
-  m.tracks = TrackRecords(*front);
-  SAKER_ASSIGN_OR_RETURN(const activity::ActivitySummary mapped,
-                         activity::MapActivity(m, &m.tracks, options.activity));
-  if (mapped.observations_dropped > 0) {
-    summary.warnings.push_back(std::to_string(mapped.observations_dropped) +
-                               " target observations lie on frames that could not be placed on "
-                               "the map and are left out");
   }
-  summary.activity_s = Seconds(begin);
   summary.tracks = int64_t(m.tracks.size());
-  m.progress.activity = true;
-  SAKER_RETURN_IF_ERROR(commit(mission::kSaveTracks, "activity"));
-  if (job) job->ReportProgress("Activity", 1);
-
-  // Tiles of the mosaic picture.
-  if (options.render_tiles) {
-    begin = Clock::now();
-    std::map<int, const frontend::KeyFrameImage*> images;
-    for (const frontend::KeyFrameImage& image : front->key_frame_images) {
-      images[int(image.id)] = &image;
-    }
-    std::vector<tiles::KeyFrameView> views;
-    for (const mosaic::Node& node : result.graph.nodes) {
-      const auto it = images.find(int(node.id));
-      if (it == images.end() || it->second->grey.empty()) continue;
-      views.push_back({&it->second->grey, it->second->scale, node.map_from_frame});
-    }
-    StatusOr<mission::PyramidInfo> info = tiles::PlanPyramid(views, m.source.width, m.source.height,
-                                                             m.map.geo_referenced, options.pyramid);
-    if (info.ok()) {
-      SAKER_RETURN_IF_ERROR(store->ClearTiles());
-      const auto rendered = tiles::RenderPyramid(
-          views, m.source.width, m.source.height, *info, options.pyramid,
-          [&](const std::vector<mission::EncodedTile>& batch) { return store->WriteTiles(batch); },
-          job);
-      if (!rendered.ok()) {
-        if (rendered.status().code() == StatusCode::kCancelled) return cancelled(rendered.status());
-        return Status(rendered.status().code(), mission_path + ": " + rendered.status().message());
-      }
-      summary.tiles = rendered->tiles_written;
-      m.pyramid = *info;
-      m.progress.tiles = true;
-      SAKER_RETURN_IF_ERROR(commit(0, "tiles"));
-    } else {
-      summary.warnings.push_back("no mosaic picture: " + info.status().message());
-    }
-    summary.tiles_s = Seconds(begin);
-  }
+  summary.tiles = run.tiles_written;
   // The job is complete: its checkpoint is no longer needed.
   SAKER_RETURN_IF_ERROR(store->ClearCheckpoint());
   summary.progress = m.progress;

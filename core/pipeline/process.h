@@ -10,6 +10,7 @@
 #include "core/frontend/front_end.h"
 #include "core/mission/mission.h"
 #include "core/mosaic/mosaic_builder.h"
+#include "core/pipeline/stages.h"
 #include "core/tiles/pyramid.h"
 #include "core/util/job_context.h"
 #include "core/util/status.h"
@@ -19,11 +20,8 @@
 
 namespace saker::pipeline {
 
-struct ProcessOptions {
-  frontend::FrontEndOptions front_end;
-  mosaic::MosaicOptions mosaic;
-  activity::ActivityOptions activity;
-  tiles::PyramidOptions pyramid;
+// The engine's options (StageOptions: front_end, mosaic, activity, pyramid) and the job's.
+struct ProcessOptions : StageOptions {
   bool render_tiles = true;  // false: no mosaic picture in the mission (faster)
   bool replace = false;      // overwrite an existing mission file (never a foreign file)
   // Carry on an interrupted job (saker-cli process --resume): the mission at `mission_path` must
@@ -32,8 +30,9 @@ struct ProcessOptions {
   // that is complete is left as it is. docs/reliability.md, "Resume".
   bool resume = false;
   std::string saker_version;  // recorded in the mission
-  // Called on the processing thread after each commit, with the stage just saved ("source",
-  // "front end", "mosaic", "activity", "tiles"): a viewer reloads the mission then.
+  // Called on the processing thread after each commit, with the stage just saved (kStageSource,
+  // then a stage's name, stages.h; kStageCancelled marks a cancelled job): a viewer reloads the
+  // mission then.
   std::function<void(const std::string& stage)> on_commit;
 
   Status Validate() const;
@@ -64,15 +63,5 @@ struct ProcessSummary {
 // a mission (frames and metadata; no mosaic), and the summary says so.
 StatusOr<ProcessSummary> ProcessVideo(const std::string& video, const std::string& mission_path,
                                       const ProcessOptions& options, JobContext* job = nullptr);
-
-// The plain mission records of an engine run (exposed for tests and the evaluation).
-std::vector<mission::FrameRecord> FrameRecords(const frontend::FrontEndResult& front,
-                                               const mosaic::MosaicResult* mosaic);
-std::vector<mission::ActivityTrack> TrackRecords(const frontend::FrontEndResult& front);
-// The mission an engine run gives without tiles: source size and rate, map frame, frames, key
-// frames, links and the mapped tracks (what `saker-cli evaluate` compares with the truth).
-StatusOr<mission::Mission> MissionFromRun(const frontend::FrontEndResult& front,
-                                          const mosaic::MosaicResult& mosaic,
-                                          const activity::ActivityOptions& options);
 
 }  // namespace saker::pipeline

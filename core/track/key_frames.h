@@ -10,6 +10,7 @@
 #include "core/util/status.h"
 
 #include <Eigen/Core>
+#include <opencv2/core/mat.hpp>
 
 #include <cstddef>
 #include <cstdint>
@@ -35,6 +36,15 @@ struct KeyFrameOptions {
 };
 
 using StationaryPoint = std::pair<FeatureTrackId, Eigen::Vector2d>;
+
+// A downscaled grey copy of a key frame's picture, for describing it (loop closure) and drawing
+// the mosaic. Its pixels are shared, never modified once made.
+struct KeyFrameImage {
+  KeyFrameId id{};
+  int64_t frame_index = 0;
+  cv::Mat grey;      // downscaled copy
+  double scale = 1;  // full-resolution pixels per pixel of `grey`
+};
 
 struct KeyFrame {
   KeyFrameId id{};  // == its index in KeyFrameChain::key_frames()

@@ -73,7 +73,7 @@ TEST(AccuracyCorpusTest, TheRepositoryManifestsReadWithApartSeeds) {
   // Scoring is in seconds: at 25 fps it is saker-cli evaluate's, at 2 fps no fewer than the floor.
   const std::vector<CorpusCase> demo = CorpusCases(*corpus, SeedSet::kTuning, "nadir-25fps");
   ASSERT_EQ(demo.size(), corpus->tuning_seeds.size());
-  const frontend::EvaluationOptions cli;
+  const eval::FrontEndEvaluationOptions cli;
   EXPECT_EQ(demo[0].evaluation.min_mover_frames, cli.min_mover_frames);
   EXPECT_EQ(demo[0].evaluation.max_sighting_gap_frames, cli.max_sighting_gap_frames);
   EXPECT_EQ(demo[0].evaluation.gate_px, cli.gate_px);

@@ -6,7 +6,7 @@
 // build, many minutes under a sanitizer. Sanitizer builds skip these: they measure accuracy, and
 // the same front end code runs under the sanitizers in front_end_test.cc.
 
-#include "core/frontend/evaluate.h"
+#include "core/eval/front_end_accuracy.h"
 #include "core/frontend/front_end.h"
 #include "core/sim/simulator.h"
 #include "core/sim/truth.h"
@@ -44,9 +44,9 @@ void ExpectDetection(const World& world) {
 
   const StatusOr<FrontEndResult> result = RunFrontEnd(options.output.string(), {});
   ASSERT_TRUE(result.ok()) << result.status().ToString();
-  const StatusOr<Evaluation> evaluation = Evaluate(*result, *truth);
+  const StatusOr<eval::FrontEndEvaluation> evaluation = eval::EvaluateFrontEnd(*result, *truth);
   ASSERT_TRUE(evaluation.ok()) << evaluation.status().ToString();
-  std::cout << world.name << ":\n" << EvaluationToText(*evaluation);
+  std::cout << world.name << ":\n" << eval::FrontEndEvaluationToText(*evaluation);
 
   EXPECT_EQ(evaluation->homography.failed, 0);
   EXPECT_LT(evaluation->homography.median_px, 0.1);

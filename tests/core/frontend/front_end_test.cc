@@ -3,7 +3,7 @@
 
 #include "core/frontend/front_end.h"
 
-#include "core/frontend/evaluate.h"
+#include "core/eval/front_end_accuracy.h"
 #include "core/sim/simulator.h"
 #include "core/sim/truth.h"
 #include "tests/testing/test_data.h"
@@ -42,10 +42,10 @@ class FrontEndTest : public ::testing::Test {
     result_ = new FrontEndResult(std::move(result).value());
     StatusOr<sim::Truth> truth = sim::ReadTruth(options.TruthPath());
     ASSERT_TRUE(truth.ok());
-    StatusOr<Evaluation> evaluation = Evaluate(*result_, *truth);
+    StatusOr<eval::FrontEndEvaluation> evaluation = eval::EvaluateFrontEnd(*result_, *truth);
     ASSERT_TRUE(evaluation.ok()) << evaluation.status().ToString();
-    evaluation_ = new Evaluation(*evaluation);
-    std::cout << EvaluationToText(*evaluation_);
+    evaluation_ = new eval::FrontEndEvaluation(*evaluation);
+    std::cout << eval::FrontEndEvaluationToText(*evaluation_);
   }
   static void TearDownTestSuite() {
     delete result_;
@@ -54,11 +54,11 @@ class FrontEndTest : public ::testing::Test {
   }
   static std::filesystem::path* dir_;
   static FrontEndResult* result_;
-  static Evaluation* evaluation_;
+  static eval::FrontEndEvaluation* evaluation_;
 };
 std::filesystem::path* FrontEndTest::dir_ = nullptr;
 FrontEndResult* FrontEndTest::result_ = nullptr;
-Evaluation* FrontEndTest::evaluation_ = nullptr;
+eval::FrontEndEvaluation* FrontEndTest::evaluation_ = nullptr;
 
 TEST_F(FrontEndTest, FrameToFrameHomographiesMatchTheTruth) {
   ASSERT_NE(evaluation_, nullptr);
@@ -99,11 +99,11 @@ TEST_F(FrontEndTest, MovingVehiclesAreFound) {
 // and name real tracks and targets.
 TEST_F(FrontEndTest, OutcomesAgreeWithTheFigures) {
   ASSERT_NE(evaluation_, nullptr);
-  const DetectionAccuracy& a = evaluation_->targets;
+  const eval::DetectionAccuracy& a = evaluation_->targets;
   ASSERT_EQ(int64_t(a.sightings.size()), a.truth_targets);
   ASSERT_EQ(int64_t(a.tracks.size()), a.detected_tracks);
   int64_t found = 0, correct = 0;
-  for (const SightingOutcome& s : a.sightings) {
+  for (const eval::SightingOutcome& s : a.sightings) {
     found += s.found;
     EXPECT_LT(s.begin, s.end);
     EXPECT_GE(s.mover_frames, 25);
@@ -112,7 +112,7 @@ TEST_F(FrontEndTest, OutcomesAgreeWithTheFigures) {
     EXPECT_EQ(s.found, 2 * s.best_track_frames >= s.mover_frames && s.best_track != 0);
     EXPECT_EQ(s.best_track == 0, s.tracks_paired == 0);
   }
-  for (const TrackOutcome& t : a.tracks) {
+  for (const eval::TrackOutcome& t : a.tracks) {
     correct += t.correct;
     EXPECT_LE(t.first_frame, t.last_frame);
     EXPECT_LE(t.best_target_frames, t.observations);
@@ -122,7 +122,7 @@ TEST_F(FrontEndTest, OutcomesAgreeWithTheFigures) {
   }
   EXPECT_EQ(found, a.found_targets);
   EXPECT_EQ(correct, a.correct_tracks);
-  const std::string text = EvaluationToText(*evaluation_, /*details=*/true);
+  const std::string text = eval::FrontEndEvaluationToText(*evaluation_, /*details=*/true);
   const auto lines = [&](const std::string& start) {
     int64_t n = 0;
     for (size_t p = text.find(start); p != std::string::npos; p = text.find(start, p + 1)) ++n;
@@ -276,9 +276,9 @@ TEST_F(FrontEndTest, ResumesFromACheckpointAsIfNeverStopped) {
   // The targets: as good against the truth as the uninterrupted run's.
   StatusOr<sim::Truth> truth = sim::ReadTruth(SmallOptions(*dir_ / "town.ts", 12).TruthPath());
   ASSERT_TRUE(truth.ok());
-  StatusOr<Evaluation> evaluation = Evaluate(*resumed, *truth);
+  StatusOr<eval::FrontEndEvaluation> evaluation = eval::EvaluateFrontEnd(*resumed, *truth);
   ASSERT_TRUE(evaluation.ok()) << evaluation.status().ToString();
-  std::cout << "resumed:\n" << EvaluationToText(*evaluation);
+  std::cout << "resumed:\n" << eval::FrontEndEvaluationToText(*evaluation);
   EXPECT_GE(evaluation->targets.track_recall, evaluation_->targets.track_recall - 0.05);
   EXPECT_GE(evaluation->targets.track_precision, evaluation_->targets.track_precision - 0.05);
   EXPECT_GE(evaluation->targets.frame_recall, evaluation_->targets.frame_recall - 0.05);
@@ -346,14 +346,14 @@ TEST(FrontEndRunTest, ChangeDetectionFindsWalkers) {
     front.change.enabled = change;
     StatusOr<FrontEndResult> result = RunFrontEnd(options.output.string(), front);
     EXPECT_TRUE(result.ok()) << result.status().ToString();
-    StatusOr<Evaluation> evaluation = Evaluate(*result, *truth);
+    StatusOr<eval::FrontEndEvaluation> evaluation = eval::EvaluateFrontEnd(*result, *truth);
     EXPECT_TRUE(evaluation.ok());
     std::cout << (change ? "with" : "without") << " change detection:\n"
-              << EvaluationToText(*evaluation);
+              << eval::FrontEndEvaluationToText(*evaluation);
     return *evaluation;
   };
-  const Evaluation without = evaluate(false);
-  const Evaluation with = evaluate(true);
+  const eval::FrontEndEvaluation without = evaluate(false);
+  const eval::FrontEndEvaluation with = evaluate(true);
   ASSERT_GE(with.people.truth_targets, 5);
   // Measured: people found 7 of 13 either way (the sightings are short), per-frame recall 0.49 ->
   // 0.70, precision 0.92 -> 1.0.

@@ -1,7 +1,7 @@
 #include "core/mosaic/in_between.h"
 
-#include "core/frontend/front_end.h"
 #include "core/mosaic/link_graph.h"
+#include "core/mosaic/mosaic_input.h"
 #include "core/track/homography.h"
 #include "tests/core/mosaic/synthetic_camera.h"
 #include "tests/core/mosaic/synthetic_graph.h"
@@ -27,7 +27,7 @@ using testing_support::Normalised;
 // measured with 0.3 px corner noise, key frames every `spacing` frames placed at the truth.
 struct Video {
   std::vector<Eigen::Matrix3d> truth;
-  std::vector<frontend::FrameResult> frames;
+  std::vector<MosaicFrame> frames;
   LinkGraph graph;
 };
 
@@ -37,8 +37,7 @@ Video MakeVideo(int n, int spacing, uint64_t seed) {
   Noise noise(seed);
   v.frames.resize(size_t(n));
   for (int f = 0; f < n; ++f) {
-    frontend::FrameResult& fr = v.frames[size_t(f)];
-    fr.index = f;
+    MosaicFrame& fr = v.frames[size_t(f)];
     fr.time_s = f / 25.0;
     if (f == 0) continue;
     const Link link = MeasureLink(v.truth, f - 1, f, CornerCovariance(0.3, noise), &noise);
@@ -134,7 +133,7 @@ TEST(InBetweenTest, BadKeyFramesAreErrorsNotCrashes) {
   graph.nodes[1].frame_index = graph.nodes[0].frame_index;
   EXPECT_FALSE(PlaceInBetweenFrames(v.frames, graph).ok());
   // A degenerate frame homography is reported with the frames it lies between.
-  std::vector<frontend::FrameResult> frames = v.frames;
+  std::vector<MosaicFrame> frames = v.frames;
   frames[15].current_from_previous.setZero();
   frames[15].current_from_previous(2, 2) = 1;
   placed = PlaceInBetweenFrames(frames, v.graph);

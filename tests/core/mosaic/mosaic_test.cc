@@ -2,9 +2,10 @@
 // truth: the loop closures are found, and the adjustment takes the key frames' corners from the
 // chain's drift to close to the measurement noise.
 
-#include "core/mosaic/evaluate.h"
+#include "core/eval/mosaic_accuracy.h"
 #include "core/mosaic/mosaic_builder.h"
 #include "core/mosaic/render.h"
+#include "core/pipeline/mosaic_input.h"
 #include "core/sim/simulator.h"
 #include "core/sim/truth.h"
 #include "tests/testing/test_data.h"
@@ -35,7 +36,7 @@ sim::SimulationOptions SmallOptions(const std::filesystem::path& output, sim::Sc
 struct Outcome {
   frontend::FrontEndResult front;
   MosaicResult mosaic;
-  MosaicAccuracy accuracy;
+  eval::MosaicAccuracy accuracy;
 };
 
 // Simulates, runs the front end and the mosaic, evaluates; nullopt after a test failure.
@@ -46,16 +47,16 @@ std::optional<Outcome> MakeRun(const sim::SimulationOptions& options, const Mosa
   StatusOr<frontend::FrontEndResult> front = frontend::RunFrontEnd(options.output.string(), {});
   EXPECT_TRUE(front.ok()) << front.status().ToString();
   if (!front.ok()) return std::nullopt;
-  StatusOr<MosaicResult> built = BuildMosaic(*front, mosaic);
+  StatusOr<MosaicResult> built = BuildMosaic(pipeline::MosaicInputOf(*front), mosaic);
   EXPECT_TRUE(built.ok()) << built.status().ToString();
   if (!built.ok()) return std::nullopt;
   StatusOr<sim::Truth> truth = sim::ReadTruth(options.TruthPath());
   EXPECT_TRUE(truth.ok());
   if (!truth.ok()) return std::nullopt;
-  StatusOr<MosaicAccuracy> accuracy = EvaluateMosaic(*built, *truth);
+  StatusOr<eval::MosaicAccuracy> accuracy = eval::EvaluateMosaic(*built, *truth);
   EXPECT_TRUE(accuracy.ok()) << accuracy.status().ToString();
   if (!accuracy.ok()) return std::nullopt;
-  std::cout << MosaicAccuracyToText(*accuracy);
+  std::cout << eval::MosaicAccuracyToText(*accuracy);
   return Outcome{std::move(front).value(), std::move(built).value(), *accuracy};
 }
 
@@ -106,7 +107,7 @@ TEST_F(MosaicTest, RoundaboutLoopClosesAndTheAdjustmentRemovesTheDrift) {
   EXPECT_EQ(run->mosaic.in_between.unplaced, 0);
   EXPECT_EQ(run->mosaic.in_between.map_from_frame.size(), run->front.frames.size());
   ASSERT_TRUE(run->accuracy.in_between.has_value());
-  const InBetweenAccuracy& between = *run->accuracy.in_between;
+  const eval::InBetweenAccuracy& between = *run->accuracy.in_between;
   EXPECT_EQ(between.frames, int(run->front.frames.size()) - n);
   EXPECT_LT(between.frames_error.rms_px, 1.1 * between.key_frames_error.rms_px + 0.1);
   EXPECT_LT(between.max_excess_px, 0.5);
@@ -180,9 +181,9 @@ TEST_F(MosaicTest, FigureEightClosesAtTheCrossingAndAtTheEnd) {
   // width, bounds it.
   StatusOr<sim::Truth> truth = sim::ReadTruth(options.TruthPath());
   ASSERT_TRUE(truth.ok());
-  StatusOr<MetadataExperiment> experiment = RunMetadataExperiment(run->mosaic, *truth);
+  StatusOr<eval::MetadataExperiment> experiment = eval::RunMetadataExperiment(run->mosaic, *truth);
   ASSERT_TRUE(experiment.ok()) << experiment.status().ToString();
-  std::cout << MetadataExperimentToText(*experiment);
+  std::cout << eval::MetadataExperimentToText(*experiment);
   EXPECT_EQ(experiment->metadata_key_frames, 8);
   // Measured: 9 m at the start becomes 77 m RMS, 187 m at worst without metadata; 74 m RMS with
   // metadata of 129 m sigma (the footprint's width) on 8 key frames. On a flight this small the
@@ -196,10 +197,10 @@ TEST_F(MosaicTest, FigureEightClosesAtTheCrossingAndAtTheEnd) {
   // against the truth, 2.5 px RMS apart (the 11 cross-links left out account for most of it).
   DecompositionOptions few;
   few.cross_link_spacing = 3;
-  StatusOr<DecompositionExperiment> decomposition =
-      RunDecompositionExperiment(run->mosaic, *truth, few);
+  StatusOr<eval::DecompositionExperiment> decomposition =
+      eval::RunDecompositionExperiment(run->mosaic, *truth, few);
   ASSERT_TRUE(decomposition.ok()) << decomposition.status().ToString();
-  std::cout << DecompositionExperimentToText(*decomposition);
+  std::cout << eval::DecompositionExperimentToText(*decomposition);
   EXPECT_LE(decomposition->nodes, n / 3);
   EXPECT_LT(decomposition->full.rms_px, 0.5 * run->accuracy.before.rms_px);
   EXPECT_LT(decomposition->decomposed.rms_px, 1.5 * decomposition->full.rms_px + 0.5);
@@ -229,10 +230,48 @@ TEST(MosaicOptionsTest, RejectsBadOptions) {
   EXPECT_TRUE(MosaicOptions().Validate().ok());
 }
 
+// An input whose parts do not fit is refused by name before any work, never indexed past its end.
+TEST(MosaicBuilderTest, InputThatDoesNotFitIsRefused) {
+  MosaicInput input;
+  input.image_width = 640;
+  input.image_height = 360;
+  input.frames.resize(10);
+  track::KeyFrame kf;
+  kf.frame_index = 3;
+  input.key_frames.push_back(kf);
+  EXPECT_TRUE(input.Validate().ok());
+
+  MosaicInput bad = input;
+  bad.key_frames[0].frame_index = 10;
+  EXPECT_NE(bad.Validate().message().find("key frame 0 is frame 10 of 10"), std::string::npos);
+  StatusOr<MosaicResult> result = BuildMosaic(bad, {});
+  ASSERT_FALSE(result.ok());
+  EXPECT_EQ(result.status().code(), StatusCode::kInvalidArgument);
+
+  bad = input;
+  bad.key_frames[0].id = track::KeyFrameId(1);
+  EXPECT_EQ(bad.Validate().code(), StatusCode::kInvalidArgument);
+  bad = input;
+  track::SequentialLink link;
+  link.to = track::KeyFrameId(1);
+  bad.links.push_back(link);
+  EXPECT_EQ(bad.Validate().code(), StatusCode::kInvalidArgument);
+  bad = input;
+  bad.metadata_corners.resize(10);
+  EXPECT_NE(bad.Validate().message().find("without a map origin"), std::string::npos);
+  bad.origin = geo::Wgs84{50, 8, 0};
+  EXPECT_TRUE(bad.Validate().ok());
+  bad.metadata_corners.resize(9);
+  EXPECT_EQ(bad.Validate().code(), StatusCode::kInvalidArgument);
+  bad = input;
+  bad.image_width = 0;
+  EXPECT_EQ(bad.Validate().code(), StatusCode::kInvalidArgument);
+}
+
 TEST(MosaicBuilderTest, NoKeyFramesIsAnErrorNotACrash) {
-  frontend::FrontEndResult empty;
-  empty.video.width = 640;
-  empty.video.height = 360;
+  MosaicInput empty;
+  empty.image_width = 640;
+  empty.image_height = 360;
   StatusOr<MosaicResult> result = BuildMosaic(empty, {});
   ASSERT_FALSE(result.ok());
   EXPECT_EQ(result.status().code(), StatusCode::kInvalidData);

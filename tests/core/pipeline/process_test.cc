@@ -1,8 +1,8 @@
 #include "core/pipeline/process.h"
 
+#include "core/eval/video_evaluation.h"
 #include "core/mission/mission_store.h"
 #include "core/pipeline/checkpoint.h"
-#include "core/pipeline/evaluate.h"
 #include "core/pipeline/export_mission.h"
 #include "core/sim/simulator.h"
 #include "tests/testing/small_loop.h"
@@ -97,9 +97,9 @@ TEST_F(ProcessTest, ProcessesIntoAMissionThatReopensWithTheTruthsActivity) {
   // The activity against the truth: speed, visit and picking (docs/activity.md has the demo's).
   const auto truth = sim::ReadTruth(*truth_path_);
   ASSERT_TRUE(truth.ok());
-  const auto accuracy = EvaluateActivity(*m, *truth, options.activity.visit_gap_s);
+  const auto accuracy = eval::EvaluateActivity(*m, *truth, options.activity.visit_gap_s);
   ASSERT_TRUE(accuracy.ok()) << accuracy.status().ToString();
-  std::cout << ActivityAccuracyToText(*accuracy);
+  std::cout << eval::ActivityAccuracyToText(*accuracy);
   EXPECT_GE(accuracy->matched, 3);
   EXPECT_LT(accuracy->speed_median_error_mps, 1.0);
   EXPECT_LT(accuracy->direction_median_error_deg, 15.0);
@@ -290,12 +290,12 @@ TEST_F(ProcessTest, AnInterruptedJobResumesFromItsCheckpoint) {
   EXPECT_NEAR(double(resumed->tracks), double(baseline->tracks), 3);
   const auto truth = sim::ReadTruth(*truth_path_);
   ASSERT_TRUE(truth.ok());
-  const auto a = EvaluateActivity(*reference, *truth, options.activity.visit_gap_s);
-  const auto b = EvaluateActivity(*m, *truth, options.activity.visit_gap_s);
+  const auto a = eval::EvaluateActivity(*reference, *truth, options.activity.visit_gap_s);
+  const auto b = eval::EvaluateActivity(*m, *truth, options.activity.visit_gap_s);
   ASSERT_TRUE(a.ok() && b.ok());
   std::cout << "in one go:\n"
-            << ActivityAccuracyToText(*a) << "resumed:\n"
-            << ActivityAccuracyToText(*b);
+            << eval::ActivityAccuracyToText(*a) << "resumed:\n"
+            << eval::ActivityAccuracyToText(*b);
   EXPECT_GE(b->matched, a->matched - 1);
   EXPECT_LT(b->speed_median_error_mps, a->speed_median_error_mps + 0.3);
   EXPECT_GE(b->visit_agreement, a->visit_agreement - 0.1);

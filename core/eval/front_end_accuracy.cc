@@ -1,4 +1,4 @@
-#include "core/frontend/evaluate.h"
+#include "core/eval/front_end_accuracy.h"
 
 #include <Eigen/Geometry>
 #include <Eigen/LU>
@@ -8,7 +8,7 @@
 #include <map>
 #include <sstream>
 
-namespace saker::frontend {
+namespace saker::eval {
 namespace {
 
 double Percentile(std::vector<double> values, double p) {
@@ -21,7 +21,7 @@ double Percentile(std::vector<double> values, double p) {
 // The pairing distance for a target in a frame: the option, or half the target's length in the
 // image plus a margin when that is larger (features on a car's bumper are a detection of the car).
 double Gate(const sim::TargetTruth& target, const sim::FrameTruth& frame,
-            const EvaluationOptions& options) {
+            const FrontEndEvaluationOptions& options) {
   const Eigen::Matrix3d& h = frame.frame_from_ground;
   // Pixels per ground metre, from the homography's local scale (near nadir it barely varies).
   const double scale =
@@ -29,14 +29,15 @@ double Gate(const sim::TargetTruth& target, const sim::FrameTruth& frame,
   return std::max(options.gate_px, 0.5 * target.length_m * scale + 4.0);
 }
 
-HomographyAccuracy EvaluateHomographies(const FrontEndResult& result, const sim::Truth& truth) {
+HomographyAccuracy EvaluateHomographies(const frontend::FrontEndResult& result,
+                                        const sim::Truth& truth) {
   HomographyAccuracy accuracy;
   std::vector<double> errors;
   const double w = truth.width, h = truth.height;
   const Eigen::Vector2d corners[4] = {
       {-0.5, -0.5}, {w - 0.5, -0.5}, {w - 0.5, h - 0.5}, {-0.5, h - 0.5}};
   for (size_t i = 1; i < result.frames.size() && i < truth.frames.size(); ++i) {
-    const FrameResult& frame = result.frames[i];
+    const frontend::FrameResult& frame = result.frames[i];
     if (truth.frames[i].blank || truth.frames[i - 1].blank) continue;
     if (!frame.homography_ok) {
       ++accuracy.failed;
@@ -86,8 +87,8 @@ std::vector<std::pair<int64_t, int64_t>> Sightings(const sim::TargetTruth& targe
   return sightings;
 }
 
-DetectionAccuracy EvaluateTargets(const FrontEndResult& result, const sim::Truth& truth,
-                                  const EvaluationOptions& options, Classes classes) {
+DetectionAccuracy EvaluateTargets(const frontend::FrontEndResult& result, const sim::Truth& truth,
+                                  const FrontEndEvaluationOptions& options, Classes classes) {
   DetectionAccuracy a;
   const size_t frames = truth.frames.size();
   std::vector<const sim::TargetTruth*> considered;
@@ -259,8 +260,9 @@ nlohmann::json DetectionOutcomesToJson(const DetectionAccuracy& a) {
 
 }  // namespace
 
-StatusOr<Evaluation> Evaluate(const FrontEndResult& result, const sim::Truth& truth,
-                              const EvaluationOptions& options) {
+StatusOr<FrontEndEvaluation> EvaluateFrontEnd(const frontend::FrontEndResult& result,
+                                              const sim::Truth& truth,
+                                              const FrontEndEvaluationOptions& options) {
   if (result.frames.size() != truth.frames.size()) {
     return InvalidArgumentError("evaluate: the video has " + std::to_string(result.frames.size()) +
                                 " frames but the truth describes " +
@@ -271,7 +273,7 @@ StatusOr<Evaluation> Evaluate(const FrontEndResult& result, const sim::Truth& tr
                                 "x" + std::to_string(result.video.height) + " but the truth is " +
                                 std::to_string(truth.width) + "x" + std::to_string(truth.height));
   }
-  Evaluation e;
+  FrontEndEvaluation e;
   e.homography = EvaluateHomographies(result, truth);
   e.targets = EvaluateTargets(result, truth, options, Classes::kAll);
   e.vehicles = EvaluateTargets(result, truth, options, Classes::kVehicles);
@@ -281,7 +283,7 @@ StatusOr<Evaluation> Evaluate(const FrontEndResult& result, const sim::Truth& tr
   return e;
 }
 
-nlohmann::json EvaluationToJson(const Evaluation& e) {
+nlohmann::json FrontEndEvaluationToJson(const FrontEndEvaluation& e) {
   return {{"homography",
            {{"frames", e.homography.frames},
             {"failed", e.homography.failed},
@@ -296,7 +298,7 @@ nlohmann::json EvaluationToJson(const Evaluation& e) {
           {"chain_breaks", e.chain_breaks}};
 }
 
-std::string EvaluationToText(const Evaluation& e, bool details) {
+std::string FrontEndEvaluationToText(const FrontEndEvaluation& e, bool details) {
   std::ostringstream out;
   out.setf(std::ios::fixed);
   out.precision(3);
@@ -345,4 +347,4 @@ std::string EvaluationToText(const Evaluation& e, bool details) {
   return out.str();
 }
 
-}  // namespace saker::frontend
+}  // namespace saker::eval

@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-namespace saker::mosaic {
+namespace saker::eval {
 
 struct CornerErrors {
   double rms_px = 0;  // in the key frames' own pixels
@@ -20,8 +20,9 @@ struct CornerErrors {
   double max_m = 0;
 };
 
-// The in-between frames (every video frame that is not a key frame, MosaicResult::in_between)
-// against the truth, after the same gauge fit as the key frames' `after` figures.
+// The in-between frames (every video frame that is not a key frame,
+// mosaic::MosaicResult::in_between) against the truth, after the same gauge fit as the key frames'
+// `after` figures.
 struct InBetweenAccuracy {
   int frames = 0;                 // placed frames that are not key frames
   CornerErrors frames_error;      // theirs
@@ -37,7 +38,7 @@ struct MosaicAccuracy {
   int key_frames = 0;
   bool geo_referenced = false;
   // How the key frames were adjusted: "full" or "decomposed", and in the latter case the last
-  // adjustment's nodes and arcs; the time of all adjustments (MosaicTiming::adjust_s).
+  // adjustment's nodes and arcs; the time of all adjustments (mosaic::MosaicTiming::adjust_s).
   std::string adjust_mode;
   int nodes = 0;
   int arcs = 0;
@@ -49,13 +50,14 @@ struct MosaicAccuracy {
   // Geo-referenced maps only: the same without removing anything, what the map's coordinates are
   // worth to a user.
   std::optional<CornerErrors> before_absolute, after_absolute;
-  std::vector<LoopClosure> closures;
+  std::vector<mosaic::LoopClosure> closures;
   std::optional<InBetweenAccuracy> in_between;  // when the mosaic placed them
 };
 
 // InvalidArgument when the truth does not describe the video (key frame indices out of range or
 // another image size).
-StatusOr<MosaicAccuracy> EvaluateMosaic(const MosaicResult& mosaic, const sim::Truth& truth);
+StatusOr<MosaicAccuracy> EvaluateMosaic(const mosaic::MosaicResult& mosaic,
+                                        const sim::Truth& truth);
 
 // The paper's metadata experiment, on a mosaic's link graph and the truth. The first key frame's
 // homography is made wrong by `start_error_fraction` of the image width at its corners (a
@@ -78,13 +80,13 @@ struct MetadataExperiment {
   int metadata_key_frames = 0;
   CornerErrors without_metadata, with_metadata;
 };
-StatusOr<MetadataExperiment> RunMetadataExperiment(const MosaicResult& mosaic,
+StatusOr<MetadataExperiment> RunMetadataExperiment(const mosaic::MosaicResult& mosaic,
                                                    const sim::Truth& truth,
                                                    const MetadataExperimentOptions& options = {});
 std::string MetadataExperimentToText(const MetadataExperiment& experiment);
 
 // The paper's graph decomposition experiment (its figures 9 and 10) on a mosaic's link graph:
-// from the sequential chain's start (MosaicResult::chained), the full adjustment and the
+// from the sequential chain's start (mosaic::MosaicResult::chained), the full adjustment and the
 // decomposed one, timed, compared with each other and with the truth. `decomposition` says how
 // few nodes to use (cross_link_spacing keeps one cross-link per loop closure, as the paper did).
 struct DecompositionExperiment {
@@ -98,12 +100,13 @@ struct DecompositionExperiment {
   CornerErrors full, decomposed;  // against the truth, gauge removed
 };
 StatusOr<DecompositionExperiment> RunDecompositionExperiment(
-    const MosaicResult& mosaic, const sim::Truth& truth, const DecompositionOptions& decomposition,
-    const AdjustmentOptions& adjustment = {});
+    const mosaic::MosaicResult& mosaic, const sim::Truth& truth,
+    const mosaic::DecompositionOptions& decomposition,
+    const mosaic::AdjustmentOptions& adjustment = {});
 std::string DecompositionExperimentToText(const DecompositionExperiment& experiment);
 nlohmann::json DecompositionExperimentToJson(const DecompositionExperiment& experiment);
 
 nlohmann::json MosaicAccuracyToJson(const MosaicAccuracy& accuracy);
 std::string MosaicAccuracyToText(const MosaicAccuracy& accuracy);
 
-}  // namespace saker::mosaic
+}  // namespace saker::eval

@@ -1,7 +1,6 @@
-#include "core/pipeline/evaluate.h"
+#include "core/eval/activity_accuracy.h"
 
 #include "core/activity/activity.h"
-#include "core/pipeline/process.h"
 
 #include <Eigen/Geometry>
 #include <Eigen/LU>
@@ -13,7 +12,7 @@
 #include <map>
 #include <sstream>
 
-namespace saker::pipeline {
+namespace saker::eval {
 namespace {
 
 constexpr double kGatePx = 12;         // a track point follows a truth target this close
@@ -211,77 +210,4 @@ std::string ActivityAccuracyToText(const ActivityAccuracy& a) {
   return text;
 }
 
-namespace {
-
-// `status` with the video named first, as saker-cli reports a failure after the video was read.
-Status NamingVideo(const std::string& video, const Status& status) {
-  return Status(status.code(), video + ": " + status.message());
-}
-
-}  // namespace
-
-StatusOr<VideoEvaluation> EvaluateVideo(const std::string& video, const sim::Truth& truth,
-                                        const VideoEvaluationOptions& options, JobContext* job) {
-  VideoEvaluation e;
-  // The front end's errors name the video already.
-  SAKER_ASSIGN_OR_RETURN(e.front_end, frontend::RunFrontEnd(video, options.front_end, job));
-  StatusOr<frontend::Evaluation> detection =
-      frontend::Evaluate(e.front_end, truth, options.evaluation);
-  if (!detection.ok()) return NamingVideo(video, detection.status());
-  e.detection = std::move(*detection);
-  StatusOr<mosaic::MosaicResult> built = mosaic::BuildMosaic(e.front_end, options.mosaic, job);
-  if (!built.ok()) return NamingVideo(video, built.status());
-  StatusOr<mosaic::MosaicAccuracy> mosaic_accuracy = mosaic::EvaluateMosaic(*built, truth);
-  if (!mosaic_accuracy.ok()) return NamingVideo(video, mosaic_accuracy.status());
-  e.mosaic = std::move(*mosaic_accuracy);
-  const StatusOr<mission::Mission> mission = MissionFromRun(e.front_end, *built, options.activity);
-  if (!mission.ok()) return NamingVideo(video, mission.status());
-  StatusOr<ActivityAccuracy> activity =
-      EvaluateActivity(*mission, truth, options.activity.visit_gap_s);
-  if (!activity.ok()) return NamingVideo(video, activity.status());
-  e.activity = std::move(*activity);
-  if (options.experiments) {
-    if (auto experiment = mosaic::RunMetadataExperiment(*built, truth); experiment.ok()) {
-      e.metadata_experiment = std::move(*experiment);
-    }
-    if (auto experiment = mosaic::RunDecompositionExperiment(
-            *built, truth, options.mosaic.decomposition, options.mosaic.adjustment);
-        experiment.ok()) {
-      e.decomposition_experiment = std::move(*experiment);
-    }
-  }
-  return e;
-}
-
-nlohmann::json VideoEvaluationToJson(const VideoEvaluation& e) {
-  nlohmann::json j = frontend::EvaluationToJson(e.detection);
-  j["mosaic"] = mosaic::MosaicAccuracyToJson(e.mosaic);
-  j["activity"] = ActivityAccuracyToJson(e.activity);
-  if (const auto& m = e.metadata_experiment) {
-    j["metadata_experiment"] = {{"start_error_m", m->start_error_m},
-                                {"metadata_key_frames", m->metadata_key_frames},
-                                {"metadata_sigma_m", m->metadata_sigma_m},
-                                {"without_metadata_rms_m", m->without_metadata.rms_m},
-                                {"without_metadata_max_m", m->without_metadata.max_m},
-                                {"with_metadata_rms_m", m->with_metadata.rms_m},
-                                {"with_metadata_max_m", m->with_metadata.max_m}};
-  }
-  if (e.decomposition_experiment) {
-    j["decomposition_experiment"] =
-        mosaic::DecompositionExperimentToJson(*e.decomposition_experiment);
-  }
-  return j;
-}
-
-std::string VideoEvaluationToText(const VideoEvaluation& e, bool details) {
-  std::string text = frontend::EvaluationToText(e.detection, details);
-  text += mosaic::MosaicAccuracyToText(e.mosaic);
-  text += ActivityAccuracyToText(e.activity);
-  if (e.metadata_experiment) text += mosaic::MetadataExperimentToText(*e.metadata_experiment);
-  if (e.decomposition_experiment) {
-    text += mosaic::DecompositionExperimentToText(*e.decomposition_experiment);
-  }
-  return text;
-}
-
-}  // namespace saker::pipeline
+}  // namespace saker::eval

@@ -1,4 +1,4 @@
-#include "core/mosaic/evaluate.h"
+#include "core/eval/mosaic_accuracy.h"
 
 #include "core/geo/local_tangent_plane.h"
 #include "core/track/homography.h"
@@ -14,7 +14,7 @@
 #include <random>
 #include <sstream>
 
-namespace saker::mosaic {
+namespace saker::eval {
 namespace {
 
 // Errors of map_from_frame per key frame against the truth ground positions of its corners, the
@@ -26,7 +26,7 @@ CornerErrors Errors(const std::vector<Eigen::Matrix3d>& map_from_frame,
   CornerErrors e;
   double sum_px = 0, sum_m = 0;
   int n = 0;
-  const auto corners = ImageCorners(width, height);
+  const auto corners = mosaic::ImageCorners(width, height);
   for (size_t k = 0; k < map_from_frame.size(); ++k) {
     for (int c = 0; c < 4; ++c) {
       const Eigen::Vector3d q =
@@ -69,7 +69,7 @@ Eigen::Matrix3d FitCorners(const std::vector<std::array<Eigen::Vector2d, 4>>& fr
 Eigen::Matrix3d GaugeFit(const std::vector<Eigen::Matrix3d>& map_from_frame,
                          const std::vector<std::array<Eigen::Vector2d, 4>>& truth_ground, int width,
                          int height) {
-  const auto corners = ImageCorners(width, height);
+  const auto corners = mosaic::ImageCorners(width, height);
   std::vector<std::array<Eigen::Vector2d, 4>> estimated(map_from_frame.size());
   for (size_t k = 0; k < map_from_frame.size(); ++k) {
     for (int c = 0; c < 4; ++c) {
@@ -84,9 +84,9 @@ struct KeyFrameTruth {
   std::vector<Eigen::Matrix3d> frame_from_ground;
   std::vector<std::array<Eigen::Vector2d, 4>> ground;
 };
-StatusOr<KeyFrameTruth> TruthOfKeyFrames(const LinkGraph& graph, const sim::Truth& truth,
+StatusOr<KeyFrameTruth> TruthOfKeyFrames(const mosaic::LinkGraph& graph, const sim::Truth& truth,
                                          const std::string& what) {
-  const auto corners = ImageCorners(graph.image_width, graph.image_height);
+  const auto corners = mosaic::ImageCorners(graph.image_width, graph.image_height);
   KeyFrameTruth t;
   for (size_t k = 0; k < graph.nodes.size(); ++k) {
     const int64_t f = graph.nodes[k].frame_index;
@@ -107,17 +107,18 @@ StatusOr<KeyFrameTruth> TruthOfKeyFrames(const LinkGraph& graph, const sim::Trut
 
 // Every placed frame that is not a key frame against the truth, through the key frames' gauge
 // fit; the excess over the neighbouring key frames' error for frames between two of them.
-StatusOr<InBetweenAccuracy> EvaluateInBetween(const MosaicResult& mosaic, const sim::Truth& truth,
+StatusOr<InBetweenAccuracy> EvaluateInBetween(const mosaic::MosaicResult& mosaic,
+                                              const sim::Truth& truth,
                                               const Eigen::Matrix3d& truth_from_map,
                                               const CornerErrors& key_frames_error) {
-  const LinkGraph& graph = mosaic.graph;
+  const mosaic::LinkGraph& graph = mosaic.graph;
   const std::vector<std::optional<Eigen::Matrix3d>>& placed = mosaic.in_between.map_from_frame;
   if (placed.size() > truth.frames.size()) {
     return InvalidArgumentError("evaluate: the mosaic placed " + std::to_string(placed.size()) +
                                 " frames but the truth has " + std::to_string(truth.frames.size()));
   }
   const int w = graph.image_width, h = graph.image_height;
-  const auto corners = ImageCorners(w, h);
+  const auto corners = mosaic::ImageCorners(w, h);
   // Per frame: truth ground corners and each frame's own RMS error in pixels.
   const auto frame_errors = [&](size_t f, const Eigen::Matrix3d& map_from_frame) {
     const Eigen::Matrix3d& frame_from_ground = truth.frames[f].frame_from_ground;
@@ -130,7 +131,7 @@ StatusOr<InBetweenAccuracy> EvaluateInBetween(const MosaicResult& mosaic, const 
   };
   std::vector<double> key_error_px(placed.size(), -1);
   std::vector<bool> is_key(placed.size(), false);
-  for (const Node& node : graph.nodes) {
+  for (const mosaic::Node& node : graph.nodes) {
     const size_t f = size_t(node.frame_index);
     if (f >= placed.size()) continue;
     is_key[f] = true;
@@ -179,8 +180,9 @@ StatusOr<InBetweenAccuracy> EvaluateInBetween(const MosaicResult& mosaic, const 
 
 }  // namespace
 
-StatusOr<MosaicAccuracy> EvaluateMosaic(const MosaicResult& mosaic, const sim::Truth& truth) {
-  const LinkGraph& graph = mosaic.graph;
+StatusOr<MosaicAccuracy> EvaluateMosaic(const mosaic::MosaicResult& mosaic,
+                                        const sim::Truth& truth) {
+  const mosaic::LinkGraph& graph = mosaic.graph;
   if (graph.image_width != truth.width || graph.image_height != truth.height) {
     return InvalidArgumentError("evaluate: the mosaic's frames are " +
                                 std::to_string(graph.image_width) + "x" +
@@ -202,7 +204,7 @@ StatusOr<MosaicAccuracy> EvaluateMosaic(const MosaicResult& mosaic, const sim::T
                                                                         truth.origin_height_m}));
     SAKER_ASSIGN_OR_RETURN(map_plane, geo::LocalTangentPlane::Create(*mosaic.origin));
   }
-  const auto corners = ImageCorners(graph.image_width, graph.image_height);
+  const auto corners = mosaic::ImageCorners(graph.image_width, graph.image_height);
   std::vector<std::array<Eigen::Vector2d, 4>> ground(graph.nodes.size()),
       in_map(graph.nodes.size());
   std::vector<Eigen::Matrix3d> frame_from_ground(graph.nodes.size()), adjusted, chained;
@@ -249,10 +251,10 @@ StatusOr<MosaicAccuracy> EvaluateMosaic(const MosaicResult& mosaic, const sim::T
   return a;
 }
 
-StatusOr<MetadataExperiment> RunMetadataExperiment(const MosaicResult& mosaic,
+StatusOr<MetadataExperiment> RunMetadataExperiment(const mosaic::MosaicResult& mosaic,
                                                    const sim::Truth& truth,
                                                    const MetadataExperimentOptions& options) {
-  const LinkGraph& graph = mosaic.graph;
+  const mosaic::LinkGraph& graph = mosaic.graph;
   if (graph.nodes.size() < 2) {
     return InvalidArgumentError("metadata experiment: needs at least two key frames");
   }
@@ -261,7 +263,7 @@ StatusOr<MetadataExperiment> RunMetadataExperiment(const MosaicResult& mosaic,
     return InvalidArgumentError("metadata experiment: bad options");
   }
   const int w = graph.image_width, h = graph.image_height;
-  const auto corners = ImageCorners(w, h);
+  const auto corners = mosaic::ImageCorners(w, h);
   const size_t n = graph.nodes.size();
   SAKER_ASSIGN_OR_RETURN(const KeyFrameTruth key_truth,
                          TruthOfKeyFrames(graph, truth, "metadata experiment"));
@@ -276,9 +278,9 @@ StatusOr<MetadataExperiment> RunMetadataExperiment(const MosaicResult& mosaic,
   distorted[0].x() += shift;
   distorted[1].x() -= shift;
   SAKER_ASSIGN_OR_RETURN(track::HomographyWithCovariance keystone,
-                         HomographyFromCorners(corners, distorted, 1.0));
+                         mosaic::HomographyFromCorners(corners, distorted, 1.0));
 
-  LinkGraph start = graph;
+  mosaic::LinkGraph start = graph;
   start.geo_referenced = true;
   start.nodes[0].map_from_frame = frame_from_ground[0].inverse() * keystone.target_from_source;
   start.nodes[0].map_from_frame /= start.nodes[0].map_from_frame(2, 2);
@@ -286,29 +288,29 @@ StatusOr<MetadataExperiment> RunMetadataExperiment(const MosaicResult& mosaic,
     // Chain from the previous key frame through the sequential link into k, if there is one;
     // else keep the previous one's (a break).
     Eigen::Matrix3d m = start.nodes[k - 1].map_from_frame;
-    for (const Link& l : graph.links) {
-      if (l.kind == LinkKind::kSequential && size_t(l.to) == k && size_t(l.from) == k - 1) {
+    for (const mosaic::Link& l : graph.links) {
+      if (l.kind == mosaic::LinkKind::kSequential && size_t(l.to) == k && size_t(l.from) == k - 1) {
         m = m * l.to_from_from.inverse();
       }
     }
     start.nodes[k].map_from_frame = m / m(2, 2);
   }
-  for (Node& node : start.nodes) node.metadata_corners.reset();
+  for (mosaic::Node& node : start.nodes) node.metadata_corners.reset();
   std::vector<Eigen::Matrix3d> wrong;
-  for (const Node& node : start.nodes) wrong.push_back(node.map_from_frame);
+  for (const mosaic::Node& node : start.nodes) wrong.push_back(node.map_from_frame);
 
   MetadataExperiment e;
   e.start_error_m =
       Errors({wrong[0]}, {ground[0]}, {frame_from_ground[0]}, Eigen::Matrix3d::Identity(), w, h)
           .rms_m;
-  const auto solved = [&](const LinkGraph& g) {
+  const auto solved = [&](const mosaic::LinkGraph& g) {
     std::vector<Eigen::Matrix3d> m;
-    for (const Node& node : g.nodes) m.push_back(node.map_from_frame);
+    for (const mosaic::Node& node : g.nodes) m.push_back(node.map_from_frame);
     return Errors(m, ground, frame_from_ground, Eigen::Matrix3d::Identity(), w, h);
   };
-  AdjustmentOptions adjustment;
-  LinkGraph without = start;
-  SAKER_ASSIGN_OR_RETURN(AdjustmentSummary s1, Adjust(&without, adjustment));
+  mosaic::AdjustmentOptions adjustment;
+  mosaic::LinkGraph without = start;
+  SAKER_ASSIGN_OR_RETURN(mosaic::AdjustmentSummary s1, mosaic::Adjust(&without, adjustment));
   (void)s1;
   e.without_metadata = solved(without);
 
@@ -318,7 +320,7 @@ StatusOr<MetadataExperiment> RunMetadataExperiment(const MosaicResult& mosaic,
   e.metadata_sigma_m = sigma;
   std::mt19937_64 random(options.seed);
   std::normal_distribution<double> noise(0.0, sigma);
-  LinkGraph with = start;
+  mosaic::LinkGraph with = start;
   const int count = std::min<int>(options.metadata_key_frames, int(n));
   for (int i = 0; i < count; ++i) {
     const size_t k = count == 1 ? 0 : size_t(std::lround(double(i) * double(n - 1) / (count - 1)));
@@ -328,7 +330,7 @@ StatusOr<MetadataExperiment> RunMetadataExperiment(const MosaicResult& mosaic,
     with.nodes[k].metadata_corners = noisy;
   }
   adjustment.metadata_sigma_m = sigma;
-  SAKER_ASSIGN_OR_RETURN(AdjustmentSummary summary, Adjust(&with, adjustment));
+  SAKER_ASSIGN_OR_RETURN(mosaic::AdjustmentSummary summary, mosaic::Adjust(&with, adjustment));
   (void)summary;
   e.with_metadata = solved(with);
   return e;
@@ -349,39 +351,40 @@ std::string MetadataExperimentToText(const MetadataExperiment& e) {
 }
 
 StatusOr<DecompositionExperiment> RunDecompositionExperiment(
-    const MosaicResult& mosaic, const sim::Truth& truth, const DecompositionOptions& decomposition,
-    const AdjustmentOptions& adjustment) {
-  const LinkGraph& graph = mosaic.graph;
+    const mosaic::MosaicResult& mosaic, const sim::Truth& truth,
+    const mosaic::DecompositionOptions& decomposition,
+    const mosaic::AdjustmentOptions& adjustment) {
+  const mosaic::LinkGraph& graph = mosaic.graph;
   const size_t n = graph.nodes.size();
   if (mosaic.chained.size() != n) {
     return InvalidArgumentError("decomposition experiment: the mosaic has no chained start");
   }
   const int w = graph.image_width, h = graph.image_height;
-  const auto corners = ImageCorners(w, h);
+  const auto corners = mosaic::ImageCorners(w, h);
   SAKER_ASSIGN_OR_RETURN(const KeyFrameTruth key_truth,
                          TruthOfKeyFrames(graph, truth, "decomposition experiment"));
   const std::vector<Eigen::Matrix3d>& frame_from_ground = key_truth.frame_from_ground;
   const std::vector<std::array<Eigen::Vector2d, 4>>& ground = key_truth.ground;
-  LinkGraph start = graph;
+  mosaic::LinkGraph start = graph;
   for (size_t k = 0; k < n; ++k) start.nodes[k].map_from_frame = mosaic.chained[k];
-  const auto solution = [](const LinkGraph& g) {
+  const auto solution = [](const mosaic::LinkGraph& g) {
     std::vector<Eigen::Matrix3d> m;
-    for (const Node& node : g.nodes) m.push_back(node.map_from_frame);
+    for (const mosaic::Node& node : g.nodes) m.push_back(node.map_from_frame);
     return m;
   };
 
   DecompositionExperiment e;
   e.key_frames = int(n);
-  LinkGraph full = start;
+  mosaic::LinkGraph full = start;
   auto t0 = std::chrono::steady_clock::now();
-  SAKER_ASSIGN_OR_RETURN(AdjustmentSummary full_summary, Adjust(&full, adjustment));
+  SAKER_ASSIGN_OR_RETURN(mosaic::AdjustmentSummary full_summary, mosaic::Adjust(&full, adjustment));
   e.full_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   (void)full_summary;
 
-  LinkGraph decomposed = start;
+  mosaic::LinkGraph decomposed = start;
   t0 = std::chrono::steady_clock::now();
-  SAKER_ASSIGN_OR_RETURN(DecomposedSummary summary,
-                         AdjustDecomposed(&decomposed, adjustment, decomposition));
+  SAKER_ASSIGN_OR_RETURN(mosaic::DecomposedSummary summary,
+                         mosaic::AdjustDecomposed(&decomposed, adjustment, decomposition));
   e.decomposed_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   e.node_adjust_s = summary.adjust_s;
   e.nodes = summary.nodes;
@@ -448,10 +451,10 @@ nlohmann::json MosaicAccuracyToJson(const MosaicAccuracy& a) {
     return nlohmann::json{{"rms_px", e.rms_px}, {"rms_m", e.rms_m}, {"max_m", e.max_m}};
   };
   nlohmann::json closures = nlohmann::json::array();
-  for (const LoopClosure& c : a.closures) {
+  for (const mosaic::LoopClosure& c : a.closures) {
     closures.push_back({{"from", int(c.from)},
                         {"to", int(c.to)},
-                        {"kind", LinkKindName(c.kind)},
+                        {"kind", mosaic::LinkKindName(c.kind)},
                         {"inliers", c.inliers}});
   }
   nlohmann::json j = {{"key_frames", a.key_frames},
@@ -500,12 +503,12 @@ std::string MosaicAccuracyToText(const MosaicAccuracy& a) {
         << " m)\n";
   }
   out << "  loop closures: " << a.closures.size();
-  for (const LoopClosure& c : a.closures) {
-    out << "\n    key frame " << int(c.from) << " -> " << int(c.to) << " (" << LinkKindName(c.kind)
-        << ", " << c.inliers << " inliers)";
+  for (const mosaic::LoopClosure& c : a.closures) {
+    out << "\n    key frame " << int(c.from) << " -> " << int(c.to) << " ("
+        << mosaic::LinkKindName(c.kind) << ", " << c.inliers << " inliers)";
   }
   out << "\n";
   return out.str();
 }
 
-}  // namespace saker::mosaic
+}  // namespace saker::eval

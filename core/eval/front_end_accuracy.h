@@ -29,9 +29,9 @@
 #include <string>
 #include <vector>
 
-namespace saker::frontend {
+namespace saker::eval {
 
-struct EvaluationOptions {
+struct FrontEndEvaluationOptions {
   double min_speed_mps = 1.0;
   int min_mover_frames = 25;
   double gate_px = 12;
@@ -87,7 +87,7 @@ struct DetectionAccuracy {
   std::vector<TrackOutcome> tracks;
 };
 
-struct Evaluation {
+struct FrontEndEvaluation {
   HomographyAccuracy homography;
   DetectionAccuracy targets;  // every class
   // Recall by class (precision needs every class: a correct track on a person is not a false
@@ -98,11 +98,12 @@ struct Evaluation {
 };
 
 // Fails when the truth does not describe the video (frame count or size differ).
-StatusOr<Evaluation> Evaluate(const FrontEndResult& result, const sim::Truth& truth,
-                              const EvaluationOptions& options = {});
+StatusOr<FrontEndEvaluation> EvaluateFrontEnd(const frontend::FrontEndResult& result,
+                                              const sim::Truth& truth,
+                                              const FrontEndEvaluationOptions& options = {});
 
-nlohmann::json EvaluationToJson(const Evaluation& evaluation);
+nlohmann::json FrontEndEvaluationToJson(const FrontEndEvaluation& evaluation);
 // With `details`, also the missed sightings and the false tracks, one a line.
-std::string EvaluationToText(const Evaluation& evaluation, bool details = false);
+std::string FrontEndEvaluationToText(const FrontEndEvaluation& evaluation, bool details = false);
 
-}  // namespace saker::frontend
+}  // namespace saker::eval

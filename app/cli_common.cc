@@ -1,0 +1,40 @@
+#include "app/cli_common.h"
+
+#include <unistd.h>
+
+#include <iostream>
+
+namespace saker::app {
+
+int Fail(const Status& status, bool progress_shown) {
+  if (progress_shown && isatty(STDERR_FILENO) != 0) std::cerr << "\n";
+  std::cerr << "saker-cli: " << status.message() << "\n";
+  return status.code() == StatusCode::kCancelled ? kExitCancelled : kExitFailed;
+}
+
+JobContext ProgressContext(bool quiet) {
+  if (quiet || isatty(STDERR_FILENO) == 0) return JobContext();
+  return JobContext(
+      [last = std::string(), percent = -1](const std::string& stage, double fraction) mutable {
+        const int p = static_cast<int>(fraction * 100);
+        if (stage == last && p == percent) return;
+        last = stage;
+        percent = p;
+        std::cerr << "\r" << stage << ": " << p << " %   " << std::flush;
+      });
+}
+
+void ClearProgressLine(bool shown) {
+  if (shown && isatty(STDERR_FILENO) != 0) std::cerr << "\r" << std::string(60, ' ') << "\r";
+}
+
+CLI::Option* AddAdjustOption(CLI::App* command, std::string* mode) {
+  return command
+      ->add_option("--adjust", *mode,
+                   "Bundle adjustment of every key frame (full) or of the nodes of the node/arc "
+                   "decomposition, the other key frames then placed along the arcs (decomposed)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"full", "decomposed"}));
+}
+
+}  // namespace saker::app

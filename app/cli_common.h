@@ -1,0 +1,37 @@
+#pragma once
+
+// What every saker-cli subcommand shares: exit codes, how a failure is reported, the progress
+// line, and options that several subcommands take.
+
+#include "core/util/job_context.h"
+#include "core/util/status.h"
+
+#include <CLI/CLI.hpp>
+
+#include <string>
+
+namespace saker::app {
+
+// Exit codes (documented in the README, "Exit codes").
+inline constexpr int kExitOk = 0;
+inline constexpr int kExitFailed = 1;       // the input could not be read or the job failed
+inline constexpr int kExitUsage = 2;        // bad command line
+inline constexpr int kExitBug = 3;          // an internal check failed
+inline constexpr int kExitCancelled = 130;  // as a shell reports a job stopped by Ctrl-C
+
+// Prints "saker-cli: <message>" on stderr (after the progress line, when one is shown) and
+// returns the exit code for `status`: kExitCancelled for a cancellation, else kExitFailed.
+int Fail(const Status& status, bool progress_shown = false);
+
+// Progress on one stderr line, rewritten in place; silent when quiet or when stderr is not a
+// terminal (a log file would collect every update).
+JobContext ProgressContext(bool quiet);
+
+// Clears the progress line when one was shown (`shown`) on a terminal.
+void ClearProgressLine(bool shown);
+
+// `--adjust full|decomposed` (mosaic::ParseAdjustmentMode reads it), shared by the subcommands
+// that build a mosaic.
+CLI::Option* AddAdjustOption(CLI::App* command, std::string* mode);
+
+}  // namespace saker::app

@@ -1,0 +1,58 @@
+#pragma once
+// Opening a saved mission for a person: the mission, what an interrupted job left (its checkpoint
+// and, before there is a mosaic, its key frames as the front end placed them), and the video it
+// was made from, found by its fingerprint (frame recall needs it; the map and tracks do not).
+// The GUI opens missions through it and `saker-cli info` reports through it.
+
+#include "core/frontend/front_end.h"
+#include "core/mission/mission.h"
+#include "core/pipeline/checkpoint.h"
+#include "core/util/status.h"
+
+#include <cstdint>
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace saker::pipeline {
+
+// Where a mission's video is.
+struct VideoLocation {
+  enum class State {
+    kFound,    // `path` is the video (same fingerprint)
+    kMissing,  // no file at any place looked at; `path` is the recorded one
+    kChanged,  // `path` holds a file, but not the video that was processed
+  };
+  State state = State::kMissing;
+  std::string path;
+  std::vector<std::string> looked_at;  // every place tried, in order
+};
+
+struct OpenMissionOptions {
+  // Where a person last located the video of this fingerprint, if anywhere (the GUI remembers
+  // it in its settings); looked at after the recorded path.
+  std::function<std::optional<std::string>(const std::string& fingerprint)> remembered_video;
+  // Decode an interrupted job's key frame images when the mission has no mosaic yet.
+  bool read_previews = true;
+};
+
+struct OpenedMission {
+  mission::Mission mission;
+  int64_t tiles = 0;                          // tiles stored (the mosaic picture)
+  std::optional<CheckpointState> checkpoint;  // an interrupted job's
+  std::vector<frontend::KeyFramePreview> previews;
+  VideoLocation video;
+};
+
+// Opens the mission file at `path` read-only and locates its video: at the recorded path, at the
+// remembered place, then beside the mission file under the recorded name. Errors (the file is
+// missing, not a mission, damaged) name the file; a missing video is not an error.
+StatusOr<OpenedMission> OpenMission(const std::string& path,
+                                    const OpenMissionOptions& options = {});
+
+// Where the video is, the same way (exposed for a person's "locate" action and tests).
+VideoLocation LocateVideo(const mission::SourceVideo& source, const std::string& mission_path,
+                          const OpenMissionOptions& options = {});
+
+}  // namespace saker::pipeline

@@ -1,0 +1,259 @@
+#include "core/pipeline/stages.h"
+
+#include "core/pipeline/mosaic_input.h"
+
+#include <chrono>
+#include <map>
+#include <utility>
+
+namespace saker::pipeline {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double Seconds(Clock::time_point since) {
+  return std::chrono::duration<double>(Clock::now() - since).count();
+}
+
+mission::LinkKind MissionLinkKind(mosaic::LinkKind kind) {
+  switch (kind) {
+    case mosaic::LinkKind::kSequential:
+      return mission::LinkKind::kSequential;
+    case mosaic::LinkKind::kGeometric:
+      return mission::LinkKind::kGeometric;
+    case mosaic::LinkKind::kAppearance:
+      return mission::LinkKind::kAppearance;
+  }
+  return mission::LinkKind::kSequential;
+}
+
+// Key frames and links of the adjusted graph, nodes of the last decomposition marked.
+void GraphRecords(const mosaic::MosaicResult& result, mission::Mission* m) {
+  std::vector<bool> node(result.graph.nodes.size(), false);
+  if (result.decomposition) {
+    for (const mosaic::KeyFrameId id : result.decomposition->decomposition.nodes) {
+      if (size_t(id) < node.size()) node[size_t(id)] = true;
+    }
+  } else {
+    node.assign(node.size(), true);  // the full adjustment: every key frame a node
+  }
+  m->key_frames.clear();
+  for (const mosaic::Node& n : result.graph.nodes) {
+    mission::KeyFrameRecord k;
+    k.id = int32_t(n.id);
+    k.frame_index = n.frame_index;
+    k.segment = n.segment;
+    k.map_from_frame = n.map_from_frame;
+    if (size_t(n.id) < result.covariances.size()) k.covariance = result.covariances[size_t(n.id)];
+    k.node = node[size_t(n.id)];
+    m->key_frames.push_back(k);
+  }
+  m->links.clear();
+  for (const mosaic::Link& l : result.graph.links) {
+    mission::LinkRecord r;
+    r.from = int32_t(l.from);
+    r.to = int32_t(l.to);
+    r.kind = MissionLinkKind(l.kind);
+    r.to_from_from = l.to_from_from;
+    r.covariance = l.covariance;
+    r.correspondences = int32_t(l.correspondences.size());
+    m->links.push_back(r);
+  }
+}
+
+// The stages, each filling its part of `run`. Each returns whether the later stages can run.
+
+StatusOr<bool> FrontEndStage(const std::string& video, const StageOptions& options,
+                             const StageHooks& hooks, JobContext* job, MissionRun* run) {
+  SAKER_ASSIGN_OR_RETURN(run->front,
+                         frontend::RunFrontEnd(video, options.front_end, job, hooks.resume));
+  mission::Mission& m = run->mission;
+  if (m.source.width == 0) {  // the caller recorded no source: the front end's view of it
+    m.source.path = run->front.video.path;
+    m.source.width = run->front.video.width;
+    m.source.height = run->front.video.height;
+    m.source.frame_rate = run->front.video.fps;
+  }
+  m.source.frame_count = int64_t(run->front.frames.size());
+  m.frames = FrameRecords(run->front, nullptr, nullptr);
+  m.progress.front_end = true;
+  return true;
+}
+
+StatusOr<bool> MosaicStage(const std::string& video, const StageOptions& options, JobContext* job,
+                           MissionRun* run) {
+  run->mosaic_input = MosaicInputOf(run->front);
+  StatusOr<mosaic::MosaicResult> built =
+      mosaic::BuildMosaic(run->mosaic_input, options.mosaic, job);
+  if (!built.ok()) {
+    if (built.status().code() == StatusCode::kCancelled) return built.status();
+    if (built.status().code() != StatusCode::kInvalidData) {
+      return Status(built.status().code(), video + ": " + built.status().message());
+    }
+    // No key frame: a mission without a mosaic (frames and metadata only).
+    run->no_mosaic = built.status();
+    run->warnings.push_back(video + ": no mosaic: " + built.status().message());
+    return false;
+  }
+  run->mosaic = std::move(*built);
+  mission::Mission& m = run->mission;
+  m.map.geo_referenced = run->mosaic->graph.geo_referenced;
+  m.map.origin = run->mosaic->origin;
+  m.frames = FrameRecords(run->front, &run->mosaic_input, &*run->mosaic);
+  GraphRecords(*run->mosaic, &m);
+  m.progress.mosaic = true;
+  return true;
+}
+
+StatusOr<bool> ActivityStage(const StageOptions& options, JobContext* job, MissionRun* run) {
+  if (job && job->IsCancelled()) return CancelledError("before activity mapping");
+  if (job) job->ReportProgress("Activity", 0);
+  mission::Mission& m = run->mission;
+  m.tracks = TrackRecords(run->front);
+  SAKER_ASSIGN_OR_RETURN(const activity::ActivitySummary mapped,
+                         activity::MapActivity(m, &m.tracks, options.activity));
+  run->observations_dropped = mapped.observations_dropped;
+  if (mapped.observations_dropped > 0) {
+    run->warnings.push_back(std::to_string(mapped.observations_dropped) +
+                            " target observations lie on frames that could not be placed on "
+                            "the map and are left out");
+  }
+  m.progress.activity = true;
+  if (job) job->ReportProgress("Activity", 1);
+  return true;
+}
+
+StatusOr<bool> TilesStage(const StageOptions& options, const StageHooks& hooks, JobContext* job,
+                          MissionRun* run) {
+  mission::Mission& m = run->mission;
+  std::map<int, const track::KeyFrameImage*> images;
+  for (const track::KeyFrameImage& image : run->front.key_frame_images) {
+    images[int(image.id)] = &image;
+  }
+  std::vector<tiles::KeyFrameView> views;
+  for (const mosaic::Node& node : run->mosaic->graph.nodes) {
+    const auto it = images.find(int(node.id));
+    if (it == images.end() || it->second->grey.empty()) continue;
+    views.push_back({&it->second->grey, it->second->scale, node.map_from_frame});
+  }
+  StatusOr<mission::PyramidInfo> info = tiles::PlanPyramid(views, m.source.width, m.source.height,
+                                                           m.map.geo_referenced, options.pyramid);
+  if (!info.ok()) {
+    run->warnings.push_back("no mosaic picture: " + info.status().message());
+    return false;
+  }
+  if (hooks.clear_tiles) SAKER_RETURN_IF_ERROR(hooks.clear_tiles());
+  SAKER_ASSIGN_OR_RETURN(const tiles::RenderSummary rendered,
+                         tiles::RenderPyramid(views, m.source.width, m.source.height, *info,
+                                              options.pyramid, hooks.write_tiles, job));
+  run->tiles_written = rendered.tiles_written;
+  m.pyramid = *info;
+  m.progress.tiles = true;
+  return true;
+}
+
+}  // namespace
+
+const char* StageName(Stage stage) {
+  switch (stage) {
+    case Stage::kFrontEnd:
+      return kStageFrontEnd;
+    case Stage::kMosaic:
+      return kStageMosaic;
+    case Stage::kActivity:
+      return kStageActivity;
+    case Stage::kTiles:
+      return kStageTiles;
+  }
+  return "?";
+}
+
+Status StageOptions::Validate() const {
+  SAKER_RETURN_IF_ERROR(front_end.Validate());
+  SAKER_RETURN_IF_ERROR(mosaic.Validate());
+  SAKER_RETURN_IF_ERROR(activity.Validate());
+  return pyramid.Validate();
+}
+
+Status RunStages(const std::string& video, const StageOptions& options, const StageHooks& hooks,
+                 JobContext* job, MissionRun* run) {
+  for (const Stage stage : {Stage::kFrontEnd, Stage::kMosaic, Stage::kActivity, Stage::kTiles}) {
+    if (int(stage) > int(hooks.last)) break;
+    if (stage == Stage::kTiles && !hooks.write_tiles) break;
+    const auto begin = Clock::now();
+    StatusOr<bool> go_on = false;
+    switch (stage) {
+      case Stage::kFrontEnd:
+        go_on = FrontEndStage(video, options, hooks, job, run);
+        break;
+      case Stage::kMosaic:
+        go_on = MosaicStage(video, options, job, run);
+        break;
+      case Stage::kActivity:
+        go_on = ActivityStage(options, job, run);
+        break;
+      case Stage::kTiles:
+        go_on = TilesStage(options, hooks, job, run);
+        break;
+    }
+    run->seconds[int(stage)] = Seconds(begin);
+    if (!go_on.ok()) {
+      run->failed = stage;
+      return go_on.status();
+    }
+    if (!*go_on) break;
+    if (hooks.on_done) SAKER_RETURN_IF_ERROR(hooks.on_done(stage, run));
+  }
+  return Status::Ok();
+}
+
+std::vector<mission::FrameRecord> FrameRecords(const frontend::FrontEndResult& front,
+                                               const mosaic::MosaicInput* input,
+                                               const mosaic::MosaicResult* mosaic) {
+  // The metadata corners are on the map only when the mosaic is geo-referenced by them.
+  const bool corners = input != nullptr && mosaic != nullptr && mosaic->origin &&
+                       input->metadata_corners.size() == front.frames.size();
+  std::vector<mission::FrameRecord> frames;
+  frames.reserve(front.frames.size());
+  for (size_t i = 0; i < front.frames.size(); ++i) {
+    mission::FrameRecord f;
+    f.index = front.frames[i].index;
+    f.time_s = front.frames[i].time_s;
+    f.pts = front.frames[i].pts;
+    f.key_frame = front.frames[i].key_frame;
+    if (mosaic && i < mosaic->in_between.map_from_frame.size()) {
+      f.map_from_frame = mosaic->in_between.map_from_frame[i];
+    }
+    if (corners) f.metadata_corners = input->metadata_corners[i];
+    if (const klv::FrameMetadata* metadata = front.scan.MetadataOf(i)) {
+      if (metadata->unix_time_us) f.utc_us = int64_t(*metadata->unix_time_us);
+      if (metadata->sensor_latitude_deg && metadata->sensor_longitude_deg) {
+        f.sensor = geo::Wgs84{*metadata->sensor_latitude_deg, *metadata->sensor_longitude_deg,
+                              metadata->sensor_altitude_m.value_or(0)};
+      }
+    }
+    frames.push_back(std::move(f));
+  }
+  return frames;
+}
+
+std::vector<mission::ActivityTrack> TrackRecords(const frontend::FrontEndResult& front) {
+  std::vector<mission::ActivityTrack> tracks;
+  tracks.reserve(front.targets.size());
+  for (const track::TargetTrack& target : front.targets) {
+    mission::ActivityTrack t;
+    t.id = int64_t(target.id);
+    for (const track::TargetObservation& o : target.observations) {
+      mission::TrackPoint p;
+      p.frame = o.frame;
+      p.image = o.position;
+      p.box_min = o.box_min;
+      p.box_max = o.box_max;
+      t.points.push_back(p);
+    }
+    if (!t.points.empty()) tracks.push_back(std::move(t));
+  }
+  return tracks;
+}
+
+}  // namespace saker::pipeline
