@@ -2,6 +2,8 @@
 
 #include "benchmarks/bench_stats.h"
 #include "core/pipeline/evaluate.h"
+#include "core/util/durable_file.h"
+#include "core/util/fingerprint.h"
 
 #include <signal.h>
 #include <unistd.h>
@@ -29,7 +31,7 @@ using nlohmann::json;
 constexpr const char* kVideoName = "video.ts";
 constexpr const char* kTruthName = "video.truth.json";
 constexpr const char* kOptionsName = "options.json";
-constexpr const char* kTemporaryPrefix = ".tmp-";
+constexpr const char* kTemporaryPrefix = ".tmp-";  // older versions' temporaries
 
 fs::path& DefaultTestDataDir() {
   static fs::path dir;
@@ -134,14 +136,6 @@ class ManifestReader {
   fs::path manifest_;
 };
 
-uint64_t Fnv1a(const char* data, size_t size, uint64_t hash) {
-  for (size_t i = 0; i < size; ++i) {
-    hash ^= uint8_t(data[i]);
-    hash *= 0x100000001b3ULL;
-  }
-  return hash;
-}
-
 // ---- The cache --------------------------------------------------------------------------------
 
 // A complete entry made from exactly these options.
@@ -155,14 +149,20 @@ bool EntryMatches(const fs::path& entry, const json& options) {
   return recorded == options;
 }
 
-// Removes temporaries (".tmp-<key>-<pid>-<n>") of runs that are no longer alive.
+// Removes temporaries of runs that are no longer alive: ".<key>.part-<pid>-<n>" (a
+// FileReplacement's) and, from older versions, ".tmp-<key>-<pid>-<n>".
 void RemoveStaleTemporaries(const fs::path& cache_dir) {
   std::error_code ec;
   for (const fs::directory_entry& entry : fs::directory_iterator(cache_dir, ec)) {
     const std::string name = entry.path().filename().string();
-    if (name.rfind(kTemporaryPrefix, 0) != 0) continue;
-    // .tmp-<16 hex>-<pid>-<n>
-    const size_t pid_start = std::string(kTemporaryPrefix).size() + 17;
+    size_t pid_start = 0;  // after ".<16 hex>.part-" or ".tmp-<16 hex>-"
+    if (name.rfind(kTemporaryPrefix, 0) == 0) {
+      pid_start = std::string(kTemporaryPrefix).size() + 17;
+    } else if (name.size() > 1 + 16 && name[0] == '.' && name.compare(17, 6, ".part-") == 0) {
+      pid_start = 1 + 16 + 6;
+    } else {
+      continue;
+    }
     if (name.size() <= pid_start) continue;
     const long pid = std::strtol(name.c_str() + pid_start, nullptr, 10);
     if (pid <= 0 || (kill(pid_t(pid), 0) != 0 && errno == ESRCH)) {
@@ -552,7 +552,7 @@ std::vector<CorpusCase> CorpusCases(const Corpus& corpus, SeedSet seeds, const s
 
 StatusOr<std::string> SimulationKey(const sim::SimulationOptions& options) {
   const std::string text = options.ToJson().dump();
-  uint64_t hash = Fnv1a(text.data(), text.size(), 0xcbf29ce484222325ULL);
+  uint64_t hash = Fnv1a(text.data(), text.size());
   if (!options.ground_image.empty()) {
     std::ifstream in(options.ground_image, std::ios::binary);
     if (!in) return NotFoundError(options.ground_image.string() + ": cannot read the ground image");
@@ -580,20 +580,11 @@ StatusOr<CachedVideo> SimulateCached(const sim::SimulationOptions& options,
   std::error_code ec;
   fs::create_directories(cache_dir, ec);
   if (ec) return IoError(cache_dir.string() + ": cannot make the cache folder: " + ec.message());
-  static std::atomic<int> counter{0};
-  const fs::path temporary =
-      cache_dir / (kTemporaryPrefix + cached.key + "-" + std::to_string(getpid()) + "-" +
-                   std::to_string(counter++));
-  fs::remove_all(temporary, ec);
+  // The entry is made whole in a temporary folder and renamed into place, never over another.
+  FileReplacement replacement(entry.string(), {.overwrite = false});
+  const fs::path temporary = replacement.temporary();
   fs::create_directory(temporary, ec);
   if (ec) return IoError(temporary.string() + ": cannot make a folder: " + ec.message());
-  struct Remover {
-    fs::path path;
-    ~Remover() {
-      std::error_code ignored;
-      fs::remove_all(path, ignored);
-    }
-  } remover{temporary};
 
   sim::SimulationOptions simulation = options;
   simulation.output = temporary / kVideoName;
@@ -609,17 +600,11 @@ StatusOr<CachedVideo> SimulateCached(const sim::SimulationOptions& options,
       return IoError((temporary / kOptionsName).string() + ": cannot write");
     }
   }
-  fs::rename(temporary, entry, ec);
-  if (ec) {
-    // Another run made the same entry meanwhile (use it), or a damaged entry is in the way.
-    if (!EntryMatches(entry, recorded)) {
-      fs::remove_all(entry, ec);
-      fs::rename(temporary, entry, ec);
-      if (ec) {
-        return IoError(entry.string() +
-                       ": cannot move the simulated video into the cache: " + ec.message());
-      }
-    }
+  // A damaged entry in the way goes; one that another run made meanwhile is used.
+  if (fs::exists(entry, ec) && !EntryMatches(entry, recorded)) fs::remove_all(entry, ec);
+  if (Status moved = replacement.Commit(); !moved.ok() && !EntryMatches(entry, recorded)) {
+    return Status(moved.code(),
+                  "cannot move the simulated video into the cache: " + moved.message());
   }
   cached.simulated = true;
   return cached;
