@@ -1,9 +1,10 @@
 #include "benchmarks/accuracy_corpus.h"
 
-#include "benchmarks/bench_stats.h"
 #include "core/pipeline/evaluate.h"
 #include "core/util/durable_file.h"
 #include "core/util/fingerprint.h"
+#include "core/util/statistics.h"
+#include "core/util/timer.h"
 
 #include <signal.h>
 #include <unistd.h>
@@ -390,7 +391,7 @@ Status MeasureCase(const fs::path& cache_dir, CaseResult* result) {
                          SimulateCached(result->corpus_case.simulation, cache_dir));
   result->cache_key = cached.key;
   result->simulated = cached.simulated;
-  const Clock::time_point start = Clock::now();
+  const Stopwatch start;
   SAKER_ASSIGN_OR_RETURN(const sim::Truth truth, sim::ReadTruth(cached.truth));
   pipeline::VideoEvaluationOptions options;
   options.evaluation = result->corpus_case.evaluation;
@@ -398,7 +399,7 @@ Status MeasureCase(const fs::path& cache_dir, CaseResult* result) {
   SAKER_ASSIGN_OR_RETURN(const pipeline::VideoEvaluation evaluation,
                          pipeline::EvaluateVideo(cached.video.string(), truth, options));
   result->figures = FiguresOf(evaluation, truth);
-  result->figures.process_s = Seconds(start);
+  result->figures.process_s = start.ElapsedSeconds();
   result->figures.simulate_s = cached.simulate_s;
   return Status::Ok();
 }
@@ -589,10 +590,10 @@ StatusOr<CachedVideo> SimulateCached(const sim::SimulationOptions& options,
   sim::SimulationOptions simulation = options;
   simulation.output = temporary / kVideoName;
   simulation.truth = temporary / kTruthName;
-  const Clock::time_point start = Clock::now();
+  const Stopwatch start;
   const StatusOr<sim::SimulationSummary> summary = sim::Simulate(simulation);
   if (!summary.ok()) return summary.status();
-  cached.simulate_s = Seconds(start);
+  cached.simulate_s = start.ElapsedSeconds();
   {
     std::ofstream out(temporary / kOptionsName);
     out << recorded.dump(2) << "\n";
@@ -684,18 +685,17 @@ std::optional<double> CorpusFigures::FramePrecision() const {
 std::optional<double> CorpusFigures::FrameRecall() const {
   return Ratio(paired_movers, truth_mover_frames);
 }
-// Nearest-rank, as frontend::Evaluate computes one video's median latency and homography error.
 std::optional<double> CorpusFigures::MedianLatency() const {
   if (latencies_s.empty()) return std::nullopt;
-  return Percentile(latencies_s, 50);
+  return Median(latencies_s);
 }
 std::optional<double> CorpusFigures::HomographyMedian() const {
   if (homography_errors_px.empty()) return std::nullopt;
-  return Percentile(homography_errors_px, 50);
+  return Median(homography_errors_px);
 }
 std::optional<double> CorpusFigures::SpeedError(double quantile) const {
   if (speed_relative_errors.empty()) return std::nullopt;
-  return pipeline::ActivityQuantile(speed_relative_errors, quantile);
+  return Quantile(speed_relative_errors, quantile);
 }
 std::optional<double> CorpusFigures::MosaicBeforeRms() const {
   return PooledRms(mosaic_before_sq, mosaic_key_frames, mosaic_unit);
@@ -728,12 +728,12 @@ std::vector<CaseResult> RunCorpus(const std::vector<CorpusCase>& cases,
   if (cases.empty()) return results;
   std::atomic<size_t> next{0};
   std::mutex progress_mutex;
-  const Clock::time_point start = Clock::now();
+  const Stopwatch start;
   const auto report = [&](size_t i, const std::string& what) {
     if (!options.progress) return;
     const std::lock_guard<std::mutex> lock(progress_mutex);
     options.progress("[" + std::to_string(i + 1) + "/" + std::to_string(cases.size()) + " " +
-                     Elapsed(Seconds(start)) + "] " + cases[i].Name() + ": " + what);
+                     Elapsed(start.ElapsedSeconds()) + "] " + cases[i].Name() + ": " + what);
   };
   const auto work = [&] {
     for (size_t i = next++; i < cases.size(); i = next++) {
