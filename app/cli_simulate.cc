@@ -4,10 +4,10 @@
 #include "app/cli_interrupt.h"
 #include "core/sim/simulator.h"
 #include "core/util/job_context.h"
+#include "core/util/timer.h"
 
 #include <unistd.h>
 
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -25,10 +25,10 @@ class ProgressBar {
   ProgressBar() : enabled_(isatty(STDERR_FILENO) != 0) {}
   void Update(double fraction) {
     if (!enabled_) return;
-    const auto now = std::chrono::steady_clock::now();
-    if (fraction < 1.0 && now - last_ < std::chrono::milliseconds(200)) return;
-    last_ = now;
-    const double elapsed = std::chrono::duration<double>(now - start_).count();
+    if (fraction < 1.0 && drawn_ && since_last_.ElapsedMs() < 200) return;
+    drawn_ = true;
+    since_last_.Restart();
+    const double elapsed = start_.ElapsedSeconds();
     const int width = 30;
     const int filled = int(fraction * width);
     std::fprintf(stderr, "\rsimulate [%s%s] %3d%%  %.0f s  ",
@@ -42,8 +42,9 @@ class ProgressBar {
 
  private:
   bool enabled_;
-  std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
-  std::chrono::steady_clock::time_point last_{};
+  Stopwatch start_;
+  Stopwatch since_last_;  // since the last drawing
+  bool drawn_ = false;
 };
 
 int RunSimulation(const sim::SimulationOptions& options, bool quiet) {

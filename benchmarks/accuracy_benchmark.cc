@@ -11,7 +11,7 @@
 // same as JSON); progress goes to stderr. Exit code 1 when a case failed or the manifest is bad.
 
 #include "benchmarks/accuracy_corpus.h"
-#include "benchmarks/bench_stats.h"
+#include "core/util/timer.h"
 
 #include <CLI/CLI.hpp>
 
@@ -72,9 +72,9 @@ int main(int argc, char** argv) {
   options.cache_dir = cache;
   options.jobs = jobs;
   options.progress = [](const std::string& line) { std::cerr << line << std::endl; };
-  const bench::Clock::time_point start = bench::Clock::now();
+  const Stopwatch start;
   const std::vector<bench::CaseResult> results = bench::RunCorpus(cases, options);
-  std::fprintf(stderr, "saker-bench-accuracy: done in %.0f s\n", bench::Seconds(start));
+  std::fprintf(stderr, "saker-bench-accuracy: done in %.0f s\n", start.ElapsedSeconds());
 
   if (json) {
     std::cout << bench::CorpusReportJson(*corpus, seeds, results).dump(2) << "\n";

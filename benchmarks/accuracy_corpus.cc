@@ -1,7 +1,10 @@
 #include "benchmarks/accuracy_corpus.h"
 
-#include "benchmarks/bench_stats.h"
 #include "core/eval/video_evaluation.h"
+#include "core/util/durable_file.h"
+#include "core/util/fingerprint.h"
+#include "core/util/statistics.h"
+#include "core/util/timer.h"
 
 #include <signal.h>
 #include <unistd.h>
@@ -29,7 +32,7 @@ using nlohmann::json;
 constexpr const char* kVideoName = "video.ts";
 constexpr const char* kTruthName = "video.truth.json";
 constexpr const char* kOptionsName = "options.json";
-constexpr const char* kTemporaryPrefix = ".tmp-";
+constexpr const char* kTemporaryPrefix = ".tmp-";  // older versions' temporaries
 
 fs::path& DefaultTestDataDir() {
   static fs::path dir;
@@ -134,14 +137,6 @@ class ManifestReader {
   fs::path manifest_;
 };
 
-uint64_t Fnv1a(const char* data, size_t size, uint64_t hash) {
-  for (size_t i = 0; i < size; ++i) {
-    hash ^= uint8_t(data[i]);
-    hash *= 0x100000001b3ULL;
-  }
-  return hash;
-}
-
 // ---- The cache --------------------------------------------------------------------------------
 
 // A complete entry made from exactly these options.
@@ -155,14 +150,20 @@ bool EntryMatches(const fs::path& entry, const json& options) {
   return recorded == options;
 }
 
-// Removes temporaries (".tmp-<key>-<pid>-<n>") of runs that are no longer alive.
+// Removes temporaries of runs that are no longer alive: ".<key>.part-<pid>-<n>" (a
+// FileReplacement's) and, from older versions, ".tmp-<key>-<pid>-<n>".
 void RemoveStaleTemporaries(const fs::path& cache_dir) {
   std::error_code ec;
   for (const fs::directory_entry& entry : fs::directory_iterator(cache_dir, ec)) {
     const std::string name = entry.path().filename().string();
-    if (name.rfind(kTemporaryPrefix, 0) != 0) continue;
-    // .tmp-<16 hex>-<pid>-<n>
-    const size_t pid_start = std::string(kTemporaryPrefix).size() + 17;
+    size_t pid_start = 0;  // after ".<16 hex>.part-" or ".tmp-<16 hex>-"
+    if (name.rfind(kTemporaryPrefix, 0) == 0) {
+      pid_start = std::string(kTemporaryPrefix).size() + 17;
+    } else if (name.size() > 1 + 16 && name[0] == '.' && name.compare(17, 6, ".part-") == 0) {
+      pid_start = 1 + 16 + 6;
+    } else {
+      continue;
+    }
     if (name.size() <= pid_start) continue;
     const long pid = std::strtol(name.c_str() + pid_start, nullptr, 10);
     if (pid <= 0 || (kill(pid_t(pid), 0) != 0 && errno == ESRCH)) {
@@ -390,7 +391,7 @@ Status MeasureCase(const fs::path& cache_dir, CaseResult* result) {
                          SimulateCached(result->corpus_case.simulation, cache_dir));
   result->cache_key = cached.key;
   result->simulated = cached.simulated;
-  const Clock::time_point start = Clock::now();
+  const Stopwatch start;
   SAKER_ASSIGN_OR_RETURN(const sim::Truth truth, sim::ReadTruth(cached.truth));
   eval::VideoEvaluationOptions options;
   options.evaluation = result->corpus_case.evaluation;
@@ -398,7 +399,7 @@ Status MeasureCase(const fs::path& cache_dir, CaseResult* result) {
   SAKER_ASSIGN_OR_RETURN(const eval::VideoEvaluation evaluation,
                          eval::EvaluateVideo(cached.video.string(), truth, options));
   result->figures = FiguresOf(evaluation, truth);
-  result->figures.process_s = Seconds(start);
+  result->figures.process_s = start.ElapsedSeconds();
   result->figures.simulate_s = cached.simulate_s;
   return Status::Ok();
 }
@@ -552,7 +553,7 @@ std::vector<CorpusCase> CorpusCases(const Corpus& corpus, SeedSet seeds, const s
 
 StatusOr<std::string> SimulationKey(const sim::SimulationOptions& options) {
   const std::string text = options.ToJson().dump();
-  uint64_t hash = Fnv1a(text.data(), text.size(), 0xcbf29ce484222325ULL);
+  uint64_t hash = Fnv1a(text.data(), text.size());
   if (!options.ground_image.empty()) {
     std::ifstream in(options.ground_image, std::ios::binary);
     if (!in) return NotFoundError(options.ground_image.string() + ": cannot read the ground image");
@@ -580,28 +581,19 @@ StatusOr<CachedVideo> SimulateCached(const sim::SimulationOptions& options,
   std::error_code ec;
   fs::create_directories(cache_dir, ec);
   if (ec) return IoError(cache_dir.string() + ": cannot make the cache folder: " + ec.message());
-  static std::atomic<int> counter{0};
-  const fs::path temporary =
-      cache_dir / (kTemporaryPrefix + cached.key + "-" + std::to_string(getpid()) + "-" +
-                   std::to_string(counter++));
-  fs::remove_all(temporary, ec);
+  // The entry is made whole in a temporary folder and renamed into place, never over another.
+  FileReplacement replacement(entry.string(), {.overwrite = false});
+  const fs::path temporary = replacement.temporary();
   fs::create_directory(temporary, ec);
   if (ec) return IoError(temporary.string() + ": cannot make a folder: " + ec.message());
-  struct Remover {
-    fs::path path;
-    ~Remover() {
-      std::error_code ignored;
-      fs::remove_all(path, ignored);
-    }
-  } remover{temporary};
 
   sim::SimulationOptions simulation = options;
   simulation.output = temporary / kVideoName;
   simulation.truth = temporary / kTruthName;
-  const Clock::time_point start = Clock::now();
+  const Stopwatch start;
   const StatusOr<sim::SimulationSummary> summary = sim::Simulate(simulation);
   if (!summary.ok()) return summary.status();
-  cached.simulate_s = Seconds(start);
+  cached.simulate_s = start.ElapsedSeconds();
   {
     std::ofstream out(temporary / kOptionsName);
     out << recorded.dump(2) << "\n";
@@ -609,17 +601,11 @@ StatusOr<CachedVideo> SimulateCached(const sim::SimulationOptions& options,
       return IoError((temporary / kOptionsName).string() + ": cannot write");
     }
   }
-  fs::rename(temporary, entry, ec);
-  if (ec) {
-    // Another run made the same entry meanwhile (use it), or a damaged entry is in the way.
-    if (!EntryMatches(entry, recorded)) {
-      fs::remove_all(entry, ec);
-      fs::rename(temporary, entry, ec);
-      if (ec) {
-        return IoError(entry.string() +
-                       ": cannot move the simulated video into the cache: " + ec.message());
-      }
-    }
+  // A damaged entry in the way goes; one that another run made meanwhile is used.
+  if (fs::exists(entry, ec) && !EntryMatches(entry, recorded)) fs::remove_all(entry, ec);
+  if (Status moved = replacement.Commit(); !moved.ok() && !EntryMatches(entry, recorded)) {
+    return Status(moved.code(),
+                  "cannot move the simulated video into the cache: " + moved.message());
   }
   cached.simulated = true;
   return cached;
@@ -699,18 +685,17 @@ std::optional<double> CorpusFigures::FramePrecision() const {
 std::optional<double> CorpusFigures::FrameRecall() const {
   return Ratio(paired_movers, truth_mover_frames);
 }
-// Nearest-rank, as eval::EvaluateFrontEnd computes one video's median latency and homography error.
 std::optional<double> CorpusFigures::MedianLatency() const {
   if (latencies_s.empty()) return std::nullopt;
-  return Percentile(latencies_s, 50);
+  return Median(latencies_s);
 }
 std::optional<double> CorpusFigures::HomographyMedian() const {
   if (homography_errors_px.empty()) return std::nullopt;
-  return Percentile(homography_errors_px, 50);
+  return Median(homography_errors_px);
 }
 std::optional<double> CorpusFigures::SpeedError(double quantile) const {
   if (speed_relative_errors.empty()) return std::nullopt;
-  return eval::ActivityQuantile(speed_relative_errors, quantile);
+  return Quantile(speed_relative_errors, quantile);
 }
 std::optional<double> CorpusFigures::MosaicBeforeRms() const {
   return PooledRms(mosaic_before_sq, mosaic_key_frames, mosaic_unit);
@@ -743,12 +728,12 @@ std::vector<CaseResult> RunCorpus(const std::vector<CorpusCase>& cases,
   if (cases.empty()) return results;
   std::atomic<size_t> next{0};
   std::mutex progress_mutex;
-  const Clock::time_point start = Clock::now();
+  const Stopwatch start;
   const auto report = [&](size_t i, const std::string& what) {
     if (!options.progress) return;
     const std::lock_guard<std::mutex> lock(progress_mutex);
     options.progress("[" + std::to_string(i + 1) + "/" + std::to_string(cases.size()) + " " +
-                     Elapsed(Seconds(start)) + "] " + cases[i].Name() + ": " + what);
+                     Elapsed(start.ElapsedSeconds()) + "] " + cases[i].Name() + ": " + what);
   };
   const auto work = [&] {
     for (size_t i = next++; i < cases.size(); i = next++) {

@@ -24,6 +24,7 @@
 
 #include "core/mission/mission_store.h"
 #include "core/sim/simulator.h"
+#include "core/util/timer.h"
 #include "tests/testing/small_loop.h"
 
 #include <CLI/CLI.hpp>
@@ -50,10 +51,11 @@
 
 namespace {
 
+using saker::Stopwatch;
+
 namespace fs = std::filesystem;
 using saker::mission::Mission;
 using saker::mission::MissionStore;
-using Clock = std::chrono::steady_clock;
 
 // What a mission file holds, as far as the check needs it.
 struct Snapshot {
@@ -213,9 +215,9 @@ pid_t Spawn(const std::vector<std::string>& arguments) {
 // unless it ends by itself first. Returns the seconds it ran and whether it ended by itself.
 std::pair<double, bool> KillAfter(pid_t child, std::chrono::duration<double> after,
                                   const std::function<void()>& poll) {
-  const auto spawned = Clock::now();
+  const Stopwatch spawned;
   bool ended = false;
-  while (Clock::now() - spawned < after) {
+  while (spawned.ElapsedSeconds() < after.count()) {
     if (waitpid(child, nullptr, WNOHANG) == child) {
       ended = true;
       break;
@@ -227,7 +229,7 @@ std::pair<double, bool> KillAfter(pid_t child, std::chrono::duration<double> aft
     kill(child, SIGKILL);
     waitpid(child, nullptr, 0);
   }
-  return {std::chrono::duration<double>(Clock::now() - spawned).count(), ended};
+  return {spawned.ElapsedSeconds(), ended};
 }
 
 // Whether the mission at `path` holds a checkpoint to resume from.
@@ -291,9 +293,9 @@ int main(int argc, char** argv) {
   const std::string reference_path = (dir / "reference.saker").string();
   const auto run_to_end = [](const std::vector<std::string>& arguments) {
     int status = 0;
-    const auto start = Clock::now();
+    const Stopwatch start;
     waitpid(Spawn(arguments), &status, 0);
-    const double seconds = std::chrono::duration<double>(Clock::now() - start).count();
+    const double seconds = start.ElapsedSeconds();
     return WIFEXITED(status) && WEXITSTATUS(status) == 0 ? seconds : -1.0;
   };
   // Checkpoints at every key frame, so that the kills land in and between them.
@@ -334,7 +336,7 @@ int main(int argc, char** argv) {
   bool processed_resumed = false;  // `processed` holds a resumed job's mission
   bool copied_resumed = false;     // and the copy a Save As replaces
   std::map<int, int> landed;       // stages completed when killed -> processing runs
-  const auto start = Clock::now();
+  const Stopwatch start;
   for (int run = 0; run < runs; ++run) {
     const bool copy = std::uniform_int_distribution<int>(0, 2)(random) == 0;
     // Half the kills anywhere, half in the last quarter, where the later stages and the tiles
@@ -452,7 +454,7 @@ int main(int argc, char** argv) {
       std::fflush(stdout);
     }
   }
-  const double elapsed = std::chrono::duration<double>(Clock::now() - start).count();
+  const double elapsed = start.ElapsedSeconds();
   std::printf(
       "%d runs in %.0f s (%d processing, %d of them replacing a mission; %d Save As, %d of "
       "which had completed); %d jobs ended before their kill: %d failures\n",

@@ -16,6 +16,7 @@
 #include "core/frontend/front_end.h"
 #include "core/sim/simulator.h"
 #include "core/util/memory.h"
+#include "core/util/timer.h"
 #include "core/video/video_reader.h"
 
 #include <CLI/CLI.hpp>
@@ -23,7 +24,6 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -35,8 +35,9 @@
 
 namespace {
 
+using saker::Stopwatch;
+
 namespace fs = std::filesystem;
-using Clock = std::chrono::steady_clock;
 
 double ResidentMb() { return double(saker::ResidentMemoryBytes()) / 1e6; }
 double PeakMb() { return double(saker::PeakResidentMemoryBytes()) / 1e6; }
@@ -72,13 +73,12 @@ int MeasureMemory(double clip_minutes, int height, int repeat) {
   std::printf("simulating %g minutes of %dx%d video (figure of eight)...\n", clip_minutes, width,
               height);
   std::fflush(stdout);
-  auto start = Clock::now();
+  Stopwatch start;
   if (auto simulated = saker::sim::Simulate(sim); !simulated.ok()) {
     std::cerr << simulated.status().message() << "\n";
     return 1;
   }
-  std::printf("  done in %.0f s, %.0f MB\n",
-              std::chrono::duration<double>(Clock::now() - start).count(),
+  std::printf("  done in %.0f s, %.0f MB\n", start.ElapsedSeconds(),
               double(fs::file_size(sim.output)) / 1e6);
   std::string video = sim.output.string();
   if (repeat > 1) {
@@ -119,7 +119,7 @@ int MeasureMemory(double clip_minutes, int height, int repeat) {
   size_t next = 0;
   double previous_minutes = 0, previous_rss = rss_start;
   int64_t frames_done = 0;
-  start = Clock::now();
+  start.Restart();
   saker::JobContext job([&](const std::string&, double) {
     const double minutes_done = double(++frames_done) / (sim.fps * 60);
     while (next < checkpoints.size() && minutes_done >= checkpoints[next] - 1e-9) {
@@ -127,8 +127,8 @@ int MeasureMemory(double clip_minutes, int height, int repeat) {
       std::printf(
           "  after %3g min of video (%4.0f s): RSS %4.0f MB (+%3.0f MB; %+5.1f MB per minute "
           "since the last checkpoint), peak %4.0f MB\n",
-          checkpoints[next], std::chrono::duration<double>(Clock::now() - start).count(), rss,
-          rss - rss_start, (rss - previous_rss) / (checkpoints[next] - previous_minutes), PeakMb());
+          checkpoints[next], start.ElapsedSeconds(), rss, rss - rss_start,
+          (rss - previous_rss) / (checkpoints[next] - previous_minutes), PeakMb());
       std::fflush(stdout);
       previous_minutes = checkpoints[next], previous_rss = rss;
       ++next;
@@ -204,13 +204,13 @@ double DecodeOnlyFps(const std::string& path) {
   saker::video::Frame frame;
   std::vector<saker::video::DataPacket> data;
   int64_t frames = 0;
-  const auto start = Clock::now();
+  const Stopwatch start;
   while (true) {
     auto more = (*reader)->ReadNext(&frame, &data);
     if (!more.ok() || !*more) break;
     ++frames;
   }
-  return double(frames) / std::chrono::duration<double>(Clock::now() - start).count();
+  return double(frames) / start.ElapsedSeconds();
 }
 
 }  // namespace

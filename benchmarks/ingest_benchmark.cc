@@ -12,7 +12,8 @@ extern "C" {
 #include <libavformat/avformat.h>
 }
 
-#include "benchmarks/bench_stats.h"
+#include "core/util/statistics.h"
+#include "core/util/timer.h"
 #include "core/video/video_reader.h"
 #include "tests/core/video/synthetic_ts.h"
 
@@ -21,7 +22,6 @@ extern "C" {
 #include <unistd.h>
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -34,12 +34,11 @@ extern "C" {
 namespace {
 
 namespace fs = std::filesystem;
+using saker::Median;
+using saker::Quantile;
 using saker::Status;
 using saker::StatusOr;
-using saker::bench::Clock;
-using saker::bench::Median;
-using saker::bench::Percentile;
-using saker::bench::Seconds;
+using saker::Stopwatch;
 
 struct Throughput {
   int64_t frames = 0;
@@ -50,7 +49,7 @@ struct Throughput {
 // The baseline: demux + avcodec decode of the video stream, nothing else (no pixel conversion,
 // no KLV, no timestamps bookkeeping).
 StatusOr<Throughput> PlainFfmpegDecode(const std::string& path, int threads) {
-  const Clock::time_point start = Clock::now();
+  const Stopwatch start;
   AVFormatContext* format = nullptr;
   if (avformat_open_input(&format, path.c_str(), nullptr, nullptr) < 0) {
     return saker::IoError(path + ": FFmpeg cannot open it");
@@ -89,14 +88,14 @@ StatusOr<Throughput> PlainFfmpegDecode(const std::string& path, int threads) {
   avcodec_free_context(&decoder);
   avformat_close_input(&format);
   if (video < 0) return saker::InvalidDataError(path + ": no decodable video stream");
-  result.seconds = Seconds(start);
+  result.seconds = start.ElapsedSeconds();
   return result;
 }
 
 // Our sequential pass with KLV collection, as the ingest stage runs it.
 StatusOr<Throughput> ReaderPass(const std::string& path,
                                 const saker::video::ReaderOptions& options) {
-  const Clock::time_point start = Clock::now();
+  const Stopwatch start;
   auto reader = saker::video::VideoReader::Open(path, options);
   if (!reader.ok()) return reader.status();
   Throughput result;
@@ -109,7 +108,7 @@ StatusOr<Throughput> ReaderPass(const std::string& path,
     if (!*more) break;
     ++result.frames;
   }
-  result.seconds = Seconds(start);
+  result.seconds = start.ElapsedSeconds();
   return result;
 }
 
@@ -242,9 +241,9 @@ int main(int argc, char** argv) {
     std::cerr << reader.status().ToString() << "\n";
     return 1;
   }
-  const Clock::time_point index_start = Clock::now();
+  const Stopwatch index_start;
   auto first = (*reader)->ReadFrame(0);  // builds the index (decode-only pass)
-  const double index_ms = Seconds(index_start) * 1e3;
+  const double index_ms = index_start.ElapsedSeconds() * 1e3;
   if (!first.ok()) {
     std::cerr << first.status().ToString() << "\n";
     return 1;
@@ -255,9 +254,9 @@ int main(int argc, char** argv) {
   std::vector<double> latencies_ms;
   for (int i = 0; i < recalls; ++i) {
     const int64_t n = pick(random);
-    const Clock::time_point start = Clock::now();
+    const Stopwatch start;
     auto frame = (*reader)->ReadFrame(n);
-    latencies_ms.push_back(Seconds(start) * 1e3);
+    latencies_ms.push_back(start.ElapsedSeconds() * 1e3);
     if (!frame.ok()) {
       std::cerr << frame.status().ToString() << "\n";
       return 1;
@@ -287,7 +286,7 @@ int main(int argc, char** argv) {
         {"recalls", recalls},
         {"index_build_ms", index_ms},
         {"median_ms", Median(latencies_ms)},
-        {"p95_ms", Percentile(latencies_ms, 95)},
+        {"p95_ms", Quantile(latencies_ms, 0.95)},
         {"worst_ms", *std::max_element(latencies_ms.begin(), latencies_ms.end())}};
     std::cout << out.dump(2) << "\n";
     return 0;
@@ -306,7 +305,7 @@ int main(int argc, char** argv) {
               static_cast<long long>(frame_count));
   std::printf("  index build on first call  %8.2f ms\n", index_ms);
   std::printf("  median                     %8.2f ms\n", Median(latencies_ms));
-  std::printf("  95th percentile            %8.2f ms\n", Percentile(latencies_ms, 95));
+  std::printf("  95th percentile            %8.2f ms\n", Quantile(latencies_ms, 0.95));
   std::printf("  worst                      %8.2f ms\n",
               *std::max_element(latencies_ms.begin(), latencies_ms.end()));
   return 0;

@@ -9,11 +9,12 @@
 // `saker-cli demo` once to make it); without it, the roundabout loop at 1280x720 is simulated into
 // a temporary directory. The mission is written to a temporary directory unless --keep names it.
 
-#include "benchmarks/bench_stats.h"
 #include "core/activity/activity.h"
 #include "core/mission/mission_store.h"
 #include "core/pipeline/process.h"
 #include "core/sim/simulator.h"
+#include "core/util/statistics.h"
+#include "core/util/timer.h"
 #include "core/video/video_reader.h"
 
 #include <CLI/CLI.hpp>
@@ -21,7 +22,6 @@
 #include <unistd.h>
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -36,10 +36,9 @@
 namespace {
 
 namespace fs = std::filesystem;
-using saker::bench::Clock;
-using saker::bench::Median;
-using saker::bench::Percentile;
-using saker::bench::Seconds;
+using saker::Median;
+using saker::Quantile;
+using saker::Stopwatch;
 
 // A temporary directory removed on scope exit.
 class TempDir {
@@ -61,7 +60,7 @@ class TempDir {
 // The baseline of processing: one sequential decode of the video to grey frames (what the front
 // end's decode thread does), nothing else.
 saker::StatusOr<double> DecodeSeconds(const std::string& video) {
-  const auto begin = Clock::now();
+  const Stopwatch begin;
   saker::video::ReaderOptions options;
   options.want_bgr = false;
   options.want_grey = true;
@@ -73,13 +72,13 @@ saker::StatusOr<double> DecodeSeconds(const std::string& video) {
     if (!more.ok()) return more.status();
     if (!*more) break;
   }
-  return Seconds(begin);
+  return begin.ElapsedSeconds();
 }
 
 // The baseline of opening: reading the mission file's bytes (cold caches are not measured: the
 // file was just written, as it is when an analyst opens a mission after processing).
 double ReadBytesSeconds(const fs::path& path) {
-  const auto begin = Clock::now();
+  const Stopwatch begin;
   std::ifstream in(path, std::ios::binary);
   std::vector<char> buffer(1 << 20);
   size_t total = 0;
@@ -88,7 +87,7 @@ double ReadBytesSeconds(const fs::path& path) {
   }
   volatile size_t sink = total;
   (void)sink;
-  return Seconds(begin);
+  return begin.ElapsedSeconds();
 }
 
 // The nearest observation by scanning every one: what picking costs without the index.
@@ -166,7 +165,7 @@ int main(int argc, char** argv) {
   saker::mission::Mission mission;
   for (int i = 0; i < opens; ++i) {
     read_ms.push_back(ReadBytesSeconds(mission_path) * 1e3);
-    const auto begin = Clock::now();
+    const Stopwatch begin;
     auto store = saker::mission::MissionStore::Open(mission_path.string());
     if (!store.ok()) {
       std::cerr << store.status().ToString() << "\n";
@@ -177,15 +176,15 @@ int main(int argc, char** argv) {
       std::cerr << loaded.status().ToString() << "\n";
       return 1;
     }
-    open_ms.push_back(Seconds(begin) * 1e3);
+    open_ms.push_back(begin.ElapsedSeconds() * 1e3);
     mission = std::move(loaded).value();
   }
   const double file_mb = double(fs::file_size(mission_path)) / (1 << 20);
 
   // Picking: half the points near an observation (a click on a track), half anywhere on the map.
-  const auto index_begin = Clock::now();
+  const Stopwatch index_begin;
   const saker::activity::TrackIndex index(&mission.tracks);
-  const double index_ms = Seconds(index_begin) * 1e3;
+  const double index_ms = index_begin.ElapsedSeconds() * 1e3;
   std::vector<double> pick_us, brute_us;
   size_t hits = 0, agree = 0;
   if (index.size() > 0) {
@@ -212,14 +211,14 @@ int main(int argc, char** argv) {
               ? Eigen::Vector2d(all[any(random)] + Eigen::Vector2d(jitter(random), jitter(random)))
               : Eigen::Vector2d(
                     low + (high - low).cwiseProduct(Eigen::Vector2d(unit(random), unit(random))));
-      auto begin = Clock::now();
+      Stopwatch begin;
       const auto pick = index.Nearest(p, tolerance);
-      pick_us.push_back(Seconds(begin) * 1e6);
+      pick_us.push_back(begin.ElapsedSeconds() * 1e6);
       hits += pick.has_value();
       if (i % brute_every == 0) {
-        begin = Clock::now();
+        begin.Restart();
         const double brute = BruteForceNearest(mission.tracks, p, tolerance);
-        brute_us.push_back(Seconds(begin) * 1e6);
+        brute_us.push_back(begin.ElapsedSeconds() * 1e6);
         agree +=
             (brute < 0) == !pick.has_value() && (!pick || std::abs(pick->distance - brute) < 1e-9);
       }
@@ -246,13 +245,13 @@ int main(int argc, char** argv) {
       {"process_per_decode", summary->total_s / std::max(*decode_s, 1e-9)},
       {"mission_mb", file_mb},
       {"open_median_ms", Median(open_ms)},
-      {"open_max_ms", Percentile(open_ms, 100)},
+      {"open_max_ms", Quantile(open_ms, 1.0)},
       {"read_bytes_median_ms", Median(read_ms)},
       {"open_per_read_bytes", Median(open_ms) / std::max(Median(read_ms), 1e-9)},
       {"observations", index.size()},
       {"index_build_ms", index_ms},
       {"pick_median_us", pick_median},
-      {"pick_p99_us", Percentile(pick_us, 99)},
+      {"pick_p99_us", Quantile(pick_us, 0.99)},
       {"pick_hits", hits},
       {"brute_force_median_us", brute_median},
       {"brute_force_per_pick", brute_median / std::max(pick_median, 1e-9)},
@@ -280,13 +279,13 @@ int main(int argc, char** argv) {
               *decode_s, summary->total_s / std::max(*decode_s, 1e-9));
   std::printf(
       "open mission     median %.2f ms, max %.2f ms over %d opens (open + load, no tiles)\n",
-      Median(open_ms), Percentile(open_ms, 100), opens);
+      Median(open_ms), Quantile(open_ms, 1.0), opens);
   std::printf("  baseline       reading the file's bytes %.2f ms: opening costs %.2fx that\n",
               Median(read_ms), Median(open_ms) / std::max(Median(read_ms), 1e-9));
   std::printf("pick             %zu observations, index built in %.2f ms\n", index.size(),
               index_ms);
   std::printf("  latency        median %.2f us, p99 %.2f us over %d picks (%zu hits)\n",
-              pick_median, Percentile(pick_us, 99), picks, hits);
+              pick_median, Quantile(pick_us, 0.99), picks, hits);
   std::printf(
       "  baseline       brute-force scan median %.1f us: the index is %.0fx faster; "
       "same answer in %zu of %zu\n",

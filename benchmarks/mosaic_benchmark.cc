@@ -35,6 +35,8 @@
 #include "core/mosaic/mosaic_builder.h"
 #include "core/track/homography.h"
 #include "core/util/check.h"
+#include "core/util/statistics.h"
+#include "core/util/timer.h"
 #include "tests/core/mosaic/synthetic_camera.h"
 
 #include <CLI/CLI.hpp>
@@ -43,7 +45,6 @@
 #include <algorithm>
 #include <array>
 #include <charconv>
-#include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -53,11 +54,13 @@
 
 namespace {
 
+using saker::Median;
+using saker::Stopwatch;
+
 using saker::mosaic::ImageCorners;
 using saker::mosaic::KeyFrameId;
 using saker::mosaic::Link;
 using saker::mosaic::LinkGraph;
-using Clock = std::chrono::steady_clock;
 using Matrix8 = Eigen::Matrix<double, 8, 8>;
 using Vector8 = Eigen::Matrix<double, 8, 1>;
 
@@ -70,10 +73,6 @@ constexpr int kHeight = SyntheticCamera{}.height;
 constexpr double kStepM = 60;         // along-track key frame spacing (~50 % overlap)
 constexpr double kRowSpacingM = 150;  // ~25 % side overlap
 constexpr double kCornerSigmaPx = 0.5;
-
-double Seconds(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
 
 class Noise {
  public:
@@ -205,11 +204,6 @@ double RmsCornerError(const LinkGraph& graph, const std::vector<Eigen::Matrix3d>
   return std::sqrt(sum / double(4 * graph.nodes.size()));
 }
 
-double Median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  return v[v.size() / 2];
-}
-
 // Predicted RMS corner error (map units) from node covariances (of the listed nodes, or all).
 double PredictedRms(const LinkGraph& graph,
                     const std::vector<saker::track::HomographyCovariance>& covariances,
@@ -245,9 +239,9 @@ std::vector<double> BenchmarkAdjustment(const std::vector<int>& sizes,
     LinkGraph adjusted;
     for (int r = 0; r < repeats; ++r) {
       adjusted = scene.graph;
-      const auto start = Clock::now();
+      const Stopwatch start;
       auto result = saker::mosaic::Adjust(&adjusted, options);
-      run_times.push_back(Seconds(start));
+      run_times.push_back(start.ElapsedSeconds());
       if (!result.ok()) {
         std::fprintf(stderr, "adjustment failed: %s\n", result.status().ToString().c_str());
         return {};
@@ -262,9 +256,9 @@ std::vector<double> BenchmarkAdjustment(const std::vector<int>& sizes,
         wanted.push_back(KeyFrameId(int(adjusted.nodes.size()) * k / covariance_max));
       }
     }
-    const auto cov_start = Clock::now();
+    const Stopwatch cov_start;
     const auto covariances = saker::mosaic::NodeCovariances(adjusted, options, wanted);
-    const double cov_s = Seconds(cov_start);
+    const double cov_s = cov_start.ElapsedSeconds();
     if (!covariances.ok()) {
       std::fprintf(stderr, "covariances failed: %s\n", covariances.status().ToString().c_str());
       return {};
@@ -332,9 +326,9 @@ void BenchmarkQuery(const std::vector<int>& sizes, uint64_t seed) {
   const KeyFrameFeatures a = frame(0), b = frame(1);
   std::vector<double> pair_times;
   for (int r = 0; r < 5; ++r) {
-    const auto start = Clock::now();
+    const Stopwatch start;
     (void)saker::mosaic::MatchAppearance(a, b, 1280, 720, {});
-    pair_times.push_back(Seconds(start));
+    pair_times.push_back(start.ElapsedSeconds());
   }
   const double pair_s = Median(pair_times);
   std::printf(
@@ -346,16 +340,16 @@ void BenchmarkQuery(const std::vector<int>& sizes, uint64_t seed) {
   saker::mosaic::AppearanceIndex index({});
   int added = 0;
   for (int n : sizes) {
-    const auto add_start = Clock::now();
+    const Stopwatch add_start;
     const int before = added;
     for (; added < n; ++added) index.Add(frame(added));
-    const double add_ms = added > before ? Seconds(add_start) * 1e3 / (added - before) : 0;
+    const double add_ms = added > before ? add_start.ElapsedSeconds() * 1e3 / (added - before) : 0;
     std::vector<double> query_times;
     for (int r = 0; r < 20; ++r) {
       const KeyFrameFeatures q = frame(1000000 + r);
-      const auto start = Clock::now();
+      const Stopwatch start;
       (void)index.Query(q, 4);
-      query_times.push_back(Seconds(start));
+      query_times.push_back(start.ElapsedSeconds());
     }
     const double q = Median(query_times);
     std::printf("%6d %10.2f %10.2f %16.2f\n", n, add_ms, q * 1e3, q / pair_s);
@@ -444,9 +438,9 @@ void BenchmarkChain(const std::vector<int>& sizes, uint64_t seed) {
     saker::mosaic::ChainSolution solution;
     for (int r = 0; r < runs; ++r) {
       solution = {};  // freed before the next run, so memory stays that of one
-      const auto start = Clock::now();
+      const Stopwatch start;
       auto result = saker::mosaic::SolveChain(first, last, steps, kWidth, kHeight, options);
-      times.push_back(Seconds(start));
+      times.push_back(start.ElapsedSeconds());
       if (!result.ok()) {
         std::fprintf(stderr, "chain solve failed: %s\n", result.status().ToString().c_str());
         return;
@@ -457,10 +451,10 @@ void BenchmarkChain(const std::vector<int>& sizes, uint64_t seed) {
     const ChainError solved = ChainErrorM(solution.map_from_frame);
     solution = {};
     options.covariances = true;
-    const auto cov_start = Clock::now();
+    const Stopwatch cov_start;
     const auto with_covariances =
         saker::mosaic::SolveChain(first, last, steps, kWidth, kHeight, options);
-    const double cov_s = Seconds(cov_start);
+    const double cov_s = cov_start.ElapsedSeconds();
     if (!with_covariances.ok()) {
       std::fprintf(stderr, "chain solve failed: %s\n",
                    with_covariances.status().ToString().c_str());
@@ -600,9 +594,9 @@ double WarmStart(const Scene& scene, int every, const saker::mosaic::AdjustmentO
   double seconds = 0;
   for (int m = every; m < n; m += every) {
     LinkGraph prefix = Prefix(*start, m);
-    const auto begin = Clock::now();
+    const Stopwatch begin;
     const auto summary = saker::mosaic::AdjustDecomposed(&prefix, options, {});
-    seconds += Seconds(begin);
+    seconds += begin.ElapsedSeconds();
     SAKER_CHECK(summary.ok()) << summary.status().ToString();
     for (int k = 0; k < m; ++k) start->nodes[size_t(k)] = prefix.nodes[size_t(k)];
     ChainFrom(start, m);
@@ -637,18 +631,18 @@ void BenchmarkDecomposition(const std::vector<int>& sizes,
       double full_seconds = 0;
       if (full_max <= 0 || n <= full_max) {
         LinkGraph full = graph;
-        const auto start = Clock::now();
+        const Stopwatch start;
         const auto summary = saker::mosaic::Adjust(&full, options);
-        full_seconds = Seconds(start);
+        full_seconds = start.ElapsedSeconds();
         SAKER_CHECK(summary.ok()) << summary.status().ToString();
         std::snprintf(full_s, sizeof(full_s), "%.3f", full_seconds);
         std::snprintf(full_cost, sizeof(full_cost), "%.1f", summary->final_cost);
         std::snprintf(full_rms, sizeof(full_rms), "%.2f", RmsCornerError(full, scene.truth));
       }
       LinkGraph decomposed = graph;
-      const auto start = Clock::now();
+      const Stopwatch start;
       const auto summary = saker::mosaic::AdjustDecomposed(&decomposed, options, {});
-      const double decomposed_s = Seconds(start);
+      const double decomposed_s = start.ElapsedSeconds();
       SAKER_CHECK(summary.ok()) << summary.status().ToString();
       if (full_seconds > 0) {
         std::snprintf(speedup, sizeof(speedup), "%.1fx", full_seconds / decomposed_s);

@@ -10,12 +10,12 @@
 
 #include "core/sim/simulator.h"
 #include "core/sim/world_raster.h"
+#include "core/util/timer.h"
 #include "core/video/ts_writer.h"
 
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
-#include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
@@ -23,12 +23,9 @@
 
 namespace {
 
-namespace fs = std::filesystem;
-using Clock = std::chrono::steady_clock;
+using saker::Stopwatch;
 
-double Seconds(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
+namespace fs = std::filesystem;
 
 struct Figures {
   int width = 0, height = 0;
@@ -52,9 +49,9 @@ Figures Measure(int width, int height, double seconds, const fs::path& dir) {
 
   Figures f;
   f.width = width, f.height = height, f.video_fps = options.fps;
-  const auto start = Clock::now();
+  const Stopwatch start;
   StatusOr<sim::SimulationSummary> summary = sim::Simulate(options);
-  const double elapsed = Seconds(start);
+  const double elapsed = start.ElapsedSeconds();
   if (!summary.ok()) {
     std::cerr << "saker-bench-sim: " << summary.status().message() << "\n";
     std::exit(1);
@@ -75,15 +72,15 @@ Figures Measure(int width, int height, double seconds, const fs::path& dir) {
     const double t = double(i) * setup->frame_interval_s();
     const Eigen::Matrix3d h = sim::FrameFromGround(options.camera, setup->flight().PoseAt(t));
     if (i > 0) targets->Step(setup->frame_interval_s());
-    auto step = Clock::now();
+    Stopwatch step;
     cv::Mat frame = plain.RenderGround(h);
-    ground_s += Seconds(step);
-    step = Clock::now();
+    ground_s += step.ElapsedSeconds();
+    step.Restart();
     targets->Draw(h, &frame);
-    targets_s += Seconds(step);
-    step = Clock::now();
+    targets_s += step.ElapsedSeconds();
+    step.Restart();
     cv::Mat with_effects = full.Render(h, {}, Eigen::Vector2d::Zero(), i, t);
-    effects_s += Seconds(step);
+    effects_s += step.ElapsedSeconds();
     if (i % 5 == 0) rendered.push_back(with_effects);
   }
   f.ground_ms = 1000 * ground_s / double(f.frames);
@@ -98,13 +95,13 @@ Figures Measure(int width, int height, double seconds, const fs::path& dir) {
   writer_options.height = height;
   writer_options.fps_num = 25;
   writer_options.gop_size = 25;
-  const auto encode_start = Clock::now();
+  const Stopwatch encode_start;
   auto writer = video::TsWriter::Open(dir / "encode_only.ts", writer_options);
   for (int64_t i = 0; i < f.frames; ++i) {
     if (!(*writer)->WriteFrame(rendered[size_t(i / 5) % rendered.size()]).ok()) std::exit(1);
   }
   if (!(*writer)->Close().ok()) std::exit(1);
-  f.encode_only_fps = double(f.frames) / Seconds(encode_start);
+  f.encode_only_fps = double(f.frames) / encode_start.ElapsedSeconds();
   return f;
 }
 

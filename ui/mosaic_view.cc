@@ -2,6 +2,7 @@
 
 #include "core/mosaic/adjustment.h"
 #include "core/track/homography.h"
+#include "core/util/statistics.h"
 #include "ui/tile_cache.h"
 
 #include <Eigen/LU>
@@ -275,8 +276,7 @@ void MosaicView::frameChanged(bool refit) {
       if (std::isfinite(det) && det != 0) scales.push_back(std::sqrt(std::abs(det)));
     }
     if (!scales.empty()) {
-      std::nth_element(scales.begin(), scales.begin() + long(scales.size() / 2), scales.end());
-      map_units_per_pixel_ = scales[scales.size() / 2];
+      map_units_per_pixel_ = Median(std::move(scales));
     } else {
       map_units_per_pixel_ = 1;
     }

@@ -1,7 +1,9 @@
 #include "core/activity/activity.h"
 
+#include "core/util/statistics.h"
+#include "core/util/timer.h"
+
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <limits>
 #include <string>
@@ -98,8 +100,7 @@ CoverageIndex::CoverageIndex(const mission::Mission& mission, int stride) {
     footprints_.push_back(footprint);
   }
   if (footprints_.empty()) return;
-  std::nth_element(sizes.begin(), sizes.begin() + long(sizes.size() / 2), sizes.end());
-  const double median = sizes[sizes.size() / 2];
+  const double median = Median(std::move(sizes));
   cell_ = std::max(median / 2, 1e-6);
   for (size_t i = 0; i < footprints_.size(); ++i) {
     if ((footprints_[i].corners.col(0) - footprints_[i].corners.col(2)).norm() > 20 * median) {
@@ -144,7 +145,7 @@ StatusOr<ActivitySummary> MapActivity(const mission::Mission& mission,
                                       std::vector<ActivityTrack>* tracks,
                                       const ActivityOptions& options) {
   SAKER_RETURN_IF_ERROR(options.Validate());
-  const auto begin = std::chrono::steady_clock::now();
+  const Stopwatch begin;
   ActivitySummary summary;
   summary.tracks_in = int64_t(tracks->size());
   // Frame records by index (mission frames are in increasing index, usually 0..n-1).
@@ -220,7 +221,7 @@ StatusOr<ActivitySummary> MapActivity(const mission::Mission& mission,
     summary.max_visit = std::max(summary.max_visit, track.visit);
   }
   summary.tracks_out = int64_t(tracks->size());
-  summary.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - begin).count();
+  summary.time_s = begin.ElapsedSeconds();
   return summary;
 }
 

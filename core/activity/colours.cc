@@ -1,5 +1,7 @@
 #include "core/activity/colours.h"
 
+#include "core/util/statistics.h"
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -77,13 +79,6 @@ std::string Clock(double seconds) {
   return text;
 }
 
-double Percentile(std::vector<double> values, double p) {
-  if (values.empty()) return 0;
-  const size_t k = std::min(values.size() - 1, size_t(p * double(values.size() - 1) + 0.5));
-  std::nth_element(values.begin(), values.begin() + long(k), values.end());
-  return values[k];
-}
-
 }  // namespace
 
 const char* ColourModeName(ColourMode mode) {
@@ -115,8 +110,8 @@ TrackColouring::TrackColouring(ColourMode mode, const std::vector<mission::Activ
     case ColourMode::kSpeed: {
       std::vector<double> speeds;
       for (const mission::ActivityTrack& t : tracks) speeds.push_back(t.speed);
-      low_ = Percentile(speeds, 0.05);
-      high_ = Percentile(speeds, 0.95);
+      low_ = Quantile(speeds, 0.05);
+      high_ = Quantile(speeds, 0.95);
       if (!(high_ > low_)) high_ = low_ + 1;
       legend_.title = geo_referenced ? "Average speed (m/s)" : "Average speed (pixels/s)";
       legend_.continuous = true;

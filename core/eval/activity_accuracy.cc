@@ -1,6 +1,8 @@
 #include "core/eval/activity_accuracy.h"
 
 #include "core/activity/activity.h"
+#include "core/util/statistics.h"
+#include "core/util/timer.h"
 
 #include <Eigen/Geometry>
 #include <Eigen/LU>
@@ -41,13 +43,6 @@ int MatchTarget(const mission::ActivityTrack& track, const sim::Truth& truth) {
 }
 
 }  // namespace
-
-double ActivityQuantile(std::vector<double> values, double q) {
-  if (values.empty()) return 0;
-  const size_t k = std::min(values.size() - 1, size_t(q * double(values.size() - 1) + 0.5));
-  std::nth_element(values.begin(), values.begin() + long(k), values.end());
-  return values[k];
-}
 
 StatusOr<ActivityAccuracy> EvaluateActivity(const mission::Mission& mission,
                                             const sim::Truth& truth, double visit_gap_s) {
@@ -140,7 +135,7 @@ StatusOr<ActivityAccuracy> EvaluateActivity(const mission::Mission& mission,
         (*frame.map_from_frame * samples[size_t(middle.frame)].image_px.homogeneous())
             .hnormalized();
     ++a.picks;
-    const auto start = std::chrono::steady_clock::now();
+    const Stopwatch watch;
     // Other targets cross the same places at other times: like the analyst with the GUI's time
     // filter, pick among the tracks seen around that moment.
     const double t = middle.time_s;
@@ -148,9 +143,7 @@ StatusOr<ActivityAccuracy> EvaluateActivity(const mission::Mission& mission,
       return mission.tracks[k].start_s <= t + kPickWindowS &&
              mission.tracks[k].end_s >= t - kPickWindowS;
     });
-    pick_times.push_back(
-        std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - start)
-            .count());
+    pick_times.push_back(watch.ElapsedUs());
     // Right: an observation of the same truth target (a target may have more than one track),
     // at about the same time, on the target.
     if (!pick || matches[pick->track] != target) continue;
@@ -160,16 +153,16 @@ StatusOr<ActivityAccuracy> EvaluateActivity(const mission::Mission& mission,
         (samples[size_t(picked.frame)].image_px - picked.image).norm() <= kGatePx;
     picks_ok += in_time && on_target;
   }
-  a.speed_median_error_mps = ActivityQuantile(speed_errors, 0.5);
-  a.speed_p90_error_mps = ActivityQuantile(speed_errors, 0.9);
-  a.speed_median_relative = ActivityQuantile(relative, 0.5);
-  a.speed_p90_relative = ActivityQuantile(relative, 0.9);
+  a.speed_median_error_mps = Quantile(speed_errors, 0.5);
+  a.speed_p90_error_mps = Quantile(speed_errors, 0.9);
+  a.speed_median_relative = Quantile(relative, 0.5);
+  a.speed_p90_relative = Quantile(relative, 0.9);
   a.speed_relative_errors = std::move(relative);
-  a.direction_median_error_deg = ActivityQuantile(direction_errors, 0.5);
-  a.direction_p90_error_deg = ActivityQuantile(direction_errors, 0.9);
+  a.direction_median_error_deg = Quantile(direction_errors, 0.5);
+  a.direction_p90_error_deg = Quantile(direction_errors, 0.9);
   a.visit_agreement = a.compared_visit > 0 ? double(visits_agree) / double(a.compared_visit) : 0;
   a.pick_accuracy = a.picks > 0 ? double(picks_ok) / double(a.picks) : 0;
-  a.pick_median_us = ActivityQuantile(pick_times, 0.5);
+  a.pick_median_us = Quantile(pick_times, 0.5);
   return a;
 }
 

@@ -44,9 +44,4 @@ StatusOr<ActivityAccuracy> EvaluateActivity(const mission::Mission& mission,
 nlohmann::json ActivityAccuracyToJson(const ActivityAccuracy& accuracy);
 std::string ActivityAccuracyToText(const ActivityAccuracy& accuracy);
 
-// The q-quantile (q in [0, 1]) that the activity figures quote: the element of rank
-// round(q (n - 1)) in increasing order; 0 for no values. Exposed so that figures pooled over
-// several missions are the same statistic as one mission's.
-double ActivityQuantile(std::vector<double> values, double q);
-
 }  // namespace saker::eval

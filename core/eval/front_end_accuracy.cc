@@ -1,5 +1,7 @@
 #include "core/eval/front_end_accuracy.h"
 
+#include "core/util/statistics.h"
+
 #include <Eigen/Geometry>
 #include <Eigen/LU>
 
@@ -10,13 +12,6 @@
 
 namespace saker::eval {
 namespace {
-
-double Percentile(std::vector<double> values, double p) {
-  if (values.empty()) return 0;
-  std::sort(values.begin(), values.end());
-  const size_t rank = size_t(std::ceil(p / 100.0 * double(values.size())));
-  return values[std::clamp<size_t>(rank, 1, values.size()) - 1];
-}
 
 // The pairing distance for a target in a frame: the option, or half the target's length in the
 // image plus a margin when that is larger (features on a car's bumper are a detection of the car).
@@ -59,8 +54,8 @@ HomographyAccuracy EvaluateHomographies(const frontend::FrontEndResult& result,
     double sum = 0;
     for (double e : errors) sum += e;
     accuracy.mean_px = sum / double(errors.size());
-    accuracy.median_px = Percentile(errors, 50);
-    accuracy.p95_px = Percentile(errors, 95);
+    accuracy.median_px = Median(errors);
+    accuracy.p95_px = Quantile(errors, 0.95);
     accuracy.max_px = *std::max_element(errors.begin(), errors.end());
   }
   accuracy.errors_px = std::move(errors);
@@ -211,7 +206,7 @@ DetectionAccuracy EvaluateTargets(const frontend::FrontEndResult& result, const 
   a.frame_recall = a.truth_mover_frames > 0 ? double(a.paired) / double(a.truth_mover_frames) : 1.0;
   for (int n : track_paired_frames) a.paired_detections += n;
   a.frame_precision = a.detections > 0 ? double(a.paired_detections) / double(a.detections) : 1.0;
-  a.median_latency_s = Percentile(latencies, 50);
+  a.median_latency_s = Median(latencies);
   return a;
 }
 

@@ -2,6 +2,8 @@
 
 #include "core/geo/local_tangent_plane.h"
 #include "core/track/homography.h"
+#include "core/util/statistics.h"
+#include "core/util/timer.h"
 
 #include <Eigen/Geometry>
 #include <opencv2/calib3d.hpp>
@@ -171,9 +173,8 @@ StatusOr<InBetweenAccuracy> EvaluateInBetween(const mosaic::MosaicResult& mosaic
   }
   a.between = int(excess.size());
   if (!excess.empty()) {
-    std::sort(excess.begin(), excess.end());
-    a.median_excess_px = excess[excess.size() / 2];
-    a.max_excess_px = excess.back();
+    a.median_excess_px = Median(excess);
+    a.max_excess_px = *std::max_element(excess.begin(), excess.end());
   }
   return a;
 }
@@ -376,16 +377,14 @@ StatusOr<DecompositionExperiment> RunDecompositionExperiment(
   DecompositionExperiment e;
   e.key_frames = int(n);
   mosaic::LinkGraph full = start;
-  auto t0 = std::chrono::steady_clock::now();
-  SAKER_ASSIGN_OR_RETURN(mosaic::AdjustmentSummary full_summary, mosaic::Adjust(&full, adjustment));
-  e.full_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  (void)full_summary;
+  Stopwatch watch;
+  SAKER_RETURN_IF_ERROR(mosaic::Adjust(&full, adjustment).status());
+  e.full_s = watch.LapSeconds();
 
   mosaic::LinkGraph decomposed = start;
-  t0 = std::chrono::steady_clock::now();
   SAKER_ASSIGN_OR_RETURN(mosaic::DecomposedSummary summary,
                          mosaic::AdjustDecomposed(&decomposed, adjustment, decomposition));
-  e.decomposed_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  e.decomposed_s = watch.ElapsedSeconds();
   e.node_adjust_s = summary.adjust_s;
   e.nodes = summary.nodes;
   e.arcs = summary.arcs;

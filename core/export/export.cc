@@ -1,6 +1,7 @@
 #include "core/export/export.h"
 
 #include "core/geo/utm.h"
+#include "core/util/durable_file.h"
 
 #include <Eigen/Dense>
 #include <cpl_error.h>
@@ -18,7 +19,6 @@
 #include <cstring>
 #include <exception>
 #include <filesystem>
-#include <fstream>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -36,52 +36,16 @@ using Json = nlohmann::json;
 // ---------------------------------------------------------------------------------------------
 // Files
 
-std::string PartialPath(const std::string& path) { return path + ".partial"; }
-
-void RemoveQuietly(const std::string& path) {
-  std::error_code ignored;
-  std::filesystem::remove(path, ignored);
-}
-
-// Moves the finished "<path>.partial" over `path`; removes it when that fails.
-Status CommitPartial(const std::string& path) {
-  std::error_code ec;
-  std::filesystem::rename(PartialPath(path), path, ec);
-  if (ec) {
-    RemoveQuietly(PartialPath(path));
-    return IoError(path + ": cannot replace the file (" + ec.message() + ")");
-  }
-  return Status::Ok();
-}
-
-// Writes `contents` to `path` through "<path>.partial", so a failure leaves no partial file and
-// keeps an earlier export intact.
-Status WriteFileAtomically(const std::string& path, const std::string& contents) {
-  const std::string partial = PartialPath(path);
-  std::ofstream out(partial, std::ios::binary | std::ios::trunc);
-  if (!out) {
-    return IoError(path + ": cannot create the file (" + std::strerror(errno) + ")");
-  }
-  out.write(contents.data(), static_cast<std::streamsize>(contents.size()));
-  out.close();
-  if (!out) {
-    RemoveQuietly(partial);
-    return IoError(path + ": writing the file failed (" + std::strerror(errno) + ")");
-  }
-  return CommitPartial(path);
-}
-
 // Runs an exporter's body, turning any exception (from a library, a tile reader or a bug) into
-// an error naming the file; exceptions never cross the API.
+// an error naming the file; exceptions never cross the API. The body's FileReplacement removes
+// its temporary as the exception leaves it.
 template <typename Body>
 auto Guarded(const std::string& path, Body&& body) -> decltype(body()) {
   try {
     return body();
   } catch (const std::exception& e) {
-    RemoveQuietly(PartialPath(path));
     return IoError(path + ": export failed: " + e.what());
   } catch (...) {
-    RemoveQuietly(PartialPath(path));
     return IoError(path + ": export failed (unknown exception)");
   }
 }
@@ -576,15 +540,16 @@ StatusOr<GeoTiffReport> WriteGeoTiff(const mission::MapFrame& map,
   options = CSLSetNameValue(options, "ALPHA", "UNASSOCIATED");
   options = CSLSetNameValue(options, "INTERLEAVE", "PIXEL");
   options = CSLSetNameValue(options, "BIGTIFF", "IF_SAFER");
-  const std::string partial = PartialPath(path);
+  // GDAL may write an ".aux.xml" beside the file for what TIFF tags cannot hold.
+  FileReplacement replacement(path, {.side_suffixes = {".aux.xml"}});
+  const std::string& partial = replacement.temporary();
   DatasetPtr dataset(
       GDALCreate(driver, partial.c_str(), report.width, report.height, 4, GDT_Byte, options));
   CSLDestroy(options);
   // From here on, every failure removes the partial file (after the dataset is closed).
   auto fail = [&](Status status) -> Status {
     dataset.reset();
-    RemoveQuietly(partial);
-    RemoveQuietly(partial + ".aux.xml");
+    replacement.Discard();
     return status;
   };
   if (!dataset) {
@@ -653,7 +618,7 @@ StatusOr<GeoTiffReport> WriteGeoTiff(const mission::MapFrame& map,
   if (errors.failed()) {
     return fail(IoError(path + ": writing the file failed (" + errors.message("no reason") + ")"));
   }
-  SAKER_RETURN_IF_ERROR(CommitPartial(path));
+  SAKER_RETURN_IF_ERROR(replacement.Commit());
   return report;
 }
 
@@ -682,7 +647,7 @@ Status ExportGeoJson(const mission::Mission& mission, const std::string& path) {
         {"type", "FeatureCollection"}, {"saker", std::move(about)}, {"features", features}};
     std::string text = collection.dump(-1, ' ', false, Json::error_handler_t::replace);
     text += '\n';
-    return WriteFileAtomically(path, text);
+    return ReplaceFileContents(path, text);
   });
 }
 
@@ -704,7 +669,7 @@ Status ExportKml(const mission::Mission& mission, const std::string& path) {
     for (int visit : visits) out += KmlStyle(visit);
     for (const auto& track : mission.tracks) out += KmlPlacemark(track, positions, video);
     out += "</Document>\n</kml>\n";
-    return WriteFileAtomically(path, out);
+    return ReplaceFileContents(path, out);
   });
 }
 
@@ -742,7 +707,7 @@ Status ExportCsv(const mission::Mission& mission, const std::string& path) {
         out += "\r\n";
       }
     }
-    return WriteFileAtomically(path, out);
+    return ReplaceFileContents(path, out);
   });
 }
 

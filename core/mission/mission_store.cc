@@ -1,5 +1,7 @@
 #include "core/mission/mission_store.h"
 
+#include "core/util/durable_file.h"
+
 #include <fcntl.h>
 #include <signal.h>
 #include <sqlite3.h>
@@ -7,7 +9,6 @@
 #include <unistd.h>
 
 #include <algorithm>
-#include <atomic>
 #include <bit>
 #include <cerrno>
 #include <cinttypes>
@@ -703,43 +704,8 @@ Status CheckFileHeader(const std::string& path) {
   return Status::Ok();
 }
 
-// Makes sure `path`'s data reach the disk.
-Status SyncPath(const std::string& path, bool directory) {
-  const int fd = ::open(path.c_str(), (directory ? O_RDONLY | O_DIRECTORY : O_RDWR) | O_CLOEXEC);
-  if (fd < 0) return IoError(path + ": cannot open to sync: " + std::strerror(errno));
-  int rc;
-  do {
-    rc = ::fsync(fd);
-  } while (rc != 0 && errno == EINTR);
-  const int err = errno;
-  ::close(fd);
-  // Some file systems cannot sync a directory (EINVAL); the rename is then as durable as it gets.
-  if (rc != 0 && !(directory && err == EINVAL)) {
-    return IoError(path + ": fsync failed: " + std::strerror(err));
-  }
-  return Status::Ok();
-}
-
-// rename() that fails with EEXIST instead of replacing a file that appeared meanwhile.
-int RenameNoReplace(const std::string& from, const std::string& to) {
-#ifdef RENAME_NOREPLACE
-  const int rc = ::renameat2(AT_FDCWD, from.c_str(), AT_FDCWD, to.c_str(), RENAME_NOREPLACE);
-  if (rc == 0 || (errno != EINVAL && errno != ENOSYS && errno != EOPNOTSUPP)) return rc;
-#endif
-  // The file system cannot refuse atomically: check, then rename.
-  struct stat st;
-  if (::stat(to.c_str(), &st) == 0) {
-    errno = EEXIST;
-    return -1;
-  }
-  return std::rename(from.c_str(), to.c_str());
-}
-
-void RemoveDatabaseFiles(const std::string& path) {
-  for (const char* suffix : {"", "-wal", "-shm", "-journal"}) {
-    ::unlink((path + suffix).c_str());  // best effort: the files may not exist
-  }
-}
+// The files SQLite may keep beside a database.
+const std::vector<std::string> kDatabaseSideSuffixes = {"-wal", "-shm", "-journal"};
 
 }  // namespace
 
@@ -1523,9 +1489,12 @@ void MissionStore::RemoveStaleTemporaries(const std::string& path) {
   std::filesystem::path directory = target.parent_path();
   if (directory.empty()) directory = ".";
   const std::string name = target.filename().string();
-  // Create's ".NAME.new-PID-N", CopyMission's "NAME.part-PID" and the file Create builds for
-  // that one, ".NAME.part-PID.new-PID-N", each with its -wal / -shm.
-  const std::string prefixes[] = {"." + name + ".new-", name + ".part-", "." + name + ".part-"};
+  // A FileReplacement's ".NAME.part-PID-N.EXT" (Create's, CopyMission's) and the one Create
+  // makes for CopyMission's, "..NAME.part-PID-N.EXT.part-PID-M.EXT"; from older versions Create's
+  // ".NAME.new-PID-N", CopyMission's "NAME.part-PID" and ".NAME.part-PID.new-PID-N". Each with
+  // its -wal / -shm.
+  const std::string prefixes[] = {"." + name + ".part-", ".." + name + ".part-",
+                                  "." + name + ".new-", name + ".part-"};
   std::error_code error;
   for (std::filesystem::directory_iterator it(directory, error), end; !error && it != end;
        it.increment(error)) {
@@ -1585,31 +1554,15 @@ StatusOr<std::unique_ptr<MissionStore>> MissionStore::Create(const std::string& 
   }
   RemoveStaleTemporaries(path);
 
-  // Build the new file beside the target under a unique name.
-  const std::filesystem::path target(path);
-  std::filesystem::path directory = target.parent_path();
-  if (directory.empty()) directory = ".";
-  static std::atomic<int> counter{0};
-  std::string temp;
-  for (int attempt = 0;; ++attempt) {
-    temp = (directory / ("." + target.filename().string() + ".new-" + std::to_string(::getpid()) +
-                         "-" + std::to_string(counter++)))
-               .string();
-    const int fd = ::open(temp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
-    if (fd >= 0) {
-      ::close(fd);
-      break;
-    }
-    const int err = errno;
-    if (err != EEXIST || attempt > 100) {
-      return IoError(path + ": cannot create " + temp + ": " + std::strerror(err));
-    }
-  }
+  // Built beside the target and renamed over it (not over a file that appeared meanwhile when
+  // none was there), with the log folded in and synced, so a crash leaves the old or the new file.
+  FileReplacement replacement(path, {.overwrite = exists, .side_suffixes = kDatabaseSideSuffixes});
+  const std::string& temp = replacement.temporary();
   auto build = [&]() -> Status {
     Impl impl;
     impl.path = temp;
     impl.mode = OpenMode::kReadWrite;
-    SAKER_RETURN_IF_ERROR(impl.OpenConnection(SQLITE_OPEN_READWRITE));
+    SAKER_RETURN_IF_ERROR(impl.OpenConnection(SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE));
     // Space freed when a finished job drops its checkpoints goes back to the file system
     // (ClearCheckpoint); only settable while the database is empty, before the switch to WAL.
     SAKER_RETURN_IF_ERROR(impl.Exec("PRAGMA auto_vacuum = INCREMENTAL", "setting auto-vacuum"));
@@ -1625,29 +1578,12 @@ StatusOr<std::unique_ptr<MissionStore>> MissionStore::Create(const std::string& 
       SAKER_RETURN_IF_ERROR(transaction.Commit());
     }
     SAKER_RETURN_IF_ERROR(impl.SaveInTransaction(Mission{}, kSaveAll));
-    SAKER_RETURN_IF_ERROR(impl.Checkpoint());
-    impl.db.reset();
-    return SyncPath(temp, /*directory=*/false);
+    return impl.Checkpoint();
   };
-  Status built = build();
-  if (!built.ok()) {
-    built = Status(built.code(), path + ": cannot create the mission: " + built.message());
+  if (Status built = build(); !built.ok()) {
+    return Status(built.code(), path + ": cannot create the mission: " + built.message());
   }
-  if (built.ok()) {
-    const int rc = exists ? std::rename(temp.c_str(), path.c_str()) : RenameNoReplace(temp, path);
-    if (rc != 0) {
-      const int err = errno;
-      built = err == EEXIST
-                  ? InvalidArgumentError(path + ": a file appeared there meanwhile")
-                  : IoError(path + ": cannot move " + temp + " into place: " + std::strerror(err));
-    }
-  }
-  if (!built.ok()) {
-    RemoveDatabaseFiles(temp);
-    return built;
-  }
-  RemoveDatabaseFiles(temp);  // only its -wal / -shm remnants, if any, are left
-  SAKER_RETURN_IF_ERROR(SyncPath(directory.string(), /*directory=*/true));
+  SAKER_RETURN_IF_ERROR(replacement.Commit());
   return Open(path, OpenMode::kReadWrite);
 }
 
@@ -1849,64 +1785,6 @@ StatusOr<int64_t> MissionStore::CountTiles() const {
   const int rc = sqlite3_step(stmt);
   if (rc != SQLITE_ROW) return impl_->Error(rc, "counting tiles");
   return int64_t(sqlite3_column_int64(stmt, 0));
-}
-
-// ---------------------------------------------------------------------------------------------
-// Fingerprint.
-
-namespace {
-
-constexpr uint64_t kFnvOffset = 0xcbf29ce484222325ull;
-constexpr uint64_t kFnvPrime = 0x100000001b3ull;
-constexpr int64_t kFingerprintChunk = 1 << 20;
-
-uint64_t Fnv1a(const uint8_t* data, size_t size, uint64_t hash) {
-  for (size_t i = 0; i < size; ++i) {
-    hash ^= data[i];
-    hash *= kFnvPrime;
-  }
-  return hash;
-}
-
-}  // namespace
-
-StatusOr<std::string> FingerprintFile(const std::string& path) {
-  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
-  if (fd < 0) {
-    const int err = errno;
-    if (err == ENOENT || err == ENOTDIR) return NotFoundError(path + ": no such file");
-    return IoError(path + ": cannot open: " + std::strerror(err));
-  }
-  struct Closer {
-    int fd;
-    ~Closer() { ::close(fd); }
-  } closer{fd};
-  struct stat st;
-  if (::fstat(fd, &st) != 0) return IoError(path + ": cannot stat: " + std::strerror(errno));
-  if (!S_ISREG(st.st_mode)) return IoError(path + ": not a regular file");
-  const int64_t size = st.st_size;
-
-  // The size, then the first, middle and last MiB (overlapping for files under 3 MiB).
-  uint8_t size_bytes[8];
-  for (int b = 0; b < 8; ++b) size_bytes[b] = uint8_t(uint64_t(size) >> (8 * b));
-  uint64_t hash = Fnv1a(size_bytes, sizeof(size_bytes), kFnvOffset);
-  const int64_t chunk = std::min(size, kFingerprintChunk);
-  const int64_t offsets[3] = {0, (size - chunk) / 2, size - chunk};
-  std::vector<uint8_t> buffer(static_cast<size_t>(chunk));
-  for (const int64_t offset : offsets) {
-    int64_t got = 0;
-    while (got < chunk) {
-      const ssize_t r = ::pread(fd, buffer.data() + got, size_t(chunk - got), off_t(offset + got));
-      if (r < 0 && errno == EINTR) continue;
-      if (r < 0) return IoError(path + ": cannot read: " + std::strerror(errno));
-      if (r == 0) return IoError(path + ": the file shrank while it was read");
-      got += r;
-    }
-    hash = Fnv1a(buffer.data(), size_t(chunk), hash);
-  }
-  char digits[17];
-  std::snprintf(digits, sizeof(digits), "%016" PRIx64, hash);
-  return "v1:" + std::to_string(size) + ":" + digits;
 }
 
 }  // namespace saker::mission

@@ -10,6 +10,7 @@
 // for a second thread or process).
 
 #include "core/mission/mission.h"
+#include "core/util/fingerprint.h"
 #include "core/util/status.h"
 
 #include <cstdint>
@@ -134,11 +135,8 @@ class MissionStore {
   std::unique_ptr<Impl> impl_;
 };
 
-// A fingerprint that recognises the same video file elsewhere (renamed, moved, copied) without
-// reading all of a multi-gigabyte file: "v1:<size in bytes>:<16 hex digits>", the digits a 64-bit
-// FNV-1a hash of the size and of the first, middle and last MiB of the file (see
-// docs/mission-file.md). NotFound when the file is missing, IoError when it cannot be read; the
-// message names the path.
-StatusOr<std::string> FingerprintFile(const std::string& path);
+// The video fingerprint (core/util/fingerprint.h), also under this namespace so that callers of
+// mission::FingerprintFile keep compiling.
+using ::saker::FingerprintFile;
 
 }  // namespace saker::mission

@@ -3,6 +3,8 @@
 #include "core/mosaic/residuals.h"
 #include "core/track/homography.h"
 #include "core/util/check.h"
+#include "core/util/statistics.h"
+#include "core/util/timer.h"
 
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
@@ -15,7 +17,6 @@
 
 #include <algorithm>
 #include <array>
-#include <chrono>
 #include <cmath>
 #include <cstddef>
 #include <cstdio>
@@ -78,12 +79,6 @@ Eigen::Matrix3d Conditioner(const std::vector<Eigen::Vector2d>& points) {
   Eigen::Matrix3d t;
   t << s, 0, -s * mean.x(), 0, s, -s * mean.y(), 0, 0, 1;
   return t;
-}
-
-double Median(std::vector<double> values) {
-  const auto middle = values.begin() + std::ptrdiff_t(values.size() / 2);
-  std::nth_element(values.begin(), middle, values.end());
-  return *middle;
 }
 
 // The similarity that moves homogeneous points to their median (per coordinate, dehomogenised)
@@ -482,7 +477,7 @@ std::string AdjustmentSummary::ToString() const {
 StatusOr<AdjustmentSummary> Adjust(LinkGraph* graph, const AdjustmentOptions& options,
                                    JobContext* job) {
   SAKER_CHECK(graph != nullptr);
-  const auto start = std::chrono::steady_clock::now();
+  const Stopwatch start;
   SAKER_RETURN_IF_ERROR(Check(*graph, options));
 
   AdjustmentProblem adjustment(*graph, options);
@@ -548,7 +543,7 @@ StatusOr<AdjustmentSummary> Adjust(LinkGraph* graph, const AdjustmentOptions& op
     }
   }
   if (job != nullptr) job->ReportProgress("adjustment", 1);
-  summary.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  summary.time_s = start.ElapsedSeconds();
   return summary;
 }
 

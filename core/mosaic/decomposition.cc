@@ -3,11 +3,11 @@
 #include "core/mosaic/residuals.h"
 #include "core/track/homography.h"
 #include "core/util/check.h"
+#include "core/util/timer.h"
 
 #include <Eigen/LU>
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -16,12 +16,6 @@
 
 namespace saker::mosaic {
 namespace {
-
-using Clock = std::chrono::steady_clock;
-
-double SecondsSince(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
 
 Eigen::Matrix3d Normalised(const Eigen::Matrix3d& h) { return h / h(2, 2); }
 
@@ -326,14 +320,14 @@ StatusOr<DecomposedSummary> AdjustDecomposed(LinkGraph* graph, const AdjustmentO
   std::vector<KeyFrameId> inserted;
   Decomposition d;
   for (int round = 0;; ++round) {
-    auto start = Clock::now();
+    Stopwatch start;
     d = Decompose(*graph, decomposition_options, metadata_nodes, inserted);
     SAKER_ASSIGN_OR_RETURN(LinkGraph reduced, ReducedGraph(*graph, d));
-    summary.reduce_s += SecondsSince(start);
+    summary.reduce_s += start.ElapsedSeconds();
 
-    start = Clock::now();
+    start.Restart();
     SAKER_ASSIGN_OR_RETURN(summary.adjustment, Adjust(&reduced, options, job));
-    summary.adjust_s += SecondsSince(start);
+    summary.adjust_s += start.ElapsedSeconds();
     ++summary.rounds;
     for (size_t i = 0; i < d.nodes.size(); ++i) {
       graph->nodes[size_t(d.nodes[i])].map_from_frame = reduced.nodes[i].map_from_frame;
@@ -362,11 +356,11 @@ StatusOr<DecomposedSummary> AdjustDecomposed(LinkGraph* graph, const AdjustmentO
   summary.cross_links = int(d.cross_links.size());
   summary.left_out_cross_links = int(d.left_out_links.size());
 
-  const auto start = Clock::now();
+  const Stopwatch start;
   for (const Arc& arc : d.arcs) {
     if (!PlaceArc(graph, arc, decomposition_options.placement)) ++summary.arcs_not_solved;
   }
-  summary.place_s = SecondsSince(start);
+  summary.place_s = start.ElapsedSeconds();
   summary.decomposition = std::move(d);
   return summary;
 }

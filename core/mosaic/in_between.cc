@@ -1,14 +1,13 @@
 #include "core/mosaic/in_between.h"
 
+#include "core/util/timer.h"
+
 #include <Eigen/LU>
 
-#include <chrono>
 #include <cstdio>
 
 namespace saker::mosaic {
 namespace {
-
-using Clock = std::chrono::steady_clock;
 
 Eigen::Matrix3d Normalised(const Eigen::Matrix3d& h) { return h / h(2, 2); }
 
@@ -27,7 +26,7 @@ StatusOr<InBetweenFrames> PlaceInBetweenFrames(const std::vector<MosaicFrame>& f
                                                const LinkGraph& graph, const ChainOptions& options,
                                                JobContext* job) {
   SAKER_RETURN_IF_ERROR(options.Validate());
-  const auto start = Clock::now();
+  const Stopwatch start;
   const size_t n = frames.size();
   InBetweenFrames result;
   result.map_from_frame.assign(n, std::nullopt);
@@ -104,7 +103,7 @@ StatusOr<InBetweenFrames> PlaceInBetweenFrames(const std::vector<MosaicFrame>& f
     }
     run_start = run_end;
   }
-  result.time_s = std::chrono::duration<double>(Clock::now() - start).count();
+  result.time_s = start.ElapsedSeconds();
   return result;
 }
 

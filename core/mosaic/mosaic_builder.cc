@@ -2,25 +2,20 @@
 
 #include "core/track/homography.h"
 #include "core/util/check.h"
+#include "core/util/timer.h"
 
 #include <Eigen/Dense>
 #include <Eigen/Geometry>
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 
 namespace saker::mosaic {
 namespace {
 
-using Clock = std::chrono::steady_clock;
 using track::HomographyCovariance;
 using track::HomographyWithCovariance;
-
-double SecondsSince(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
 
 Eigen::Matrix3d Normalised(const Eigen::Matrix3d& h) { return h / h(2, 2); }
 
@@ -164,7 +159,7 @@ struct Builder {
   }
 
   Status Adjust() {
-    const auto start = Clock::now();
+    const Stopwatch start;
     AdjustmentSummary summary;
     std::optional<DecomposedSummary> decomposed;
     if (options.adjust_mode == AdjustmentMode::kDecomposed) {
@@ -174,15 +169,15 @@ struct Builder {
     } else {
       SAKER_ASSIGN_OR_RETURN(summary, mosaic::Adjust(&result.graph, options.adjustment, job));
     }
-    result.timing.adjust_s += SecondsSince(start);
+    result.timing.adjust_s += start.ElapsedSeconds();
     result.adjustments.push_back(summary);
     if (summary.cancelled) return CancelledError("mosaic: cancelled during bundle adjustment");
-    const auto covariance_start = Clock::now();
+    const Stopwatch covariance_start;
     StatusOr<std::vector<HomographyCovariance>> covariances =
         decomposed ? DecomposedCovariances(result.graph, decomposed->decomposition,
                                            options.adjustment, options.decomposition.placement)
                    : NodeCovariances(result.graph, options.adjustment);
-    result.timing.covariance_s += SecondsSince(covariance_start);
+    result.timing.covariance_s += covariance_start.ElapsedSeconds();
     // A rank-deficient problem keeps the chain's covariances; the solution itself stands.
     if (covariances.ok()) result.covariances = std::move(covariances).value();
     if (decomposed) result.decomposition = std::move(decomposed);
@@ -263,7 +258,7 @@ struct Builder {
   }
 
   StatusOr<MosaicResult> Run() {
-    const auto start = Clock::now();
+    const Stopwatch start;
     LinkGraph& graph = result.graph;
     graph.image_width = input.image_width;
     graph.image_height = input.image_height;
@@ -324,19 +319,19 @@ struct Builder {
         dirty = true;
       }
 
-      auto describe_start = Clock::now();
+      Stopwatch describe_start;
       if (k < input.key_frame_images.size() && input.key_frame_images[k].id == kf.id) {
         const track::KeyFrameImage& image = input.key_frame_images[k];
         features[k] = DescribeKeyFrame(kf.id, image.grey, image.scale, kf.points, options.describe);
       } else {
         features[k].id = kf.id;
       }
-      result.timing.describe_s += SecondsSince(describe_start);
+      result.timing.describe_s += describe_start.ElapsedSeconds();
 
-      const auto match_start = Clock::now();
+      const Stopwatch match_start;
       const int added = CloseLoops(int(k));
       index.Add(features[k]);
-      result.timing.match_s += SecondsSince(match_start);
+      result.timing.match_s += match_start.ElapsedSeconds();
 
       const bool metadata_due = options.adjust_every_metadata > 0 &&
                                 metadata_since_adjustment >= options.adjust_every_metadata;
@@ -347,13 +342,13 @@ struct Builder {
     // once), and so that the covariances describe the final graph.
     if (dirty || result.adjustments.empty()) SAKER_RETURN_IF_ERROR(Adjust());
     if (options.place_in_between) {
-      const auto place_start = Clock::now();
+      const Stopwatch place_start;
       SAKER_ASSIGN_OR_RETURN(
           result.in_between,
           PlaceInBetweenFrames(input.frames, graph, options.decomposition.placement, job));
-      result.timing.in_between_s = SecondsSince(place_start);
+      result.timing.in_between_s = place_start.ElapsedSeconds();
     }
-    result.timing.total_s = SecondsSince(start);
+    result.timing.total_s = start.ElapsedSeconds();
     return std::move(result);
   }
 };

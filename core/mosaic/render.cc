@@ -2,6 +2,7 @@
 
 #include "core/mosaic/adjustment.h"
 #include "core/track/homography.h"
+#include "core/util/statistics.h"
 
 #include <Eigen/Geometry>
 #include <opencv2/core/eigen.hpp>
@@ -70,10 +71,8 @@ StatusOr<MosaicImage> RenderMosaic(const LinkGraph& graph,
       resolutions.empty()) {
     return InvalidDataError("mosaic picture: the key frames' extent is not finite");
   }
-  std::nth_element(resolutions.begin(), resolutions.begin() + resolutions.size() / 2,
-                   resolutions.end());
   double units =
-      options.map_units_per_px > 0 ? options.map_units_per_px : resolutions[resolutions.size() / 2];
+      options.map_units_per_px > 0 ? options.map_units_per_px : Median(std::move(resolutions));
   if (!(units > 0)) return InvalidDataError("mosaic picture: degenerate key frame homographies");
   units = std::max(units, std::max(x1 - x0, y1 - y0) / options.max_side_px);
   const int width = std::max(1, int(std::ceil((x1 - x0) / units)) + 1);

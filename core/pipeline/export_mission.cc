@@ -3,8 +3,7 @@
 #include "core/activity/colours.h"
 #include "core/export/export.h"
 #include "core/tiles/pyramid.h"
-
-#include <unistd.h>
+#include "core/util/durable_file.h"
 
 #include <cstdio>
 #include <filesystem>
@@ -107,20 +106,10 @@ Status CopyMission(const std::string& from, const std::string& to, bool replace,
   SAKER_ASSIGN_OR_RETURN(const mission::Mission mission, source->Load());
 
   // Built under a temporary name beside `to`, renamed into place when complete.
-  const std::string part = to + ".part-" + std::to_string(getpid());
-  struct Remover {
-    std::string path;
-    bool keep = false;
-    ~Remover() {
-      if (keep) return;
-      std::error_code ignored;
-      for (const char* suffix : {"", "-wal", "-shm", "-journal"})
-        fs::remove(path + suffix, ignored);
-    }
-  } remover{part};
+  FileReplacement replacement(to, {.side_suffixes = {"-wal", "-shm", "-journal"}});
   {
     SAKER_ASSIGN_OR_RETURN(const std::unique_ptr<mission::MissionStore> target,
-                           mission::MissionStore::Create(part, /*replace=*/true));
+                           mission::MissionStore::Create(replacement.temporary()));
     SAKER_RETURN_IF_ERROR(target->Save(mission));
     if (mission.pyramid) {
       const mission::PyramidInfo& p = *mission.pyramid;
@@ -151,10 +140,7 @@ Status CopyMission(const std::string& from, const std::string& to, bool replace,
   }  // closed: the WAL is checkpointed into the file
   // A log of the mission being replaced (or an orphaned one) must not be replayed onto the copy.
   SAKER_RETURN_IF_ERROR(mission::MissionStore::FoldLog(to));
-  fs::rename(part, to, error);
-  if (error) return IoError(to + ": cannot move the copy into place: " + error.message());
-  remover.keep = true;
-  return Status();
+  return replacement.Commit();
 }
 
 }  // namespace saker::pipeline

@@ -3,11 +3,11 @@
 #include "core/mission/mission_store.h"
 #include "core/pipeline/checkpoint.h"
 #include "core/pipeline/stages.h"
+#include "core/util/timer.h"
 #include "core/video/video_reader.h"
 
 #include <nlohmann/json.hpp>
 
-#include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <map>
@@ -15,12 +15,6 @@
 
 namespace saker::pipeline {
 namespace {
-
-using Clock = std::chrono::steady_clock;
-
-double Seconds(Clock::time_point since) {
-  return std::chrono::duration<double>(Clock::now() - since).count();
-}
 
 // The options worth recording in the mission (what a person would need to reproduce it).
 std::string OptionsJson(const ProcessOptions& options) {
@@ -146,7 +140,7 @@ std::string ProcessSummary::ToText() const {
 StatusOr<ProcessSummary> ProcessVideo(const std::string& video, const std::string& mission_path,
                                       const ProcessOptions& options, JobContext* job) {
   SAKER_RETURN_IF_ERROR(options.Validate());
-  const auto start = Clock::now();
+  const Stopwatch start;
   ProcessSummary summary;
   // Open the video first: a file that is not a video must not leave (or replace) a mission.
   MissionRun run;
@@ -159,16 +153,16 @@ StatusOr<ProcessSummary> ProcessVideo(const std::string& video, const std::strin
     SAKER_ASSIGN_OR_RETURN(store, OpenToResume(video, run.mission.source, mission_path, options,
                                                &checkpoint, &summary));
     if (summary.already_complete) {
-      summary.total_s = Seconds(start);
+      summary.total_s = start.ElapsedSeconds();
       return summary;
     }
   } else {
     SAKER_ASSIGN_OR_RETURN(store, mission::MissionStore::Create(mission_path, options.replace));
   }
   const auto commit = [&](const mission::Mission& m, unsigned parts, const char* stage) -> Status {
-    const auto begin = Clock::now();
+    const Stopwatch begin;
     SAKER_RETURN_IF_ERROR(store->Save(m, parts));
-    summary.save_s += Seconds(begin);
+    summary.save_s += begin.ElapsedSeconds();
     if (options.on_commit) options.on_commit(stage);
     return {};
   };
@@ -240,7 +234,7 @@ StatusOr<ProcessSummary> ProcessVideo(const std::string& video, const std::strin
   // The job is complete: its checkpoint is no longer needed.
   SAKER_RETURN_IF_ERROR(store->ClearCheckpoint());
   summary.progress = m.progress;
-  summary.total_s = Seconds(start);
+  summary.total_s = start.ElapsedSeconds();
   return summary;
 }
 

@@ -1,19 +1,13 @@
 #include "core/pipeline/stages.h"
 
 #include "core/pipeline/mosaic_input.h"
+#include "core/util/timer.h"
 
-#include <chrono>
 #include <map>
 #include <utility>
 
 namespace saker::pipeline {
 namespace {
-
-using Clock = std::chrono::steady_clock;
-
-double Seconds(Clock::time_point since) {
-  return std::chrono::duration<double>(Clock::now() - since).count();
-}
 
 mission::LinkKind MissionLinkKind(mosaic::LinkKind kind) {
   switch (kind) {
@@ -180,7 +174,7 @@ Status RunStages(const std::string& video, const StageOptions& options, const St
   for (const Stage stage : {Stage::kFrontEnd, Stage::kMosaic, Stage::kActivity, Stage::kTiles}) {
     if (int(stage) > int(hooks.last)) break;
     if (stage == Stage::kTiles && !hooks.write_tiles) break;
-    const auto begin = Clock::now();
+    const Stopwatch begin;
     StatusOr<bool> go_on = false;
     switch (stage) {
       case Stage::kFrontEnd:
@@ -196,7 +190,7 @@ Status RunStages(const std::string& video, const StageOptions& options, const St
         go_on = TilesStage(options, hooks, job, run);
         break;
     }
-    run->seconds[int(stage)] = Seconds(begin);
+    run->seconds[int(stage)] = begin.ElapsedSeconds();
     if (!go_on.ok()) {
       run->failed = stage;
       return go_on.status();

@@ -1,5 +1,7 @@
 #include "core/render/activity_map.h"
 
+#include "core/util/durable_file.h"
+
 #include <Eigen/Geometry>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -7,7 +9,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <filesystem>
 #include <limits>
 
 namespace saker::render {
@@ -260,28 +261,21 @@ StatusOr<ActivityMap> RenderActivityMap(const mission::Mission& mission, const T
 }
 
 Status WritePicture(const cv::Mat& bgr, const std::string& path) {
-  const std::filesystem::path target(path);
-  const std::string extension = target.extension().string();
-  const std::filesystem::path part = path + ".part" + extension;
-  bool written = false;
-  try {
-    written = cv::imwrite(part.string(), bgr);
-  } catch (const cv::Exception&) {
-    written = false;
-  }
-  std::error_code error;
-  if (!written) {
-    std::filesystem::remove(part, error);
-    return IoError(
-        "cannot write " + path +
-        " (the folder must exist and be writable; the name must end in .png, .jpg or .tif)");
-  }
-  std::filesystem::rename(part, target, error);
-  if (error) {
-    std::filesystem::remove(part, error);
-    return IoError("cannot write " + path + ": " + error.message());
-  }
-  return {};
+  // The temporary keeps the extension: imwrite picks the format by it.
+  return ReplaceFile(path, [&](const std::string& temporary) -> Status {
+    bool written = false;
+    try {
+      written = cv::imwrite(temporary, bgr);
+    } catch (const cv::Exception&) {
+      written = false;
+    }
+    if (!written) {
+      return IoError(
+          "cannot write " + path +
+          " (the folder must exist and be writable; the name must end in .png, .jpg or .tif)");
+    }
+    return Status::Ok();
+  });
 }
 
 }  // namespace saker::render

@@ -5,6 +5,7 @@
 #include "core/sim/random.h"
 #include "core/sim/truth.h"
 #include "core/sim/world_raster.h"
+#include "core/util/durable_file.h"
 #include "core/video/ts_writer.h"
 
 #include <Eigen/Geometry>
@@ -13,7 +14,6 @@
 #include <cmath>
 #include <future>
 #include <map>
-#include <system_error>
 #include <tuple>
 #include <type_traits>
 
@@ -28,22 +28,10 @@ std::pair<int, int> FrameRateFraction(double fps) {
   return {int(std::lround(fps * 1001)), 1001};
 }
 
-// Removes a file if present, ignoring errors (cleanup after a failure).
-void RemoveQuietly(const std::filesystem::path& path) {
-  std::error_code ignored;
-  std::filesystem::remove(path, ignored);
-}
-
 // Coarser renderings of the procedural ground for oblique views: up to 16 times the detail
 // ground's metres per pixel, each with a smaller tile cache than the detail level's.
 constexpr int kCoarserGroundLevels = 4;
 constexpr int kCoarserGroundCacheMegabytes = 64;
-
-std::filesystem::path PartPath(const std::filesystem::path& path) {
-  std::filesystem::path part = path;
-  part += ".part";
-  return part;
-}
 
 // One camera frame as the encoder takes it (FrameClock).
 struct FrameSlot {
@@ -648,12 +636,13 @@ StatusOr<SimulationSummary> Simulate(const SimulationOptions& options_in, JobCon
   writer_options.threads = 4;
   writer_options.with_klv =
       options.metadata.every_n_frames > 0 || !options.metadata.only_frames.empty();
-  const std::filesystem::path video_part = PartPath(options.output);
+  // The video is renamed into place once it and its truth are complete.
+  FileReplacement video(options.output.string());
   SAKER_ASSIGN_OR_RETURN(std::unique_ptr<video::TsWriter> writer,
-                         video::TsWriter::Open(video_part, writer_options));
+                         video::TsWriter::Open(video.temporary(), writer_options));
   const auto fail = [&](Status status) {
     writer.reset();
-    RemoveQuietly(video_part);
+    video.Discard();
     return status;
   };
 
@@ -808,12 +797,8 @@ StatusOr<SimulationSummary> Simulate(const SimulationOptions& options_in, JobCon
   const std::filesystem::path truth_path = options.TruthPath();
   status = WriteTruth(truth, truth_path);
   if (!status.ok()) return fail(status);
-  std::error_code error;
-  std::filesystem::rename(video_part, options.output, error);
-  if (error) {
-    return fail(IoError("cannot rename " + video_part.string() + " to " + options.output.string() +
-                        ": " + error.message()));
-  }
+  status = video.Commit();
+  if (!status.ok()) return status;
   summary.frames = int64_t(truth.frames.size());
   summary.duration_s = double(frame_count) * frame_interval;
   summary.track_length_m = flight.track().length_m();

@@ -1,8 +1,9 @@
 #include "core/sim/truth.h"
 
+#include "core/util/durable_file.h"
+
 #include <algorithm>
 #include <fstream>
-#include <system_error>
 
 namespace saker::sim {
 namespace {
@@ -203,20 +204,10 @@ std::vector<int64_t> Truth::CutFrames() const {
 }
 
 Status WriteTruth(const Truth& truth, const std::filesystem::path& path) {
-  std::filesystem::path temporary = path;
-  temporary += ".part";
-  {
-    std::ofstream out(temporary, std::ios::binary | std::ios::trunc);
-    if (!out) return IoError("cannot create " + temporary.string());
+  return ReplaceFileFromStream(path.string(), [&](std::ostream& out) {
     out << TruthToJson(truth).dump() << '\n';
-    if (!out.flush()) return IoError("cannot write " + temporary.string() + " (disk full?)");
-  }
-  std::error_code error;
-  std::filesystem::rename(temporary, path, error);
-  if (error)
-    return IoError("cannot rename " + temporary.string() + " to " + path.string() + ": " +
-                   error.message());
-  return Status::Ok();
+    return Status::Ok();
+  });
 }
 
 StatusOr<Truth> ReadTruth(const std::filesystem::path& path) {

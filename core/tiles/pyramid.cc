@@ -1,5 +1,8 @@
 #include "core/tiles/pyramid.h"
 
+#include "core/util/statistics.h"
+#include "core/util/timer.h"
+
 #include <Eigen/Geometry>
 #include <Eigen/LU>
 #include <opencv2/core/eigen.hpp>
@@ -7,7 +10,6 @@
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <limits>
 #include <map>
@@ -274,10 +276,8 @@ StatusOr<mission::PyramidInfo> PlanPyramid(const std::vector<KeyFrameView>& fram
   if (!extent.Valid() || resolutions.empty()) {
     return InvalidDataError("mosaic tiles: no key frame has a finite footprint on the map");
   }
-  std::nth_element(resolutions.begin(), resolutions.begin() + long(resolutions.size() / 2),
-                   resolutions.end());
   double units =
-      options.map_units_per_px > 0 ? options.map_units_per_px : resolutions[resolutions.size() / 2];
+      options.map_units_per_px > 0 ? options.map_units_per_px : Median(std::move(resolutions));
   if (!(units > 0) || !std::isfinite(units)) {
     return InvalidDataError("mosaic tiles: degenerate key frame homographies");
   }
@@ -311,13 +311,13 @@ StatusOr<RenderSummary> RenderPyramid(const std::vector<KeyFrameView>& frames, i
       !(std::abs(info.step_x) > 0) || !(std::abs(info.step_y) > 0)) {
     return InvalidArgumentError("mosaic tiles: the pyramid does not match the options");
   }
-  const auto begin = std::chrono::steady_clock::now();
+  const Stopwatch begin;
   Renderer renderer(frames, width, height, info, options, write, job);
   SAKER_RETURN_IF_ERROR(renderer.Tile(info.levels - 1, 0, 0).status());
   SAKER_RETURN_IF_ERROR(renderer.Flush());
   if (job) job->ReportProgress("Mosaic tiles", 1.0);
   RenderSummary summary = renderer.summary();
-  summary.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - begin).count();
+  summary.time_s = begin.ElapsedSeconds();
   return summary;
 }
 

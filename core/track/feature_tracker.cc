@@ -1,23 +1,17 @@
 #include "core/track/feature_tracker.h"
 
 #include "core/util/check.h"
+#include "core/util/timer.h"
 
 #include <opencv2/imgproc.hpp>
 #include <opencv2/video/tracking.hpp>
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <utility>
 
 namespace saker::track {
 namespace {
-
-using Clock = std::chrono::steady_clock;
-
-double MillisecondsSince(Clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-}
 
 // Harris detector settings (OpenCV's defaults): a 3x3 structure-tensor window on 3x3 Sobel
 // gradients, so a corner is placed by the structure right at it.
@@ -170,7 +164,7 @@ void FeatureTracker::Process(int64_t frame_index, const cv::Mat& grey) {
   SAKER_CHECK(frame_index >= 0) << "frame index " << frame_index;
   SAKER_CHECK(last_frame_ < 0 || frame_index > last_frame_)
       << "frame " << frame_index << " after frame " << last_frame_;
-  const Clock::time_point start = Clock::now();
+  const Stopwatch start;
   timing_ = Timing{};
 
   if (have_previous_ && (grey.size() != full_size_ ||
@@ -191,7 +185,7 @@ void FeatureTracker::Process(int64_t frame_index, const cv::Mat& grey) {
     EndAll();
     last_frame_ = frame_index;
     points_.clear();
-    timing_.total_ms = MillisecondsSince(start);
+    timing_.total_ms = start.ElapsedMs();
     return;
   }
 
@@ -211,11 +205,11 @@ void FeatureTracker::Process(int64_t frame_index, const cv::Mat& grey) {
                               options_.pyramid_levels, /*withDerivatives=*/true,
                               cv::BORDER_REFLECT_101, cv::BORDER_CONSTANT,
                               /*tryReuseInputImage=*/false);
-  timing_.pyramid_ms = MillisecondsSince(start);
+  timing_.pyramid_ms = start.ElapsedMs();
 
-  const Clock::time_point flow_start = Clock::now();
+  const Stopwatch flow_start;
   TrackPoints(frame_index);
-  timing_.flow_ms = MillisecondsSince(flow_start);
+  timing_.flow_ms = flow_start.ElapsedMs();
   last_frame_ = frame_index;
   have_previous_ = true;
 
@@ -227,16 +221,16 @@ void FeatureTracker::Process(int64_t frame_index, const cv::Mat& grey) {
   ++frames_since_detection_;
   if (frames_since_detection_ >= options_.redetect_interval ||
       double(live_.size()) < options_.refill_fraction * double(reference_count_)) {
-    const Clock::time_point detect_start = Clock::now();
+    const Stopwatch detect_start;
     Detect(frame_index);
-    timing_.detect_ms = MillisecondsSince(detect_start);
+    timing_.detect_ms = detect_start.ElapsedMs();
     frames_since_detection_ = 0;
   }
 
   points_.clear();
   points_.reserve(live_.size());
   for (const FeatureTrack& t : live_) points_.push_back({t.id, t.positions.back(), t.first_frame});
-  timing_.total_ms = MillisecondsSince(start);
+  timing_.total_ms = start.ElapsedMs();
 }
 
 void FeatureTracker::TrackPoints(int64_t frame_index) {

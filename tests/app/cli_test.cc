@@ -159,7 +159,9 @@ TEST(CliMosaicTest, WritesThePictureAndSummarises) {
   EXPECT_TRUE(j["geo_referenced"].get<bool>());
   EXPECT_GT(j["picture_width"].get<int>(), 0);
   EXPECT_TRUE(std::filesystem::exists(picture));
-  EXPECT_FALSE(std::filesystem::exists(picture + ".part.png"));
+  for (const auto& entry : std::filesystem::directory_iterator(dir)) {
+    EXPECT_EQ(entry.path().filename().string().find(".part-"), std::string::npos) << entry.path();
+  }
 }
 
 TEST(CliMosaicTest, BadInputsNameTheProblem) {

@@ -283,8 +283,11 @@ TEST(AccuracyCorpusTest, TheSmokeCorpusRunsEveryCaseAndTheSecondRunUsesTheCache)
   const std::string of_n = "/" + std::to_string(cases.size()) + " ";
   const fs::path cache = saker::testing::MakeTempDir("saker-corpus-cache");
   // What a killed run leaves behind, removed before the run.
-  const fs::path stale = cache / ".tmp-0000000000000000-999999999-0";
+  const fs::path stale = cache / ".0000000000000000.part-999999999-0";
   fs::create_directories(stale);
+  // And what one of an older version left.
+  const fs::path stale_old = cache / ".tmp-0000000000000000-999999999-0";
+  fs::create_directories(stale_old);
 
   CorpusRunOptions options;
   options.cache_dir = cache;
@@ -294,6 +297,7 @@ TEST(AccuracyCorpusTest, TheSmokeCorpusRunsEveryCaseAndTheSecondRunUsesTheCache)
   const std::vector<CaseResult> first = RunCorpus(cases, options);
   ASSERT_EQ(first.size(), cases.size());
   EXPECT_FALSE(fs::exists(stale));
+  EXPECT_FALSE(fs::exists(stale_old));
   EXPECT_EQ(progress.size(), 2 * cases.size());  // started, done
   for (const std::string& line : progress) {
     EXPECT_NE(line.find(of_n), std::string::npos) << line;
@@ -346,7 +350,7 @@ TEST(AccuracyCorpusTest, TheSmokeCorpusRunsEveryCaseAndTheSecondRunUsesTheCache)
   size_t entries = 0;
   for (const fs::directory_entry& e : fs::directory_iterator(cache)) {
     ++entries;
-    EXPECT_EQ(e.path().filename().string().rfind(".tmp", 0), std::string::npos) << e.path();
+    EXPECT_EQ(e.path().filename().string().rfind(".", 0), std::string::npos) << e.path();
   }
   EXPECT_EQ(entries, cases.size());
 

@@ -6,6 +6,8 @@
 
 #include <gtest/gtest.h>
 
+#include <cstddef>
+#include <cstdint>
 #include <filesystem>
 #include <optional>
 #include <string>
@@ -24,6 +26,12 @@ std::optional<std::filesystem::path> FindTestData(const std::string& relative);
 
 // Whole file as bytes; fails the test (not skip) when the file is unreadable.
 std::vector<unsigned char> ReadFileBytes(const std::filesystem::path& path);
+
+// Writes `bytes` as the whole file; fails the test when it cannot.
+void WriteFileBytes(const std::filesystem::path& path, const std::vector<unsigned char>& bytes);
+
+// `n` bytes from std::mt19937 seeded with `seed`: the same bytes for a seed everywhere.
+std::vector<unsigned char> RandomBytes(size_t n, uint32_t seed);
 
 // A fresh empty directory under the system temp dir, removed (with its
 // contents) when the test process exits normally.

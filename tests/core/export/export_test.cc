@@ -81,10 +81,19 @@ std::string ReadText(const fs::path& path) {
 
 geo::LocalTangentPlane Plane() { return *geo::LocalTangentPlane::Create(kOrigin); }
 
+// Whether a temporary of an export to `path` (a FileReplacement's ".NAME.part-...") is left.
+bool HasTemporary(const fs::path& path) {
+  const std::string prefix = "." + path.filename().string() + ".part-";
+  for (const auto& entry : fs::directory_iterator(path.parent_path())) {
+    if (entry.path().filename().string().rfind(prefix, 0) == 0) return true;
+  }
+  return false;
+}
+
 // Fails the test unless no output (final or partial) is left at `path`.
 void ExpectNoFile(const fs::path& path) {
   EXPECT_FALSE(fs::exists(path)) << path;
-  EXPECT_FALSE(fs::exists(path.string() + ".partial")) << path;
+  EXPECT_FALSE(HasTemporary(path)) << path;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -95,7 +104,7 @@ TEST(GeoJsonExportTest, GeoReferencedFeaturesHaveWgs84LonLatAndAttributes) {
   const fs::path path = dir / "tracks.geojson";
   const mission::Mission mission = MakeMission(true);
   ASSERT_TRUE(ExportGeoJson(mission, path.string()).ok());
-  EXPECT_FALSE(fs::exists(path.string() + ".partial"));
+  EXPECT_FALSE(HasTemporary(path));
 
   const Json json = Json::parse(ReadText(path));
   EXPECT_EQ(json["type"], "FeatureCollection");
@@ -637,7 +646,7 @@ TEST(GeoTiffExportTest, ReaderErrorPropagatesAndLeavesNoFile) {
   { std::ofstream(path) << "earlier export"; }
   EXPECT_FALSE(ExportGeoTiff(GeoMap(), TestPyramid(), 0, failing, path.string()).ok());
   EXPECT_EQ(ReadText(path), "earlier export");
-  EXPECT_FALSE(fs::exists(path.string() + ".partial"));
+  EXPECT_FALSE(HasTemporary(path));
 }
 
 TEST(GeoTiffExportTest, BadTilesAndInputsAreErrorsNamingTheFile) {

@@ -22,7 +22,6 @@
 #include <iostream>
 #include <limits>
 #include <random>
-#include <regex>
 #include <string>
 #include <thread>
 #include <vector>
@@ -40,18 +39,8 @@ std::vector<uint8_t> ReadBytes(const fs::path& path) {
   return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
 }
 
-void WriteBytes(const fs::path& path, const std::vector<uint8_t>& bytes) {
-  std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  out.write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
-  ASSERT_TRUE(out.good()) << "cannot write " << path;
-}
-
-std::vector<uint8_t> RandomBytes(size_t n, uint32_t seed) {
-  std::mt19937 engine(seed);
-  std::vector<uint8_t> bytes(n);
-  for (uint8_t& b : bytes) b = uint8_t(engine());
-  return bytes;
-}
+using saker::testing::RandomBytes;
+using saker::testing::WriteFileBytes;
 
 // Runs SQL on a database directly, as another tool (or an attacker) would.
 void ExecSql(const fs::path& path, const std::string& sql) {
@@ -554,7 +543,7 @@ TEST_F(MissionStoreTest, TilesRoundTripReplaceClearAndCount) {
 
 bool HasLeftovers(const fs::path& dir) {
   for (const auto& entry : fs::directory_iterator(dir)) {
-    if (entry.path().filename().string().find(".new-") != std::string::npos) return true;
+    if (entry.path().filename().string().find(".part-") != std::string::npos) return true;
   }
   return false;
 }
@@ -562,7 +551,7 @@ bool HasLeftovers(const fs::path& dir) {
 TEST_F(MissionStoreTest, CreateNeverOverwritesAForeignFile) {
   const fs::path path = File("notes.saker");
   const std::vector<uint8_t> bytes = RandomBytes(5000, 7);
-  WriteBytes(path, bytes);
+  WriteFileBytes(path, bytes);
   for (bool replace : {false, true}) {
     auto store = MissionStore::Create(path.string(), replace);
     ASSERT_FALSE(store.ok());
@@ -573,11 +562,11 @@ TEST_F(MissionStoreTest, CreateNeverOverwritesAForeignFile) {
   // Text and a zero-byte file are foreign too.
   const fs::path text = File("text.saker");
   const std::string words = "not a mission\n";
-  WriteBytes(text, std::vector<uint8_t>(words.begin(), words.end()));
+  WriteFileBytes(text, std::vector<uint8_t>(words.begin(), words.end()));
   EXPECT_FALSE(MissionStore::Create(text.string(), true).ok());
   EXPECT_EQ(ReadBytes(text), std::vector<uint8_t>(words.begin(), words.end()));
   const fs::path empty = File("empty.saker");
-  WriteBytes(empty, {});
+  WriteFileBytes(empty, {});
   EXPECT_FALSE(MissionStore::Create(empty.string(), true).ok());
   EXPECT_EQ(fs::file_size(empty), 0u);
   EXPECT_FALSE(HasLeftovers(dir_));
@@ -647,7 +636,7 @@ TEST_F(MissionStoreTest, CreateNeverReplacesANewerOrCorruptMission) {
   WriteMissionFile(corrupt, MakeFullMission());
   std::vector<uint8_t> bytes = ReadBytes(corrupt);
   bytes.resize(bytes.size() / 2);
-  WriteBytes(corrupt, bytes);
+  WriteFileBytes(corrupt, bytes);
   for (const fs::path& path : {newer, corrupt}) {
     const std::vector<uint8_t> before = ReadBytes(path);
     auto store = MissionStore::Create(path.string(), /*replace=*/true);
@@ -677,7 +666,7 @@ TEST_F(MissionStoreTest, OpenRefusesBadFilesWithoutTouchingThem) {
   // Missing.
   cases.push_back({"missing.saker", StatusCode::kNotFound});
   // Zero bytes.
-  WriteBytes(File("zero.saker"), {});
+  WriteFileBytes(File("zero.saker"), {});
   cases.push_back({"zero.saker", StatusCode::kInvalidData});
   // A real mission cut to half its size.
   {
@@ -691,23 +680,23 @@ TEST_F(MissionStoreTest, OpenRefusesBadFilesWithoutTouchingThem) {
     std::vector<uint8_t> bytes = ReadBytes(File("whole.saker"));
     ASSERT_GT(bytes.size(), 100000u);
     bytes.resize(bytes.size() / 2);
-    WriteBytes(File("truncated.saker"), bytes);
+    WriteFileBytes(File("truncated.saker"), bytes);
     cases.push_back({"truncated.saker", StatusCode::kInvalidData});
     // The same with its first page intact but the rest overwritten.
     bytes = ReadBytes(File("whole.saker"));
     const std::vector<uint8_t> noise = RandomBytes(bytes.size(), 11);
     std::copy(noise.begin() + 4096, noise.end(), bytes.begin() + 4096);
-    WriteBytes(File("scrambled.saker"), bytes);
+    WriteFileBytes(File("scrambled.saker"), bytes);
     cases.push_back({"scrambled.saker", StatusCode::kInvalidData});
   }
   // Random bytes; random bytes after a valid SQLite magic.
-  WriteBytes(File("random.saker"), RandomBytes(8192, 3));
+  WriteFileBytes(File("random.saker"), RandomBytes(8192, 3));
   cases.push_back({"random.saker", StatusCode::kInvalidData});
   {
     std::vector<uint8_t> bytes = RandomBytes(8192, 4);
     const char magic[] = "SQLite format 3";
     std::copy(magic, magic + sizeof(magic), bytes.begin());
-    WriteBytes(File("magic.saker"), bytes);
+    WriteFileBytes(File("magic.saker"), bytes);
     cases.push_back({"magic.saker", StatusCode::kInvalidData});
   }
   // SQLite databases that are not missions.
@@ -1086,63 +1075,6 @@ TEST_F(MissionStoreTest, KillNineLeavesTheLastCommittedSave) {
   EXPECT_GT(progressed, 0);
   std::cout << "[ kill -9  ] " << kRounds << " rounds (one save " << save_us << " us), "
             << progressed << " with commits, " << generation << " generations\n";
-}
-
-// ---------------------------------------------------------------------------------------------
-// Fingerprint.
-
-TEST_F(MissionStoreTest, FingerprintRecognisesTheSameContent) {
-  const size_t size = 3 * 1024 * 1024 + 512 * 1024;  // 3.5 MiB: the sampled MiBs leave gaps
-  const std::vector<uint8_t> bytes = RandomBytes(size, 5);
-  WriteBytes(File("a.ts"), bytes);
-  WriteBytes(File("b.ts"), bytes);
-  auto a = FingerprintFile(File("a.ts").string());
-  auto b = FingerprintFile(File("b.ts").string());
-  ASSERT_TRUE(a.ok()) << a.status().ToString();
-  ASSERT_TRUE(b.ok()) << b.status().ToString();
-  EXPECT_EQ(*a, *b);
-  EXPECT_TRUE(std::regex_match(*a, std::regex("v1:" + std::to_string(size) + ":[0-9a-f]{16}")))
-      << *a;
-
-  // One byte in the first, middle or last MiB changes it.
-  for (size_t offset : {size_t(1000), size / 2, size - 1}) {
-    std::vector<uint8_t> changed = bytes;
-    changed[offset] ^= 0x01;
-    WriteBytes(File("c.ts"), changed);
-    auto c = FingerprintFile(File("c.ts").string());
-    ASSERT_TRUE(c.ok());
-    EXPECT_NE(*c, *a) << "offset " << offset;
-  }
-  // So does the size.
-  std::vector<uint8_t> longer = bytes;
-  longer.push_back(0);
-  WriteBytes(File("d.ts"), longer);
-  EXPECT_NE(FingerprintFile(File("d.ts").string()).value(), *a);
-  // Bytes outside the sampled MiBs are not read: that is the point of a fingerprint.
-  std::vector<uint8_t> unsampled = bytes;
-  unsampled[1024 * 1024 + 100] ^= 0xff;
-  WriteBytes(File("e.ts"), unsampled);
-  EXPECT_EQ(FingerprintFile(File("e.ts").string()).value(), *a);
-}
-
-TEST_F(MissionStoreTest, FingerprintOfSmallAndMissingFiles) {
-  WriteBytes(File("small.ts"), {1, 2, 3});
-  WriteBytes(File("small2.ts"), {1, 2, 4});
-  WriteBytes(File("empty.ts"), {});
-  auto small = FingerprintFile(File("small.ts").string());
-  auto small2 = FingerprintFile(File("small2.ts").string());
-  auto empty = FingerprintFile(File("empty.ts").string());
-  ASSERT_TRUE(small.ok() && small2.ok() && empty.ok());
-  EXPECT_NE(*small, *small2);
-  EXPECT_EQ(small->rfind("v1:3:", 0), 0u) << *small;
-  EXPECT_EQ(empty->rfind("v1:0:", 0), 0u) << *empty;
-
-  const std::string missing = File("missing.ts").string();
-  auto status = FingerprintFile(missing);
-  ASSERT_FALSE(status.ok());
-  EXPECT_EQ(status.status().code(), StatusCode::kNotFound);
-  EXPECT_NE(status.status().message().find(missing), std::string::npos);
-  EXPECT_EQ(FingerprintFile(dir_.string()).status().code(), StatusCode::kIoError);
 }
 
 }  // namespace

@@ -127,8 +127,12 @@ TEST(OrphanLogTest, TemporariesOfDeadJobsAreRemoved) {
   const std::string dead = std::to_string(child), live = std::to_string(::getpid());
   const std::vector<std::string> stale = {
       ".m.saker.new-" + dead + "-0", ".m.saker.new-" + dead + "-0-wal", "m.saker.part-" + dead,
-      "m.saker.part-" + dead + "-shm", ".m.saker.part-" + dead + ".new-" + dead + "-3"};
+      "m.saker.part-" + dead + "-shm", ".m.saker.part-" + dead + ".new-" + dead + "-3",
+      // A FileReplacement's (Create's, CopyMission's) and Create's within CopyMission's.
+      ".m.saker.part-" + dead + "-1.saker", ".m.saker.part-" + dead + "-1.saker-wal",
+      "..m.saker.part-" + dead + "-1.saker.part-" + dead + "-2.saker"};
   const std::vector<std::string> kept = {".m.saker.new-" + live + "-7", "m.saker.part-" + live,
+                                         ".m.saker.part-" + live + "-4.saker",
                                          "other.saker.part-" + dead, "m.saker.part-notes"};
   for (const auto& names : {stale, kept}) {
     for (const std::string& name : names) {

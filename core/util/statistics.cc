@@ -1,0 +1,19 @@
+#include "core/util/statistics.h"
+
+#include <algorithm>
+#include <cstddef>
+#include <utility>
+
+namespace saker {
+
+double Quantile(std::vector<double> values, double q) {
+  if (values.empty()) return 0;
+  q = std::clamp(q, 0.0, 1.0);
+  const size_t k = std::min(values.size() - 1, size_t(q * double(values.size() - 1) + 0.5));
+  std::nth_element(values.begin(), values.begin() + std::ptrdiff_t(k), values.end());
+  return values[k];
+}
+
+double Median(std::vector<double> values) { return Quantile(std::move(values), 0.5); }
+
+}  // namespace saker
