@@ -1,5 +1,6 @@
 #include "core/frontend/front_end.h"
 
+#include "core/frontend/change_thread.h"
 #include "core/util/bounded_queue.h"
 #include "core/util/check.h"
 #include "core/util/memory.h"
@@ -9,8 +10,6 @@
 
 #include <algorithm>
 #include <chrono>
-#include <deque>
-#include <exception>
 #include <limits>
 #include <optional>
 #include <sstream>
@@ -35,97 +34,6 @@ constexpr int64_t kMemoryCheckFrames = 25;
 double MillisecondsSince(Clock::time_point start) {
   return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
 }
-
-// Change detection on a thread of its own. The calling thread submits every frame and takes the
-// answers back, one per frame submitted, in the same order. A frame's grey image is shared, not
-// copied: the decode thread made it for this frame alone, and nobody writes to it afterwards.
-// An exception on the change thread (a failed check) is rethrown on the calling thread.
-// The caller takes answers at a fixed lag (RunFrontEnd), so at most `lag_frames` + 1 frames are
-// ever outstanding and the answer queue, that long, never holds the change thread up.
-class ChangeThread {
- public:
-  struct Answer {
-    int64_t submitted = 0;      // the frame submitted
-    bool restart = false;       // it came without ground motion: the comparison started again
-    track::ChangeFrame change;  // the answer (for the frame the longest baseline earlier)
-    double ms = 0;              // time the change thread spent on it
-  };
-
-  ChangeThread(const track::ChangeOptions& options, size_t queue_frames, size_t lag_frames)
-      : inputs_(queue_frames), answers_(lag_frames + 1) {
-    thread_ = std::thread([this, options] { Run(options); });
-  }
-  // Stops the thread (it finishes the frame in hand) and joins it.
-  ~ChangeThread() {
-    inputs_.Cancel();
-    answers_.Cancel();
-    thread_.join();
-  }
-  ChangeThread(const ChangeThread&) = delete;
-  ChangeThread& operator=(const ChangeThread&) = delete;
-
-  // Frames must increase. Blocks while the queue is full.
-  void Submit(int64_t frame, cv::Mat grey, std::optional<Eigen::Matrix3d> motion) {
-    SAKER_CHECK(outstanding_.empty() || frame > outstanding_.back());
-    const auto start = Clock::now();
-    const bool pushed = inputs_.Push({frame, std::move(grey), std::move(motion)});
-    wait_ms_ += MillisecondsSince(start);
-    if (!pushed) RethrowOrFail();
-    outstanding_.push_back(frame);
-  }
-  // The answer to the oldest frame submitted and not yet taken, when that frame is at most
-  // `frame` (blocking until the answer is ready); otherwise nullopt, at once.
-  std::optional<Answer> NextThrough(int64_t frame) {
-    if (outstanding_.empty() || outstanding_.front() > frame) return std::nullopt;
-    const auto start = Clock::now();
-    std::optional<Answer> answer = answers_.Pop();
-    wait_ms_ += MillisecondsSince(start);
-    if (!answer) RethrowOrFail();
-    SAKER_CHECK(answer->submitted == outstanding_.front());
-    outstanding_.pop_front();
-    return answer;
-  }
-  // Time the calling thread spent waiting in Submit and NextThrough, milliseconds.
-  double wait_ms() const { return wait_ms_; }
-
- private:
-  struct Input {
-    int64_t frame = 0;
-    cv::Mat grey;
-    std::optional<Eigen::Matrix3d> motion;
-  };
-
-  void Run(const track::ChangeOptions& options) {
-    try {
-      track::ChangeDetector detector(options);
-      while (std::optional<Input> input = inputs_.Pop()) {
-        const auto start = Clock::now();
-        Answer answer;
-        answer.submitted = input->frame;
-        answer.restart = !input->motion;
-        answer.change = detector.Process(input->frame, input->grey, input->motion);
-        input.reset();  // the frame is no longer needed here
-        answer.ms = MillisecondsSince(start);
-        if (!answers_.Push(std::move(answer))) return;
-      }
-    } catch (...) {
-      error_ = std::current_exception();  // published by the queues' locks below
-      inputs_.Cancel();
-    }
-    answers_.Close();
-  }
-  [[noreturn]] void RethrowOrFail() {
-    if (error_) std::rethrow_exception(error_);
-    throw CheckError("front end: the change detection thread stopped early");
-  }
-
-  BoundedQueue<Input> inputs_;
-  BoundedQueue<Answer> answers_;
-  std::exception_ptr error_;         // set by the change thread before it closes answers_
-  std::deque<int64_t> outstanding_;  // frames submitted whose answers are not taken yet
-  double wait_ms_ = 0;
-  std::thread thread_;  // last: started once everything above exists
-};
 
 // The epipole for the parallax test, only when the scene shows parallax. Over flat ground the
 // fundamental matrix is not determined (any epipole fits a plane), and a random epipole would
