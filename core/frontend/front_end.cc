@@ -1,5 +1,8 @@
 #include "core/frontend/front_end.h"
 
+#include "core/frontend/change_thread.h"
+#include "core/frontend/resume.h"
+#include "core/util/bounded_queue.h"
 #include "core/util/check.h"
 #include "core/util/memory.h"
 
@@ -8,16 +11,13 @@
 
 #include <algorithm>
 #include <chrono>
-#include <condition_variable>
-#include <deque>
-#include <exception>
 #include <limits>
-#include <mutex>
+#include <memory>
 #include <optional>
 #include <sstream>
+#include <string>
 #include <thread>
-#include <unordered_map>
-#include <unordered_set>
+#include <utility>
 
 namespace saker::frontend {
 namespace {
@@ -25,10 +25,11 @@ namespace {
 using Clock = std::chrono::steady_clock;
 
 // Change detection answers are applied this many frames after their frame was submitted (see
-// RunFrontEnd): the change thread may fall this far behind before the calling thread waits for it.
-// An answer belongs to the frame the longest baseline before the one submitted, so the change
-// evidence of frame m reaches the targets after frame m + longest baseline + this lag (20 frames
-// with the default baseline of 12: still within the 25 frames a target lives on unseen).
+// FrontEnd::ApplyChangeThrough): the change thread may fall this far behind before the calling
+// thread waits for it. An answer belongs to the frame the longest baseline before the one
+// submitted, so the change evidence of frame m reaches the targets after frame m + longest
+// baseline + this lag (20 frames with the default baseline of 12: still within the 25 frames a
+// target lives on unseen).
 constexpr int64_t kChangeLagFrames = 8;
 // How often the memory limit is checked: reading /proc costs about 10 us.
 constexpr int64_t kMemoryCheckFrames = 25;
@@ -37,152 +38,61 @@ double MillisecondsSince(Clock::time_point start) {
   return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
 }
 
-// A bounded queue between two threads. The producer pushes (blocking while the queue is full)
-// and closes it with a status when done; the consumer pops (blocking while it is empty) until it
-// is closed and empty. Either side may cancel: blocked calls return at once, what is queued is
-// dropped, and later pushes and pops fail.
-template <typename T>
-class BoundedQueue {
+// The scan decodes every frame and every KLV packet in one pass; grey frames only.
+ingest::ScanOptions ScanOptionsFor(const FrontEndOptions& options) {
+  ingest::ScanOptions scan_options;
+  scan_options.reader.want_bgr = false;
+  scan_options.reader.want_grey = true;
+  scan_options.reader.decoder_threads = options.decoder_threads;
+  return scan_options;
+}
+
+// Decoding on a thread of its own: ingest::ScanVideo reads every frame and KLV packet in one pass
+// and queues the frames for the calling thread; the metadata is tied to the frames when the scan
+// ends. Frames before `pixels_from` are only decoded, for the scan, and come without pixels. The
+// destructor stops and joins the thread, whatever happened.
+class DecodeThread {
  public:
-  explicit BoundedQueue(size_t capacity) : capacity_(capacity) {}
+  DecodeThread(const std::string& path, const ingest::ScanOptions& options, size_t queue_frames,
+               int64_t pixels_from)
+      : queue_(queue_frames) {
+    thread_ = std::thread([this, path, options, pixels_from] {
+      auto start = Clock::now();
+      scan_ = ingest::ScanVideo(path, options, &job_, [&](const video::Frame& frame) {
+        video::Frame copy = frame;
+        // The reader reuses its buffers; a frame that is only decoded needs no pixels.
+        copy.grey = frame.index >= pixels_from ? frame.grey.clone() : cv::Mat();
+        decode_ms_ += MillisecondsSince(start);
+        if (!queue_.Push(std::move(copy))) job_.RequestCancel();
+        start = Clock::now();
+      });
+      queue_.Close(scan_.ok() ? Status::Ok() : scan_.status());
+    });
+  }
+  ~DecodeThread() {
+    job_.RequestCancel();
+    queue_.Cancel();
+    if (thread_.joinable()) thread_.join();
+  }
+  DecodeThread(const DecodeThread&) = delete;
+  DecodeThread& operator=(const DecodeThread&) = delete;
 
-  // Blocks while full; false once cancelled.
-  bool Push(T item) {
-    std::unique_lock<std::mutex> lock(mutex_);
-    not_full_.wait(lock, [&] { return items_.size() < capacity_ || cancelled_; });
-    if (cancelled_) return false;
-    items_.push_back(std::move(item));
-    not_empty_.notify_one();
-    return true;
-  }
-  // The producer is done (end of the input, or an error).
-  void Close(Status status = Status::Ok()) {
-    std::lock_guard<std::mutex> lock(mutex_);
-    closed_ = true;
-    status_ = std::move(status);
-    not_empty_.notify_all();
-  }
-  // Blocks while empty; nullopt at the end (closed and empty) or once cancelled.
-  std::optional<T> Pop() {
-    std::unique_lock<std::mutex> lock(mutex_);
-    not_empty_.wait(lock, [&] { return !items_.empty() || closed_ || cancelled_; });
-    if (cancelled_ || items_.empty()) return std::nullopt;
-    T item = std::move(items_.front());
-    items_.pop_front();
-    not_full_.notify_one();
-    return item;
-  }
-  // Either side gives up (cancel, error): unblocks the other.
-  void Cancel() {
-    std::lock_guard<std::mutex> lock(mutex_);
-    cancelled_ = true;
-    items_.clear();
-    not_full_.notify_all();
-    not_empty_.notify_all();
-  }
-  Status status() {
-    std::lock_guard<std::mutex> lock(mutex_);
-    return status_;
-  }
-
- private:
-  size_t capacity_;
-  std::mutex mutex_;
-  std::condition_variable not_full_, not_empty_;
-  std::deque<T> items_;
-  bool closed_ = false;
-  bool cancelled_ = false;
-  Status status_;
-};
-
-// Change detection on a thread of its own. The calling thread submits every frame and takes the
-// answers back, one per frame submitted, in the same order. A frame's grey image is shared, not
-// copied: the decode thread made it for this frame alone, and nobody writes to it afterwards.
-// An exception on the change thread (a failed check) is rethrown on the calling thread.
-// The caller takes answers at a fixed lag (RunFrontEnd), so at most `lag_frames` + 1 frames are
-// ever outstanding and the answer queue, that long, never holds the change thread up.
-class ChangeThread {
- public:
-  struct Answer {
-    int64_t submitted = 0;      // the frame submitted
-    bool restart = false;       // it came without ground motion: the comparison started again
-    track::ChangeFrame change;  // the answer (for the frame the longest baseline earlier)
-    double ms = 0;              // time the change thread spent on it
-  };
-
-  ChangeThread(const track::ChangeOptions& options, size_t queue_frames, size_t lag_frames)
-      : inputs_(queue_frames), answers_(lag_frames + 1) {
-    thread_ = std::thread([this, options] { Run(options); });
-  }
-  // Stops the thread (it finishes the frame in hand) and joins it.
-  ~ChangeThread() {
-    inputs_.Cancel();
-    answers_.Cancel();
+  // The next frame; nullopt at the end of the video or when decoding failed.
+  std::optional<video::Frame> Pop() { return queue_.Pop(); }
+  // Once Pop() gave nullopt: the scan, or the error that stopped it.
+  StatusOr<ingest::VideoScan> Finish() {
+    SAKER_RETURN_IF_ERROR(queue_.status());
     thread_.join();
+    return std::move(scan_);
   }
-  ChangeThread(const ChangeThread&) = delete;
-  ChangeThread& operator=(const ChangeThread&) = delete;
-
-  // Frames must increase. Blocks while the queue is full.
-  void Submit(int64_t frame, cv::Mat grey, std::optional<Eigen::Matrix3d> motion) {
-    SAKER_CHECK(outstanding_.empty() || frame > outstanding_.back());
-    const auto start = Clock::now();
-    const bool pushed = inputs_.Push({frame, std::move(grey), std::move(motion)});
-    wait_ms_ += MillisecondsSince(start);
-    if (!pushed) RethrowOrFail();
-    outstanding_.push_back(frame);
-  }
-  // The answer to the oldest frame submitted and not yet taken, when that frame is at most
-  // `frame` (blocking until the answer is ready); otherwise nullopt, at once.
-  std::optional<Answer> NextThrough(int64_t frame) {
-    if (outstanding_.empty() || outstanding_.front() > frame) return std::nullopt;
-    const auto start = Clock::now();
-    std::optional<Answer> answer = answers_.Pop();
-    wait_ms_ += MillisecondsSince(start);
-    if (!answer) RethrowOrFail();
-    SAKER_CHECK(answer->submitted == outstanding_.front());
-    outstanding_.pop_front();
-    return answer;
-  }
-  // Time the calling thread spent waiting in Submit and NextThrough, milliseconds.
-  double wait_ms() const { return wait_ms_; }
+  // Time spent decoding, milliseconds (after Finish()).
+  double decode_ms() const { return decode_ms_; }
 
  private:
-  struct Input {
-    int64_t frame = 0;
-    cv::Mat grey;
-    std::optional<Eigen::Matrix3d> motion;
-  };
-
-  void Run(const track::ChangeOptions& options) {
-    try {
-      track::ChangeDetector detector(options);
-      while (std::optional<Input> input = inputs_.Pop()) {
-        const auto start = Clock::now();
-        Answer answer;
-        answer.submitted = input->frame;
-        answer.restart = !input->motion;
-        answer.change = detector.Process(input->frame, input->grey, input->motion);
-        input.reset();  // the frame is no longer needed here
-        answer.ms = MillisecondsSince(start);
-        if (!answers_.Push(std::move(answer))) return;
-      }
-    } catch (...) {
-      error_ = std::current_exception();  // published by the queues' locks below
-      inputs_.Cancel();
-    }
-    answers_.Close();
-  }
-  [[noreturn]] void RethrowOrFail() {
-    if (error_) std::rethrow_exception(error_);
-    throw CheckError("front end: the change detection thread stopped early");
-  }
-
-  BoundedQueue<Input> inputs_;
-  BoundedQueue<Answer> answers_;
-  std::exception_ptr error_;         // set by the change thread before it closes answers_
-  std::deque<int64_t> outstanding_;  // frames submitted whose answers are not taken yet
-  double wait_ms_ = 0;
+  BoundedQueue<video::Frame> queue_;
+  JobContext job_;  // cancelled when the consumer stops early
+  StatusOr<ingest::VideoScan> scan_ = CancelledError("front end: the scan did not run");
+  double decode_ms_ = 0;
   std::thread thread_;  // last: started once everything above exists
 };
 
@@ -226,132 +136,452 @@ std::vector<track::TargetTrack> CombineTargets(std::vector<track::TargetTrack> b
   for (size_t i = 0; i < all.size(); ++i) all[i].id = track::TargetTrackId(int64_t(i) + 1);
   track::GroundMotion ground;
   for (const FrameResult& f : frames) ground.Add(f.index, f.homography_ok, f.current_from_previous);
-  all = track::LinkFragments(std::move(all), options.targets, &ground);
+  all = track::LinkFragments(std::move(all), options.EffectiveTargets(), &ground);
   all = track::DropChangeEchoes(std::move(all), options.change_echoes);
   for (size_t i = 0; i < all.size(); ++i) all[i].id = track::TargetTrackId(int64_t(i) + 1);
   return all;
 }
 
-// Feature track ids of a resumed run start past every id in its checkpoint.
-int64_t MaxFeatureId(const FrontEndCheckpoint& c) {
-  int64_t max_id = 0;
-  for (const track::KeyFrame& k : c.key_frames) {
-    for (const track::StationaryPoint& p : k.points) max_id = std::max(max_id, int64_t(p.first));
-  }
-  for (const track::SequentialLink& l : c.links) {
-    for (const track::Correspondence& m : l.correspondences) {
-      max_id = std::max(max_id, int64_t(m.id));
-    }
-  }
-  return max_id;
-}
-
-// Where a resumed run meets its checkpoint. What the resumed run's targets saw up to the seam
-// belongs to the checkpoint's targets (finished there, or cut there and joined again by
-// LinkFragments), so each is cut at the seam; only a target that no checkpoint target saw in the
-// warm-up keeps its frames before the seam (one the first run had not confirmed yet).
-class Seam {
+// One run of the front end over a video (RunFrontEnd), resumed from `resume` when not null. Run()
+// takes the decoded frames one at a time (ProcessFrame: track, ground motion, change detection
+// submitted, segmentation and targets, change answers applied, key frames, checkpoints) and then
+// finishes the targets. What the trackers follow and what the run has found are members.
+class FrontEnd {
  public:
-  Seam(const FrontEndCheckpoint& checkpoint, int64_t warm_from,
-       const track::TargetTrackOptions& options)
-      : gate_px_(options.association_gate_px), min_frames_(options.min_frames) {
-    for (const auto* list : {&checkpoint.targets, &checkpoint.change_targets,
-                             &checkpoint.open_targets, &checkpoint.open_change_targets}) {
-      for (const track::TargetTrack& t : *list) {
-        for (const track::TargetObservation& o : t.observations) {
-          if (o.frame >= warm_from) seen_[o.frame].push_back(o.position);
-        }
-      }
-    }
-  }
+  FrontEnd(const std::string& path, const FrontEndOptions& options, JobContext* job,
+           const FrontEndCheckpoint* resume);
+  FrontEnd(const FrontEnd&) = delete;
+  FrontEnd& operator=(const FrontEnd&) = delete;
 
-  // The part of `target` to keep, cut after frame `cut`, or nothing.
-  std::optional<track::TargetTrack> Trim(track::TargetTrack target, int64_t cut) const {
-    auto& obs = target.observations;
-    const auto after =
-        std::find_if(obs.begin(), obs.end(), [&](const auto& o) { return o.frame > cut; });
-    if (after == obs.end()) return std::nullopt;
-    const bool seen = std::any_of(obs.begin(), after, [&](const track::TargetObservation& o) {
-      const auto it = seen_.find(o.frame);
-      if (it == seen_.end()) return false;
-      return std::any_of(it->second.begin(), it->second.end(), [&](const Eigen::Vector2d& p) {
-        return (p - o.position).norm() <= gate_px_;
-      });
-    });
-    if (!seen) return target;
-    obs.erase(obs.begin(), after);
-    if (int(obs.size()) < min_frames_) return std::nullopt;  // a stray end of a checkpoint target
-    return target;
-  }
+  StatusOr<FrontEndResult> Run();
 
  private:
-  std::unordered_map<int64_t, std::vector<Eigen::Vector2d>> seen_;  // frame -> positions
-  double gate_px_;
-  int min_frames_;
+  Status Open();
+  void StartFromCheckpoint();
+  void ReportProgress(double frames_done) const;
+  Status CheckMemory(const video::Frame& frame) const;
+  Status ProcessFrame(const video::Frame& frame);
+  std::optional<track::HomographyEstimate> EstimateGroundMotion(
+      std::optional<Eigen::Vector3d>* epipole);
+  void SubmitForChange(const video::Frame& frame,
+                       const std::optional<track::HomographyEstimate>& estimate);
+  void Segment(const video::Frame& frame, const std::optional<track::HomographyEstimate>& estimate,
+               const std::optional<Eigen::Vector3d>& epipole, FrameResult* frame_result);
+  void ApplyChangeThrough(int64_t frame);
+  void ApplyChangeAnswer(const ChangeThread::Answer& answer);
+  void KeepTarget(track::TargetTrack target, int64_t cut, std::vector<track::TargetTrack>* to);
+  bool AddToChain(const video::Frame& frame,
+                  const std::optional<track::HomographyEstimate>& estimate);
+  void AddKeyFrameImage(const track::KeyFrame& key, const cv::Mat& grey);
+  Status HandOutCheckpoint(int64_t through_frame, bool complete);
+  StatusOr<FrontEndResult> Finish(ingest::VideoScan scan, double decode_ms);
+  void FinishTargets();
+
+  const std::string path_;
+  const FrontEndOptions options_;  // the run's own copy, callbacks included
+  JobContext* const job_;
+  const FrontEndCheckpoint* const resume_;
+  const ResumePoint start_;
+  std::optional<TargetSeam> target_seam_;  // when resuming from an incomplete checkpoint
+  ChainSeam chain_seam_;
+  double expected_frames_ = 1;  // for progress only
+
+  FrontEndResult result_;
+  std::vector<track::TargetTrack> targets_by_change_;
+  std::vector<Eigen::Matrix3d> image_placements_;  // preview_from_frame of each key frame image
+  CheckpointTail delivered_;                       // what the checkpoints handed out so far
+  Clock::time_point last_checkpoint_;
+
+  track::FeatureTracker tracker_;
+  track::MotionSegmenter segmenter_;
+  track::TargetTracker target_tracker_;
+  track::KeyFrameChain chain_;
+  track::BlobTracker change_tracks_;
+  bool segment_open_ = false;
+  // The placement of the current frame in the preview (KeyFramePreview): the first frame's pixels.
+  Eigen::Matrix3d preview_from_current_ = Eigen::Matrix3d::Identity();
+  size_t chain_key_frames_ = 0, chain_links_ = 0, chain_breaks_ = 0;  // taken from `chain_`
+
+  // Change detection runs on its own thread (ChangeThread); its answers are applied at a fixed
+  // lag (ApplyChangeThrough).
+  std::optional<ChangeThread> change_;
+  double change_side_ms_ = 0;  // the calling thread's time for change detection (waits included)
+  int64_t change_through_;     // the latest frame whose change answer was applied
 };
+
+FrontEnd::FrontEnd(const std::string& path, const FrontEndOptions& options, JobContext* job,
+                   const FrontEndCheckpoint* resume)
+    : path_(path),
+      options_(options),
+      job_(job),
+      resume_(resume),
+      start_(ResumePointOf(resume, options.resume_warmup_frames)),
+      chain_seam_(resume),
+      tracker_(options.EffectiveTracker()),
+      segmenter_(options.segmentation),
+      target_tracker_(options.EffectiveTargets()),
+      chain_(options.key_frames),
+      change_tracks_(options.change_tracks),
+      change_through_(start_.change_through_frame) {
+  if (start_.resuming && !start_.complete) {
+    target_seam_.emplace(*resume, start_.warm_from, options.EffectiveTargets());
+  }
+}
+
+StatusOr<FrontEndResult> FrontEnd::Run() {
+  SAKER_RETURN_IF_ERROR(Open());
+  StartFromCheckpoint();
+  DecodeThread decode(path_, ScanOptionsFor(options_), size_t(options_.queue_frames),
+                      start_.warm_from);
+  const auto wall_start = Clock::now();
+  last_checkpoint_ = wall_start;
+  if (options_.change.enabled) {
+    change_.emplace(options_.change, size_t(options_.change_queue_frames),
+                    size_t(kChangeLagFrames));
+  }
+  while (std::optional<video::Frame> frame = decode.Pop()) {
+    if (job_ != nullptr && job_->IsCancelled()) return CancelledError("front end: cancelled");
+    if (frame->index < start_.warm_from) {
+      ReportProgress(double(frame->index + 1));
+      continue;  // done before: only decoded, for the scan
+    }
+    SAKER_RETURN_IF_ERROR(CheckMemory(*frame));
+    SAKER_RETURN_IF_ERROR(ProcessFrame(*frame));
+  }
+  SAKER_ASSIGN_OR_RETURN(ingest::VideoScan scan, decode.Finish());
+  StatusOr<FrontEndResult> result = Finish(std::move(scan), decode.decode_ms());
+  if (result.ok()) result->timing.wall_s = MillisecondsSince(wall_start) / 1000.0;
+  return result;
+}
+
+// Opened here first so that a bad file fails at once, with the reader's message.
+Status FrontEnd::Open() {
+  SAKER_ASSIGN_OR_RETURN(std::unique_ptr<video::VideoReader> probe,
+                         video::VideoReader::Open(path_, ScanOptionsFor(options_).reader));
+  result_.video = probe->info();
+  // For progress only: the declared count, else duration x rate.
+  expected_frames_ = double(result_.video.declared_frame_count);
+  if (expected_frames_ <= 0) expected_frames_ = result_.video.duration_s * result_.video.fps;
+  expected_frames_ = std::max(1.0, expected_frames_);
+  return Status::Ok();
+}
+
+// Resuming: the checkpoint is the start of this run's result. What it holds counts as handed out;
+// its open targets, finished as far as this run goes, are handed out with the next checkpoint.
+void FrontEnd::StartFromCheckpoint() {
+  if (resume_ != nullptr) {
+    result_.frames = resume_->frames;
+    result_.key_frames = resume_->key_frames;
+    result_.links = resume_->links;
+    result_.breaks = resume_->breaks;
+    for (const KeyFramePreview& preview : resume_->key_frame_images) {
+      result_.key_frame_images.push_back(preview.image);
+      image_placements_.push_back(preview.preview_from_frame);
+      if (options_.on_key_frame) options_.on_key_frame(preview);
+    }
+    result_.targets = resume_->targets;
+    targets_by_change_ = resume_->change_targets;
+  }
+  delivered_ = CheckpointTail(result_, targets_by_change_.size());
+  if (start_.resuming && !start_.complete) {
+    result_.targets.insert(result_.targets.end(), resume_->open_targets.begin(),
+                           resume_->open_targets.end());
+    targets_by_change_.insert(targets_by_change_.end(), resume_->open_change_targets.begin(),
+                              resume_->open_change_targets.end());
+  }
+}
+
+void FrontEnd::ReportProgress(double frames_done) const {
+  if (job_ != nullptr) {
+    job_->ReportProgress("front end", std::min(1.0, frames_done / expected_frames_));
+  }
+}
+
+Status FrontEnd::CheckMemory(const video::Frame& frame) const {
+  if (options_.max_memory_mib <= 0 || frame.index % kMemoryCheckFrames != 0) return Status::Ok();
+  const int64_t resident_mib = ResidentMemoryBytes() / (1024 * 1024);
+  if (resident_mib <= options_.max_memory_mib) return Status::Ok();
+  std::ostringstream message;
+  message.setf(std::ios::fixed);
+  message.precision(1);
+  message << path_ << ": processing stopped at frame " << frame.index << " (" << frame.time_s
+          << " s): Saker is using " << resident_mib << " MiB, over its memory limit of "
+          << options_.max_memory_mib
+          << " MiB. Process a shorter part of the video or raise the limit (--max-memory).";
+  return ResourceExhaustedError(message.str());
+}
+
+// Track, ground motion, change detection submitted, segmentation and targets; then, from the
+// checkpoint's key frame on (the frames before it only warm up), key frames and checkpoints.
+Status FrontEnd::ProcessFrame(const video::Frame& frame) {
+  FrameResult fr;
+  fr.index = frame.index;
+  fr.time_s = frame.time_s;
+  fr.pts = frame.pts;
+  fr.key_frame = frame.key_frame;
+  FrontEndTiming& timing = result_.timing;
+  const auto start = Clock::now();
+  tracker_.Process(frame.index, frame.grey);
+  timing.track_ms += MillisecondsSince(start);
+  fr.tracked = int(tracker_.points().size());
+
+  std::optional<Eigen::Vector3d> epipole;
+  const std::optional<track::HomographyEstimate> estimate = EstimateGroundMotion(&epipole);
+  SubmitForChange(frame, estimate);
+  Segment(frame, estimate, epipole, &fr);
+  ApplyChangeThrough(frame.index - kChangeLagFrames);
+  segment_open_ = fr.tracked > 0;
+  ++timing.frames;
+  if (frame.index == start_.through_frame && !resume_->key_frame_images.empty()) {
+    preview_from_current_ = resume_->key_frame_images.back().preview_from_frame;
+  }
+  if (frame.index < start_.through_frame) return Status::Ok();  // the checkpoint has this frame
+
+  const bool new_key_frame = AddToChain(frame, estimate);
+  if (frame.index > start_.through_frame) result_.frames.push_back(fr);
+  if (new_key_frame && options_.on_checkpoint &&
+      MillisecondsSince(last_checkpoint_) >= 1000 * options_.checkpoint_interval_s) {
+    SAKER_RETURN_IF_ERROR(HandOutCheckpoint(frame.index, /*complete=*/false));
+  }
+  ReportProgress(double(result_.frames.size()));
+  return Status::Ok();
+}
+
+// Ground motion from the tracks that are not (yet) known to move, and the epipole when the scene
+// shows parallax.
+std::optional<track::HomographyEstimate> FrontEnd::EstimateGroundMotion(
+    std::optional<Eigen::Vector3d>* epipole) {
+  const auto start = Clock::now();
+  std::vector<track::Correspondence> ground;
+  ground.reserve(tracker_.matches().size());
+  for (const track::Correspondence& m : tracker_.matches()) {
+    if (segmenter_.LabelOf(m.id) != track::MotionLabel::kMoving) ground.push_back(m);
+  }
+  std::optional<track::HomographyEstimate> estimate;
+  if (segment_open_ && !ground.empty()) {
+    StatusOr<track::HomographyEstimate> h =
+        track::EstimateHomography(ground, options_.frame_homography);
+    if (h.ok()) estimate = std::move(h).value();
+  }
+  if (estimate && options_.parallax_check) *epipole = ParallaxEpipole(ground, *estimate, options_);
+  result_.timing.homography_ms += MillisecondsSince(start);
+  return estimate;
+}
+
+// Change detection (small movers, and what the image shows under each target) starts on the
+// frame as soon as its ground motion is known.
+void FrontEnd::SubmitForChange(const video::Frame& frame,
+                               const std::optional<track::HomographyEstimate>& estimate) {
+  if (!change_) return;
+  const auto start = Clock::now();
+  std::optional<Eigen::Matrix3d> motion;
+  if (estimate) motion = estimate->target_from_source;
+  change_->Submit(frame.index, frame.grey, motion);
+  change_side_ms_ += MillisecondsSince(start);
+}
+
+void FrontEnd::Segment(const video::Frame& frame,
+                       const std::optional<track::HomographyEstimate>& estimate,
+                       const std::optional<Eigen::Vector3d>& epipole, FrameResult* frame_result) {
+  const auto start = Clock::now();
+  const double change_side_before = change_side_ms_;
+  if (estimate) {
+    preview_from_current_ = preview_from_current_ * estimate->target_from_source.inverse();
+    preview_from_current_ /= preview_from_current_(2, 2);
+    frame_result->homography_ok = true;
+    frame_result->current_from_previous = estimate->target_from_source;
+    frame_result->covariance = estimate->covariance;
+    frame_result->inliers = int(estimate->inliers.size());
+    segmenter_.AddFrame(tracker_.matches(), estimate->target_from_source, epipole);
+    target_tracker_.AddFrame(frame.index, segmenter_.moving());
+    frame_result->moving = int(segmenter_.moving().size());
+  } else if (segment_open_) {
+    // No reliable ground motion (blank, featureless, a cut): the chain breaks here; the next
+    // frame starts afresh. The targets first take the change evidence of the segment's frames.
+    ApplyChangeThrough(frame.index - 1);
+    segmenter_.Reset();
+    target_tracker_.FinishAll();
+    target_tracker_.EndChangeEvidence();  // the change detector starts again too
+    tracker_.Reset();
+    tracker_.Process(frame.index, frame.grey);
+  }
+  for (track::TargetTrack& t : target_tracker_.TakeFinished()) {
+    KeepTarget(std::move(t), start_.through_frame, &result_.targets);
+  }
+  result_.timing.segment_ms += MillisecondsSince(start) - (change_side_ms_ - change_side_before);
+}
+
+// The change answers for every frame up to `frame`, waiting for them if need be. Applied at a
+// fixed lag, so that the result never depends on how the threads ran: once frame n is through
+// segmentation, the answers up to n - kChangeLagFrames; at a chain break every answer up to the
+// frame before it, at the end all of them.
+void FrontEnd::ApplyChangeThrough(int64_t frame) {
+  if (!change_) return;
+  const auto start = Clock::now();
+  while (std::optional<ChangeThread::Answer> answer = change_->NextThrough(frame)) {
+    ApplyChangeAnswer(*answer);
+  }
+  change_side_ms_ += MillisecondsSince(start);
+}
+
+// What the single-threaded front end did right after the frame: the blob tracks (ended first
+// when the frame had no ground motion), the change evidence of the targets, the finished blob
+// tracks.
+void FrontEnd::ApplyChangeAnswer(const ChangeThread::Answer& answer) {
+  const auto start = Clock::now();
+  if (answer.restart) change_tracks_.FinishAll();
+  const track::ChangeFrame& c = answer.change;
+  if (c.answered()) {
+    change_tracks_.AddFrame(c.frame, c.blobs, c.frame_motion);
+    // Within the target's box, and a few pixels round a single point.
+    target_tracker_.RecordChange(c.frame, [&](const track::TargetObservation& o) {
+      if (!c.Compared(o.position)) return track::ChangeEvidence::kNotLooked;
+      const double radius = std::max(3.0, 0.5 * (o.box_max - o.box_min).maxCoeff());
+      return c.ChangedNear(o.position, radius) ? track::ChangeEvidence::kChanged
+                                               : track::ChangeEvidence::kNone;
+    });
+    change_through_ = std::max(change_through_, c.frame);
+  }
+  for (track::TargetTrack& t : change_tracks_.TakeFinished()) {
+    KeepTarget(std::move(t), start_.change_through_frame, &targets_by_change_);
+  }
+  result_.timing.change_ms += answer.ms;
+  result_.timing.change_tracks_ms += MillisecondsSince(start);
+}
+
+// A target this run finished, cut at the seam when resuming.
+void FrontEnd::KeepTarget(track::TargetTrack target, int64_t cut,
+                          std::vector<track::TargetTrack>* to) {
+  if (!target_seam_) {
+    to->push_back(std::move(target));
+  } else if (std::optional<track::TargetTrack> kept = target_seam_->Trim(std::move(target), cut)) {
+    to->push_back(std::move(*kept));
+  }
+}
+
+// Key frames from the stationary points. The key frames, links and breaks of the chain enter the
+// result as they appear, numbered after the checkpoint's when resuming. True for a new key frame.
+bool FrontEnd::AddToChain(const video::Frame& frame,
+                          const std::optional<track::HomographyEstimate>& estimate) {
+  const auto start = Clock::now();
+  std::vector<track::StationaryPoint> stationary;
+  stationary.reserve(tracker_.points().size());
+  for (const track::TrackedPoint& p : tracker_.points()) {
+    if (segmenter_.LabelOf(p.id) != track::MotionLabel::kMoving) {
+      stationary.emplace_back(p.id, p.position);
+    }
+  }
+  chain_.AddFrame(frame.index, stationary, estimate);
+  bool new_key_frame = false;
+  for (; chain_key_frames_ < chain_.key_frames().size(); ++chain_key_frames_) {
+    std::optional<track::KeyFrame> key = chain_seam_.Continue(
+        chain_.key_frames()[chain_key_frames_], chain_key_frames_ == 0, &result_.breaks);
+    if (!key) continue;
+    if (options_.key_frame_image_width > 0) AddKeyFrameImage(*key, frame.grey);
+    result_.key_frames.push_back(std::move(*key));
+    new_key_frame = true;
+  }
+  for (; chain_links_ < chain_.links().size(); ++chain_links_) {
+    result_.links.push_back(chain_seam_.Continue(chain_.links()[chain_links_]));
+  }
+  for (; chain_breaks_ < chain_.breaks().size(); ++chain_breaks_) {
+    result_.breaks.push_back(chain_.breaks()[chain_breaks_]);
+  }
+  result_.timing.key_frames_ms += MillisecondsSince(start);
+  return new_key_frame;
+}
+
+void FrontEnd::AddKeyFrameImage(const track::KeyFrame& key, const cv::Mat& grey) {
+  KeyFrameImage image;
+  image.id = key.id;
+  image.frame_index = key.frame_index;
+  image.scale = std::max(1.0, double(grey.cols) / options_.key_frame_image_width);
+  cv::resize(grey, image.grey, cv::Size(), 1.0 / image.scale, 1.0 / image.scale, cv::INTER_AREA);
+  if (options_.on_key_frame) options_.on_key_frame({image, preview_from_current_});
+  result_.key_frame_images.push_back(std::move(image));
+  image_placements_.push_back(preview_from_current_);
+}
+
+// Hands out a checkpoint: what is new since the last one, the open targets, the state.
+Status FrontEnd::HandOutCheckpoint(int64_t through_frame, bool complete) {
+  FrontEndCheckpoint c =
+      delivered_.TakeNew(through_frame, complete, result_, image_placements_, targets_by_change_);
+  if (!complete) {
+    // The targets still followed, as they would end now (on copies of the trackers).
+    track::TargetTracker open = target_tracker_;
+    open.FinishAll();
+    open.EndChangeEvidence();
+    for (track::TargetTrack& t : open.TakeFinished()) {
+      KeepTarget(std::move(t), start_.through_frame, &c.open_targets);
+    }
+    track::BlobTracker open_change = change_tracks_;
+    open_change.FinishAll();
+    for (track::TargetTrack& t : open_change.TakeFinished()) {
+      KeepTarget(std::move(t), start_.change_through_frame, &c.open_change_targets);
+    }
+    c.change_through_frame = change_through_;
+  }
+  last_checkpoint_ = Clock::now();
+  const Status saved = options_.on_checkpoint(c);
+  if (!saved.ok()) return Status(saved.code(), path_ + ": checkpoint: " + saved.message());
+  return Status::Ok();
+}
+
+StatusOr<FrontEndResult> FrontEnd::Finish(ingest::VideoScan scan, double decode_ms) {
+  result_.scan = std::move(scan);
+  if (result_.scan.frames.size() != result_.frames.size()) {
+    // Only a checkpoint of another video can do this (the scan and the tracker see each frame).
+    SAKER_CHECK(resume_ != nullptr) << "the scan saw " << result_.scan.frames.size()
+                                    << " frames, the tracker " << result_.frames.size();
+    return InvalidArgumentError(path_ + ": cannot resume: the checkpoint has " +
+                                std::to_string(resume_->frames.size()) +
+                                " frames done and does not fit this video of " +
+                                std::to_string(result_.scan.frames.size()) + " frames");
+  }
+  if (!start_.complete) {
+    FinishTargets();
+    if (options_.on_checkpoint && !result_.frames.empty()) {
+      SAKER_RETURN_IF_ERROR(HandOutCheckpoint(result_.frames.back().index, /*complete=*/true));
+    }
+  }
+  FrontEndTiming& timing = result_.timing;
+  if (change_) timing.change_wait_ms = change_->wait_ms();
+  const double n = double(std::max<int64_t>(1, timing.frames));
+  timing.decode_ms = decode_ms / n;
+  timing.track_ms /= n, timing.homography_ms /= n, timing.segment_ms /= n, timing.change_ms /= n,
+      timing.change_tracks_ms /= n, timing.change_wait_ms /= n, timing.key_frames_ms /= n;
+  return std::move(result_);
+}
+
+// The end of the video: every change answer applied, every target ended, both sources combined.
+void FrontEnd::FinishTargets() {
+  ApplyChangeThrough(std::numeric_limits<int64_t>::max());
+  target_tracker_.FinishAll();
+  target_tracker_.EndChangeEvidence();
+  for (track::TargetTrack& t : target_tracker_.TakeFinished()) {
+    KeepTarget(std::move(t), start_.through_frame, &result_.targets);
+  }
+  change_tracks_.FinishAll();
+  for (track::TargetTrack& t : change_tracks_.TakeFinished()) {
+    KeepTarget(std::move(t), start_.change_through_frame, &targets_by_change_);
+  }
+  result_.targets = CombineTargets(std::move(result_.targets), std::move(targets_by_change_),
+                                   result_.frames, options_);
+}
 
 }  // namespace
 
-void FrontEndCheckpoint::Append(FrontEndCheckpoint next) {
-  const auto append = [](auto& to, auto& from) {
-    to.insert(to.end(), std::make_move_iterator(from.begin()), std::make_move_iterator(from.end()));
-  };
-  through_frame = next.through_frame;
-  complete = next.complete;
-  append(frames, next.frames);
-  append(key_frames, next.key_frames);
-  append(key_frame_images, next.key_frame_images);
-  append(links, next.links);
-  append(breaks, next.breaks);
-  if (next.complete) {
-    targets = std::move(next.targets);  // the final, combined targets
-    change_targets.clear();
-  } else {
-    append(targets, next.targets);
-    append(change_targets, next.change_targets);
-  }
-  open_targets = std::move(next.open_targets);
-  open_change_targets = std::move(next.open_change_targets);
-  change_through_frame = next.change_through_frame;
+track::TrackerOptions FrontEndOptions::EffectiveTracker() const {
+  track::TrackerOptions effective = tracker;
+  effective.keep_finished = false;
+  effective.max_history = 2;
+  return effective;
 }
 
-Status FrontEndCheckpoint::Validate() const {
-  if (through_frame < 0 || frames.size() != size_t(through_frame) + 1) {
-    return InvalidArgumentError("checkpoint: " + std::to_string(frames.size()) +
-                                " frames for frames 0.." + std::to_string(through_frame));
-  }
-  for (size_t i = 0; i < frames.size(); ++i) {
-    if (frames[i].index != int64_t(i)) {
-      return InvalidArgumentError("checkpoint: frame " + std::to_string(i) + " is numbered " +
-                                  std::to_string(frames[i].index));
-    }
-  }
-  for (size_t i = 0; i < key_frames.size(); ++i) {
-    const track::KeyFrame& k = key_frames[i];
-    if (int64_t(k.id) != int64_t(i) || k.frame_index < 0 || k.frame_index > through_frame ||
-        (i > 0 && (k.frame_index <= key_frames[i - 1].frame_index ||
-                   k.segment < key_frames[i - 1].segment))) {
-      return InvalidArgumentError("checkpoint: key frame " + std::to_string(i) +
-                                  " is out of order or past the checkpoint");
-    }
-  }
-  if (!complete && (key_frames.empty() || key_frames.back().frame_index != through_frame)) {
-    return InvalidArgumentError("checkpoint: does not end at a key frame");
-  }
-  for (size_t i = 0; i < key_frame_images.size(); ++i) {
-    const int64_t id = int64_t(key_frame_images[i].image.id);
-    if (id < 0 || size_t(id) >= key_frames.size() ||
-        (i > 0 && id <= int64_t(key_frame_images[i - 1].image.id))) {
-      return InvalidArgumentError("checkpoint: image of unknown key frame " + std::to_string(id));
-    }
-  }
-  for (const track::SequentialLink& l : links) {
-    if (int64_t(l.from) < 0 || size_t(l.from) >= key_frames.size() || int64_t(l.to) < 0 ||
-        size_t(l.to) >= key_frames.size()) {
-      return InvalidArgumentError("checkpoint: a link between unknown key frames");
-    }
-  }
-  return Status::Ok();
+track::TargetTrackOptions FrontEndOptions::EffectiveTargets() const {
+  track::TargetTrackOptions effective = targets;
+  effective.wait_for_change = change.enabled;
+  return effective;
 }
 
 Status FrontEndOptions::Validate() const {
@@ -387,427 +617,15 @@ Status FrontEndOptions::Validate() const {
   return Status::Ok();
 }
 
-StatusOr<FrontEndResult> RunFrontEnd(const std::string& path, const FrontEndOptions& options_in,
+StatusOr<FrontEndResult> RunFrontEnd(const std::string& path, const FrontEndOptions& options,
                                      JobContext* job, const FrontEndCheckpoint* resume) {
-  SAKER_RETURN_IF_ERROR(options_in.Validate());
+  SAKER_RETURN_IF_ERROR(options.Validate());
   if (resume != nullptr) {
     const Status valid = resume->Validate();
     if (!valid.ok()) return InvalidArgumentError(path + ": cannot resume: " + valid.message());
   }
-  FrontEndOptions options = options_in;
-  // The front end needs live tracks only, and of each only its latest positions.
-  options.tracker.keep_finished = false;
-  options.tracker.max_history = 2;
-  // A target that ends waits for the change evidence of its last frames (it comes late).
-  options.targets.wait_for_change = options.change.enabled;
-
-  // The scan decodes every frame and every KLV packet in one pass on the decode thread; the
-  // frames go through the queue, the metadata is tied to the frames when the scan ends.
-  ingest::ScanOptions scan_options;
-  scan_options.reader.want_bgr = false;
-  scan_options.reader.want_grey = true;
-  scan_options.reader.decoder_threads = options.decoder_threads;
-  FrontEndResult result;
-  {
-    // Opened here first so that a bad file fails at once, with the reader's message.
-    SAKER_ASSIGN_OR_RETURN(std::unique_ptr<video::VideoReader> probe,
-                           video::VideoReader::Open(path, scan_options.reader));
-    result.video = probe->info();
-  }
-  // For progress only: the declared count, else duration x rate.
-  double expected_frames = double(result.video.declared_frame_count);
-  if (expected_frames <= 0) expected_frames = result.video.duration_s * result.video.fps;
-  expected_frames = std::max(1.0, expected_frames);
-
-  // Resuming: the checkpoint is the start of this run's result. Frames before `warm_from` are
-  // only decoded; from there to the checkpoint's key frame (`resume_frame`) they warm the
-  // trackers up; the key frame chain starts again at that key frame.
-  const bool resume_complete = resume != nullptr && resume->complete;
-  const int64_t resume_frame = resume != nullptr ? resume->through_frame : -1;
-  const int64_t warm_from = resume == nullptr ? 0
-                            : resume_complete
-                                ? std::numeric_limits<int64_t>::max()
-                                : std::max<int64_t>(0, resume_frame - options.resume_warmup_frames);
-  const int64_t change_cut = resume != nullptr ? resume->change_through_frame : -1;
-  int64_t feature_id_offset = 0;
-  std::optional<Seam> seam;
-  std::vector<track::TargetTrack> targets_by_change;
-  std::vector<Eigen::Matrix3d> image_placements;  // preview_from_frame of each key frame image
-  if (resume != nullptr) {
-    result.frames = resume->frames;
-    result.key_frames = resume->key_frames;
-    result.links = resume->links;
-    result.breaks = resume->breaks;
-    for (const KeyFramePreview& preview : resume->key_frame_images) {
-      result.key_frame_images.push_back(preview.image);
-      image_placements.push_back(preview.preview_from_frame);
-      if (options.on_key_frame) options.on_key_frame(preview);
-    }
-    result.targets = resume->targets;
-    targets_by_change = resume->change_targets;
-    if (!resume_complete) {
-      feature_id_offset = MaxFeatureId(*resume) + 1;
-      seam.emplace(*resume, warm_from, options.targets);
-    }
-  }
-  // What the checkpoints handed out so far (the resumed checkpoint counts as handed out; its
-  // open targets, finished as far as this run goes, are handed out with the next one).
-  struct Delivered {
-    size_t frames = 0, key_frames = 0, images = 0, links = 0, breaks = 0, targets = 0, change = 0;
-  } delivered{result.frames.size(),    result.key_frames.size(), result.key_frame_images.size(),
-              result.links.size(),     result.breaks.size(),     result.targets.size(),
-              targets_by_change.size()};
-  if (resume != nullptr && !resume_complete) {
-    result.targets.insert(result.targets.end(), resume->open_targets.begin(),
-                          resume->open_targets.end());
-    targets_by_change.insert(targets_by_change.end(), resume->open_change_targets.begin(),
-                             resume->open_change_targets.end());
-  }
-  // A target this run finished, cut at the seam when resuming.
-  const auto keep_target = [&](track::TargetTrack t, int64_t cut,
-                               std::vector<track::TargetTrack>* to) {
-    if (!seam) {
-      to->push_back(std::move(t));
-    } else if (std::optional<track::TargetTrack> kept = seam->Trim(std::move(t), cut)) {
-      to->push_back(std::move(*kept));
-    }
-  };
-
-  BoundedQueue<video::Frame> queue(size_t(options.queue_frames));
-  double decode_ms = 0;
-  JobContext decode_job;  // cancelled when the consumer stops early
-  StatusOr<ingest::VideoScan> scan = CancelledError("front end: the scan did not run");
-  std::thread decoder([&] {
-    auto start = Clock::now();
-    scan = ingest::ScanVideo(path, scan_options, &decode_job, [&](const video::Frame& frame) {
-      video::Frame copy = frame;
-      // The reader reuses its buffers; a frame that is only decoded needs no pixels.
-      copy.grey = frame.index >= warm_from ? frame.grey.clone() : cv::Mat();
-      decode_ms += MillisecondsSince(start);
-      if (!queue.Push(std::move(copy))) decode_job.RequestCancel();
-      start = Clock::now();
-    });
-    queue.Close(scan.ok() ? Status::Ok() : scan.status());
-  });
-  // Whatever happens below, the decode thread is stopped and joined.
-  struct Joiner {
-    BoundedQueue<video::Frame>& queue;
-    JobContext& job;
-    std::thread& thread;
-    ~Joiner() {
-      job.RequestCancel();
-      queue.Cancel();
-      if (thread.joinable()) thread.join();
-    }
-  } joiner{queue, decode_job, decoder};
-
-  track::FeatureTracker tracker(options.tracker);
-  track::MotionSegmenter segmenter(options.segmentation);
-  track::TargetTracker targets(options.targets);
-  track::KeyFrameChain chain(options.key_frames);
-  track::BlobTracker change_tracks(options.change_tracks);
-  FrontEndTiming& timing = result.timing;
-  const auto wall_start = Clock::now();
-  bool segment_open = false;
-
-  // Change detection runs on its own thread (its destructor stops and joins it, whatever happens
-  // below). Its answers are applied at a fixed lag, so that the result never depends on how the
-  // threads ran: once frame n is through segmentation, the answers for every frame up to
-  // n - kChangeLagFrames are applied, waiting for them if need be; at a chain break every answer
-  // up to the frame before it, at the end all of them. Applying an answer is what the
-  // single-threaded front end did right after its frame: the blob tracks (ended first when the
-  // frame had no ground motion), the change evidence of the targets, the finished blob tracks.
-  std::optional<ChangeThread> change;
-  if (options.change.enabled) {
-    change.emplace(options.change, size_t(options.change_queue_frames), size_t(kChangeLagFrames));
-  }
-  double change_side_ms = 0;  // the calling thread's time for change detection (waits included)
-  int64_t change_through = change_cut;  // the latest frame whose change answer was applied
-  const auto apply_change_through = [&](int64_t frame) {
-    if (!change) return;
-    const auto start = Clock::now();
-    while (std::optional<ChangeThread::Answer> answer = change->NextThrough(frame)) {
-      const auto apply_start = Clock::now();
-      if (answer->restart) change_tracks.FinishAll();
-      const track::ChangeFrame& c = answer->change;
-      if (c.answered()) {
-        change_tracks.AddFrame(c.frame, c.blobs, c.frame_motion);
-        // Within the target's box, and a few pixels round a single point.
-        targets.RecordChange(c.frame, [&](const track::TargetObservation& o) {
-          if (!c.Compared(o.position)) return track::ChangeEvidence::kNotLooked;
-          const double radius = std::max(3.0, 0.5 * (o.box_max - o.box_min).maxCoeff());
-          return c.ChangedNear(o.position, radius) ? track::ChangeEvidence::kChanged
-                                                   : track::ChangeEvidence::kNone;
-        });
-        change_through = std::max(change_through, c.frame);
-      }
-      for (track::TargetTrack& t : change_tracks.TakeFinished()) {
-        keep_target(std::move(t), change_cut, &targets_by_change);
-      }
-      timing.change_ms += answer->ms;
-      timing.change_tracks_ms += MillisecondsSince(apply_start);
-    }
-    change_side_ms += MillisecondsSince(start);
-  };
-
-  // The key frames, links and breaks of `chain` enter the result as they appear, numbered after
-  // the checkpoint's when resuming; the chain's first key frame is then the checkpoint's last.
-  size_t chain_key_frames = 0, chain_links = 0, chain_breaks = 0;  // taken from the chain
-  int key_frame_base = 0;
-  int segment_base = 0;
-  const auto take_from_chain = [&](const cv::Mat& grey, const Eigen::Matrix3d& placement) {
-    const auto remap = [&](track::KeyFrameId id) {
-      return track::KeyFrameId(key_frame_base + int(id));
-    };
-    const auto offset = [&](track::FeatureTrackId id) {
-      return track::FeatureTrackId(int64_t(id) + feature_id_offset);
-    };
-    bool new_key_frame = false;
-    for (; chain_key_frames < chain.key_frames().size(); ++chain_key_frames) {
-      track::KeyFrame key = chain.key_frames()[chain_key_frames];
-      if (chain_key_frames == 0 && resume != nullptr && !resume->key_frames.empty()) {
-        const track::KeyFrame& last = resume->key_frames.back();
-        if (key.frame_index == last.frame_index) {
-          key_frame_base = int(last.id);  // the same key frame, seen again
-          segment_base = last.segment;
-          continue;
-        }
-        key_frame_base = int(last.id) + 1;
-        segment_base = last.segment + 1;
-        result.breaks.push_back({key.frame_index,
-                                 "the resumed run could not continue the chain from "
-                                 "key frame " +
-                                     std::to_string(int(last.id))});
-      }
-      key.id = remap(key.id);
-      key.segment += segment_base;
-      for (track::StationaryPoint& p : key.points) p.first = offset(p.first);
-      if (options.key_frame_image_width > 0) {
-        KeyFrameImage image;
-        image.id = key.id;
-        image.frame_index = key.frame_index;
-        image.scale = std::max(1.0, double(grey.cols) / options.key_frame_image_width);
-        cv::resize(grey, image.grey, cv::Size(), 1.0 / image.scale, 1.0 / image.scale,
-                   cv::INTER_AREA);
-        if (options.on_key_frame) options.on_key_frame({image, placement});
-        result.key_frame_images.push_back(std::move(image));
-        image_placements.push_back(placement);
-      }
-      result.key_frames.push_back(std::move(key));
-      new_key_frame = true;
-    }
-    for (; chain_links < chain.links().size(); ++chain_links) {
-      track::SequentialLink link = chain.links()[chain_links];
-      link.from = remap(link.from);
-      link.to = remap(link.to);
-      for (track::Correspondence& m : link.correspondences) m.id = offset(m.id);
-      result.links.push_back(std::move(link));
-    }
-    for (; chain_breaks < chain.breaks().size(); ++chain_breaks) {
-      result.breaks.push_back(chain.breaks()[chain_breaks]);
-    }
-    return new_key_frame;
-  };
-
-  // Hands out a checkpoint: what is new since the last one, the open targets, the state.
-  auto last_checkpoint = Clock::now();
-  const auto hand_out = [&](int64_t through_frame, bool complete) -> Status {
-    const auto tail = [](const auto& all, size_t* from) {
-      std::decay_t<decltype(all)> part(all.begin() + std::ptrdiff_t(*from), all.end());
-      *from = all.size();
-      return part;
-    };
-    FrontEndCheckpoint c;
-    c.through_frame = through_frame;
-    c.complete = complete;
-    c.frames = tail(result.frames, &delivered.frames);
-    c.key_frames = tail(result.key_frames, &delivered.key_frames);
-    for (; delivered.images < result.key_frame_images.size(); ++delivered.images) {
-      c.key_frame_images.push_back(
-          {result.key_frame_images[delivered.images], image_placements[delivered.images]});
-    }
-    c.links = tail(result.links, &delivered.links);
-    c.breaks = tail(result.breaks, &delivered.breaks);
-    if (complete) {
-      c.targets = result.targets;  // the final ones
-    } else {
-      c.targets = tail(result.targets, &delivered.targets);
-      c.change_targets = tail(targets_by_change, &delivered.change);
-      // The targets still followed, as they would end now (on copies of the trackers).
-      track::TargetTracker open = targets;
-      open.FinishAll();
-      open.EndChangeEvidence();
-      for (track::TargetTrack& t : open.TakeFinished()) {
-        keep_target(std::move(t), resume_frame, &c.open_targets);
-      }
-      track::BlobTracker open_change = change_tracks;
-      open_change.FinishAll();
-      for (track::TargetTrack& t : open_change.TakeFinished()) {
-        keep_target(std::move(t), change_cut, &c.open_change_targets);
-      }
-      c.change_through_frame = change_through;
-    }
-    last_checkpoint = Clock::now();
-    const Status saved = options.on_checkpoint(c);
-    if (!saved.ok()) return Status(saved.code(), path + ": checkpoint: " + saved.message());
-    return Status::Ok();
-  };
-
-  // The placement of the current frame in the preview (KeyFramePreview): the first frame's pixels.
-  Eigen::Matrix3d preview_from_current = Eigen::Matrix3d::Identity();
-  while (std::optional<video::Frame> frame = queue.Pop()) {
-    if (job != nullptr && job->IsCancelled()) return CancelledError("front end: cancelled");
-    if (frame->index < warm_from) {
-      if (job != nullptr) {
-        job->ReportProgress("front end", std::min(1.0, double(frame->index + 1) / expected_frames));
-      }
-      continue;  // done before: only decoded, for the scan
-    }
-    if (options.max_memory_mib > 0 && frame->index % kMemoryCheckFrames == 0) {
-      const int64_t resident_mib = ResidentMemoryBytes() / (1024 * 1024);
-      if (resident_mib > options.max_memory_mib) {
-        std::ostringstream message;
-        message.setf(std::ios::fixed);
-        message.precision(1);
-        message << path << ": processing stopped at frame " << frame->index << " (" << frame->time_s
-                << " s): Saker is using " << resident_mib << " MiB, over its memory limit of "
-                << options.max_memory_mib
-                << " MiB. Process a shorter part of the video or raise the limit (--max-memory).";
-        return ResourceExhaustedError(message.str());
-      }
-    }
-    FrameResult fr;
-    fr.index = frame->index;
-    fr.time_s = frame->time_s;
-    fr.pts = frame->pts;
-    fr.key_frame = frame->key_frame;
-
-    auto start = Clock::now();
-    tracker.Process(frame->index, frame->grey);
-    timing.track_ms += MillisecondsSince(start);
-    fr.tracked = int(tracker.points().size());
-
-    // Ground motion from the tracks that are not (yet) known to move.
-    start = Clock::now();
-    std::vector<track::Correspondence> ground;
-    ground.reserve(tracker.matches().size());
-    for (const track::Correspondence& m : tracker.matches()) {
-      if (segmenter.LabelOf(m.id) != track::MotionLabel::kMoving) ground.push_back(m);
-    }
-    std::optional<track::HomographyEstimate> estimate;
-    if (segment_open && !ground.empty()) {
-      StatusOr<track::HomographyEstimate> h =
-          track::EstimateHomography(ground, options.frame_homography);
-      if (h.ok()) estimate = std::move(h).value();
-    }
-    std::optional<Eigen::Vector3d> epipole;
-    if (estimate && options.parallax_check) epipole = ParallaxEpipole(ground, *estimate, options);
-    timing.homography_ms += MillisecondsSince(start);
-
-    // Change detection (small movers, and what the image shows under each target) starts on the
-    // frame as soon as its ground motion is known.
-    if (change) {
-      start = Clock::now();
-      std::optional<Eigen::Matrix3d> motion;
-      if (estimate) motion = estimate->target_from_source;
-      change->Submit(frame->index, frame->grey, motion);
-      change_side_ms += MillisecondsSince(start);
-    }
-
-    start = Clock::now();
-    const double change_side_before = change_side_ms;
-    if (estimate) {
-      preview_from_current = preview_from_current * estimate->target_from_source.inverse();
-      preview_from_current /= preview_from_current(2, 2);
-      fr.homography_ok = true;
-      fr.current_from_previous = estimate->target_from_source;
-      fr.covariance = estimate->covariance;
-      fr.inliers = int(estimate->inliers.size());
-      segmenter.AddFrame(tracker.matches(), estimate->target_from_source, epipole);
-      targets.AddFrame(frame->index, segmenter.moving());
-      fr.moving = int(segmenter.moving().size());
-    } else if (segment_open) {
-      // No reliable ground motion (blank, featureless, a cut): the chain breaks here; the next
-      // frame starts afresh. The targets first take the change evidence of the segment's frames.
-      apply_change_through(frame->index - 1);
-      segmenter.Reset();
-      targets.FinishAll();
-      targets.EndChangeEvidence();  // the change detector starts again too
-      tracker.Reset();
-      tracker.Process(frame->index, frame->grey);
-    }
-    for (track::TargetTrack& t : targets.TakeFinished()) {
-      keep_target(std::move(t), resume_frame, &result.targets);
-    }
-    timing.segment_ms += MillisecondsSince(start) - (change_side_ms - change_side_before);
-
-    apply_change_through(frame->index - kChangeLagFrames);
-    segment_open = fr.tracked > 0;
-    ++timing.frames;
-    if (frame->index == resume_frame && !resume->key_frame_images.empty()) {
-      preview_from_current = resume->key_frame_images.back().preview_from_frame;
-    }
-    if (frame->index < resume_frame) continue;  // warming up: the checkpoint has this frame
-
-    // Key frames from the stationary points.
-    start = Clock::now();
-    std::vector<track::StationaryPoint> stationary;
-    stationary.reserve(tracker.points().size());
-    for (const track::TrackedPoint& p : tracker.points()) {
-      if (segmenter.LabelOf(p.id) != track::MotionLabel::kMoving)
-        stationary.emplace_back(p.id, p.position);
-    }
-    chain.AddFrame(frame->index, stationary, estimate);
-    const bool new_key_frame = take_from_chain(frame->grey, preview_from_current);
-    timing.key_frames_ms += MillisecondsSince(start);
-
-    if (frame->index > resume_frame) result.frames.push_back(fr);
-    if (new_key_frame && options.on_checkpoint &&
-        MillisecondsSince(last_checkpoint) >= 1000 * options.checkpoint_interval_s) {
-      SAKER_RETURN_IF_ERROR(hand_out(frame->index, /*complete=*/false));
-    }
-    if (job != nullptr) {
-      job->ReportProgress("front end",
-                          std::min(1.0, double(result.frames.size()) / expected_frames));
-    }
-  }
-  SAKER_RETURN_IF_ERROR(queue.status());
-  decoder.join();
-  SAKER_RETURN_IF_ERROR(scan.status());
-  result.scan = std::move(scan).value();
-  if (result.scan.frames.size() != result.frames.size()) {
-    // Only a checkpoint of another video can do this (the scan and the tracker see each frame).
-    SAKER_CHECK(resume != nullptr) << "the scan saw " << result.scan.frames.size()
-                                   << " frames, the tracker " << result.frames.size();
-    return InvalidArgumentError(path + ": cannot resume: the checkpoint has " +
-                                std::to_string(resume->frames.size()) +
-                                " frames done and does not fit this video of " +
-                                std::to_string(result.scan.frames.size()) + " frames");
-  }
-  if (!resume_complete) {
-    apply_change_through(std::numeric_limits<int64_t>::max());
-    targets.FinishAll();
-    targets.EndChangeEvidence();
-    for (track::TargetTrack& t : targets.TakeFinished()) {
-      keep_target(std::move(t), resume_frame, &result.targets);
-    }
-    change_tracks.FinishAll();
-    for (track::TargetTrack& t : change_tracks.TakeFinished()) {
-      keep_target(std::move(t), change_cut, &targets_by_change);
-    }
-    result.targets = CombineTargets(std::move(result.targets), std::move(targets_by_change),
-                                    result.frames, options);
-    if (options.on_checkpoint && !result.frames.empty()) {
-      SAKER_RETURN_IF_ERROR(hand_out(result.frames.back().index, /*complete=*/true));
-    }
-  }
-  timing.wall_s = MillisecondsSince(wall_start) / 1000.0;
-  if (change) timing.change_wait_ms = change->wait_ms();
-  const double n = double(std::max<int64_t>(1, timing.frames));
-  timing.decode_ms = decode_ms / n;
-  timing.track_ms /= n, timing.homography_ms /= n, timing.segment_ms /= n, timing.change_ms /= n,
-      timing.change_tracks_ms /= n, timing.change_wait_ms /= n, timing.key_frames_ms /= n;
-  return result;
+  FrontEnd front_end(path, options, job, resume);
+  return front_end.Run();
 }
 
 }  // namespace saker::frontend

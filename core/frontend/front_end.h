@@ -81,6 +81,13 @@ struct FrontEndOptions {
   // a run that never stopped.
   int resume_warmup_frames = 100;
   Status Validate() const;
+
+  // What the trackers run with, derived from the fields above rather than set by the caller. The
+  // feature tracker keeps live tracks only, each with its latest two positions (all the front end
+  // looks at); a target that ends waits for the change evidence of its last frames when change
+  // detection is on (that evidence comes late, docs/front-end.md "Threads").
+  track::TrackerOptions EffectiveTracker() const;
+  track::TargetTrackOptions EffectiveTargets() const;
 };
 
 // What the front end found about one frame.

@@ -30,6 +30,39 @@ Eigen::Vector2d ToProcessing(const Eigen::Vector2d& p, double scale) {
   return {(p.x() + 0.5) / scale - 0.5, (p.y() + 0.5) / scale - 0.5};
 }
 
+// The largest squared gradient (central differences) in the 3x3 neighbourhood of (x, y).
+float GradientSquared(const cv::Mat& image, int x, int y) {
+  float largest = 0;
+  for (int yy = std::max(1, y - 1); yy <= std::min(image.rows - 2, y + 1); ++yy) {
+    const uint8_t* above = image.ptr<uint8_t>(yy - 1);
+    const uint8_t* row = image.ptr<uint8_t>(yy);
+    const uint8_t* below = image.ptr<uint8_t>(yy + 1);
+    for (int xx = std::max(1, x - 1); xx <= std::min(image.cols - 2, x + 1); ++xx) {
+      const float gx = 0.5f * (float(row[xx + 1]) - float(row[xx - 1]));
+      const float gy = 0.5f * (float(below[xx]) - float(above[xx]));
+      largest = std::max(largest, gx * gx + gy * gy);
+    }
+  }
+  return largest;
+}
+
+// The gain that matches `warped`'s mean grey to `centre`'s where `cover` is set (gain drift);
+// means over every fourth row and column: plenty for a gain.
+float MeanGain(const cv::Mat& centre, const cv::Mat& warped, const cv::Mat& cover) {
+  double sum_centre = 0, sum_other = 0;
+  for (int y = 0; y < centre.rows; y += 4) {
+    const uint8_t* c = centre.ptr<uint8_t>(y);
+    const uint8_t* o = warped.ptr<uint8_t>(y);
+    const uint8_t* v = cover.ptr<uint8_t>(y);
+    for (int x = 0; x < centre.cols; x += 4) {
+      if (v[x] == 0) continue;
+      sum_centre += c[x];
+      sum_other += o[x];
+    }
+  }
+  return sum_other > 0 ? float(sum_centre / sum_other) : 1.0f;
+}
+
 }  // namespace
 
 Status ChangeOptions::Validate() const {
@@ -66,15 +99,7 @@ ChangeFrame ChangeDetector::Process(int64_t frame, const cv::Mat& grey,
   SAKER_CHECK(grey.type() == CV_8UC1) << "change detection needs 8-bit grey frames";
   ChangeFrame result;
   if (!options_.enabled || grey.empty()) return result;
-  if (grey.size() != full_size_) {
-    Reset();
-    full_size_ = grey.size();
-    const int width =
-        options_.processing_width > 0 ? std::min(options_.processing_width, grey.cols) : grey.cols;
-    small_size_ =
-        cv::Size(width, std::max(1, int(std::lround(double(grey.rows) * width / grey.cols))));
-    scale_ = double(grey.cols) / width;
-  }
+  if (grey.size() != full_size_) SetFrameSize(grey.size());
   if (!current_from_previous || !current_from_previous->allFinite()) history_.clear();
 
   // The centre frame is the one `longest` back; each baseline compares it with the frames that
@@ -84,9 +109,49 @@ ChangeFrame ChangeDetector::Process(int64_t frame, const cv::Mat& grey,
     baselines.push_back(size_t(options_.long_baseline_frames));
   }
   const size_t longest = baselines.back();
+  Remember(frame, grey, current_from_previous, 2 * longest + 1);
+  if (history_.size() < 2 * longest + 1) return result;
+  const Entry& centre = history_[longest];
+
+  // Per baseline: the frames before and after, and where both cover the centre frame.
+  pairs_.resize(baselines.size());
+  covers_.resize(baselines.size());
+  // The answer's masks are its own (allocated here, never reused by the detector).
+  cv::Mat valid(small_size_, CV_8U, cv::Scalar(0));
+  for (size_t i = 0; i < baselines.size(); ++i) {
+    if (!Warp(longest - baselines[i], longest, &pairs_[i][0]) ||
+        !Warp(longest + baselines[i], longest, &pairs_[i][1])) {
+      return result;  // a degenerate motion: no answer for this frame
+    }
+    cv::bitwise_and(pairs_[i][0].cover, pairs_[i][1].cover, covers_[i]);
+    cv::bitwise_or(valid, covers_[i], valid);
+  }
+  cv::Mat changed = MarkChanged(centre.grey);
+  result.blobs = FindBlobs(changed);
+  result.frame = centre.frame;
+  result.frame_motion = centre.motion;
+  result.changed = std::move(changed);
+  result.valid = std::move(valid);
+  result.scale = scale_;
+  return result;
+}
+
+void ChangeDetector::SetFrameSize(const cv::Size& size) {
+  Reset();
+  full_size_ = size;
+  const int width =
+      options_.processing_width > 0 ? std::min(options_.processing_width, size.width) : size.width;
+  small_size_ =
+      cv::Size(width, std::max(1, int(std::lround(double(size.height) * width / size.width))));
+  scale_ = double(size.width) / width;
+}
+
+void ChangeDetector::Remember(int64_t frame, const cv::Mat& grey,
+                              const std::optional<Eigen::Matrix3d>& current_from_previous,
+                              size_t capacity) {
   // The new frame takes the oldest one's buffer when the history is full.
   Entry entry;
-  while (history_.size() >= 2 * longest + 1) {
+  while (history_.size() >= capacity) {
     entry.grey = std::move(history_.front().grey);
     history_.pop_front();
   }
@@ -103,106 +168,66 @@ ChangeFrame ChangeDetector::Process(int64_t frame, const cv::Mat& grey,
     entry.small_motion = ToSmallPixels(*current_from_previous, scale_);
   }
   history_.push_back(std::move(entry));
-  if (history_.size() < 2 * longest + 1) return result;
-  const Entry& centre = history_[longest];
+}
 
-  // Each other frame warped onto the centre frame, its mean grey matched to the centre's (gain
-  // drift), and where it covers the centre frame (inside its border). The buffers are members,
-  // reused from frame to frame.
+// The frame history_[index] warped onto the centre frame history_[centre], its mean grey matched
+// to the centre's (gain drift), and where it covers the centre frame (inside its border). The
+// buffers are members, reused from frame to frame. False for a degenerate motion.
+bool ChangeDetector::Warp(size_t index, size_t centre, Other* other) {
   const int b = options_.border_px;
-  const auto warp = [&](size_t index, Other* other) {
-    Eigen::Matrix3d centre_from_other = Eigen::Matrix3d::Identity();
-    if (index < longest) {
-      for (size_t i = index + 1; i <= longest; ++i) {
-        centre_from_other = history_[i].small_motion * centre_from_other;
-      }
-    } else {
-      Eigen::Matrix3d other_from_centre = Eigen::Matrix3d::Identity();
-      for (size_t i = longest + 1; i <= index; ++i) {
-        other_from_centre = history_[i].small_motion * other_from_centre;
-      }
-      centre_from_other = other_from_centre.inverse();
+  Eigen::Matrix3d centre_from_other = Eigen::Matrix3d::Identity();
+  if (index < centre) {
+    for (size_t i = index + 1; i <= centre; ++i) {
+      centre_from_other = history_[i].small_motion * centre_from_other;
     }
-    cv::Mat m(3, 3, CV_64F);
-    for (int r = 0; r < 3; ++r) {
-      for (int c = 0; c < 3; ++c) m.at<double>(r, c) = centre_from_other(r, c);
+  } else {
+    Eigen::Matrix3d other_from_centre = Eigen::Matrix3d::Identity();
+    for (size_t i = centre + 1; i <= index; ++i) {
+      other_from_centre = history_[i].small_motion * other_from_centre;
     }
-    cv::warpPerspective(history_[index].grey, other->warped, m, small_size_, cv::INTER_LINEAR,
-                        cv::BORDER_CONSTANT);
-    const double w = small_size_.width - 1 - b, h = small_size_.height - 1 - b;
-    std::array<cv::Point, 4> outline;
-    const std::array<Eigen::Vector2d, 4> corners = {Eigen::Vector2d(b, b), Eigen::Vector2d(w, b),
-                                                    Eigen::Vector2d(w, h), Eigen::Vector2d(b, h)};
-    for (size_t k = 0; k < 4; ++k) {
-      const Eigen::Vector3d p = centre_from_other * corners[k].homogeneous();
-      if (!(p.z() > 0) || !p.allFinite()) return false;
-      outline[k] = cv::Point(int(std::lround(std::clamp(p.x() / p.z(), -1e6, 1e6))),
-                             int(std::lround(std::clamp(p.y() / p.z(), -1e6, 1e6))));
-    }
-    other->cover.create(small_size_, CV_8U);
-    other->cover.setTo(0);
-    cv::fillConvexPoly(other->cover, outline.data(), 4, cv::Scalar(255));
-    if (b > 0) {
-      cv::rectangle(other->cover, cv::Rect(0, 0, small_size_.width, small_size_.height),
-                    cv::Scalar(0), 2 * b);
-    }
-    // Means over every fourth row and column of the overlap: plenty for a gain.
-    double sum_centre = 0, sum_other = 0;
-    for (int y = 0; y < small_size_.height; y += 4) {
-      const uint8_t* c = centre.grey.ptr<uint8_t>(y);
-      const uint8_t* o = other->warped.ptr<uint8_t>(y);
-      const uint8_t* v = other->cover.ptr<uint8_t>(y);
-      for (int x = 0; x < small_size_.width; x += 4) {
-        if (v[x] == 0) continue;
-        sum_centre += c[x];
-        sum_other += o[x];
-      }
-    }
-    other->gain = sum_other > 0 ? float(sum_centre / sum_other) : 1.0f;
-    return true;
-  };
-  // Per baseline: the frames before and after, and where both cover the centre frame.
-  pairs_.resize(baselines.size());
-  covers_.resize(baselines.size());
-  // The answer's masks are its own (allocated here, never reused by the detector).
-  cv::Mat valid(small_size_, CV_8U, cv::Scalar(0));
-  for (size_t i = 0; i < baselines.size(); ++i) {
-    if (!warp(longest - baselines[i], &pairs_[i][0]) ||
-        !warp(longest + baselines[i], &pairs_[i][1])) {
-      return result;  // a degenerate motion: no answer for this frame
-    }
-    cv::bitwise_and(pairs_[i][0].cover, pairs_[i][1].cover, covers_[i]);
-    cv::bitwise_or(valid, covers_[i], valid);
+    centre_from_other = other_from_centre.inverse();
   }
+  cv::Mat m(3, 3, CV_64F);
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) m.at<double>(r, c) = centre_from_other(r, c);
+  }
+  cv::warpPerspective(history_[index].grey, other->warped, m, small_size_, cv::INTER_LINEAR,
+                      cv::BORDER_CONSTANT);
+  const double w = small_size_.width - 1 - b, h = small_size_.height - 1 - b;
+  std::array<cv::Point, 4> outline;
+  const std::array<Eigen::Vector2d, 4> corners = {Eigen::Vector2d(b, b), Eigen::Vector2d(w, b),
+                                                  Eigen::Vector2d(w, h), Eigen::Vector2d(b, h)};
+  for (size_t k = 0; k < 4; ++k) {
+    const Eigen::Vector3d p = centre_from_other * corners[k].homogeneous();
+    if (!(p.z() > 0) || !p.allFinite()) return false;
+    outline[k] = cv::Point(int(std::lround(std::clamp(p.x() / p.z(), -1e6, 1e6))),
+                           int(std::lround(std::clamp(p.y() / p.z(), -1e6, 1e6))));
+  }
+  other->cover.create(small_size_, CV_8U);
+  other->cover.setTo(0);
+  cv::fillConvexPoly(other->cover, outline.data(), 4, cv::Scalar(255));
+  if (b > 0) {
+    cv::rectangle(other->cover, cv::Rect(0, 0, small_size_.width, small_size_.height),
+                  cv::Scalar(0), 2 * b);
+  }
+  other->gain = MeanGain(history_[centre].grey, other->warped, other->cover);
+  return true;
+}
 
-  // A pixel changed when both differences exceed their noise with the same sign. The noise of
-  // a difference adds the other frame's local gradient (the largest of its 3x3 neighbourhood)
-  // times the registration allowance: where the ground is misregistered by d, the difference is
-  // about d times that gradient. The other frame's, not the centre's: a walker is itself all
-  // edges in the centre frame, while the ground it walked onto is what the others show there.
-  // The gradient is computed only where the sensor noise alone is exceeded: a small part of the
-  // frame.
-  const cv::Mat& image = centre.grey;
+// A pixel changed when both differences exceed their noise with the same sign. The noise of a
+// difference adds the other frame's local gradient (the largest of its 3x3 neighbourhood) times
+// the registration allowance: where the ground is misregistered by d, the difference is about d
+// times that gradient. The other frame's, not the centre's: a walker is itself all edges in the
+// centre frame, while the ground it walked onto is what the others show there. The gradient is
+// computed only where the sensor noise alone is exceeded: a small part of the frame. Returns the
+// mask of changed pixels; strength_ holds their signed change.
+cv::Mat ChangeDetector::MarkChanged(const cv::Mat& image) {
   const float noise = float(options_.noise_grey), allowance = float(options_.registration_px);
   const float threshold = float(options_.threshold);
   const float quick = threshold * noise;
-  const auto gradient_squared = [](const cv::Mat& other, int x, int y) {
-    float largest = 0;
-    for (int yy = std::max(1, y - 1); yy <= std::min(other.rows - 2, y + 1); ++yy) {
-      const uint8_t* above = other.ptr<uint8_t>(yy - 1);
-      const uint8_t* row = other.ptr<uint8_t>(yy);
-      const uint8_t* below = other.ptr<uint8_t>(yy + 1);
-      for (int xx = std::max(1, x - 1); xx <= std::min(other.cols - 2, x + 1); ++xx) {
-        const float gx = 0.5f * (float(row[xx + 1]) - float(row[xx - 1]));
-        const float gy = 0.5f * (float(below[xx]) - float(above[xx]));
-        largest = std::max(largest, gx * gx + gy * gy);
-      }
-    }
-    return largest;
-  };
   const auto significant = [&](float d, const cv::Mat& other, int x, int y) {
     return d * d > threshold * threshold *
-                       (noise * noise + allowance * allowance * gradient_squared(other, x, y));
+                       (noise * noise + allowance * allowance * GradientSquared(other, x, y));
   };
   cv::Mat changed(small_size_, CV_8U, cv::Scalar(0));
   strength_.create(small_size_, CV_32F);
@@ -242,11 +267,15 @@ ChangeFrame ChangeDetector::Process(int64_t frame, const cv::Mat& grey,
       }
     }
   }
+  return changed;
+}
 
-  // The changed pixels' 8-connected components, in raster order of their first pixel, each
-  // filled from there. The mask is sparse (a few hundred pixels of half a million), so the fill
-  // visits only those: 0.3 ms a frame at 960x540, where labelling the whole image
-  // (cv::connectedComponentsWithStats) took 3.2 ms.
+// The changed pixels' 8-connected components, in raster order of their first pixel, each filled
+// from there; those of a blob's size and contrast are the blobs. The mask is sparse (a few hundred
+// pixels of half a million), so the fill visits only those: 0.3 ms a frame at 960x540, where
+// labelling the whole image (cv::connectedComponentsWithStats) took 3.2 ms.
+std::vector<ChangeBlob> ChangeDetector::FindBlobs(const cv::Mat& changed) {
+  std::vector<ChangeBlob> blobs;
   changed.copyTo(unvisited_);
   cv::findNonZero(changed, seeds_);
   const int width = small_size_.width, height = small_size_.height;
@@ -286,14 +315,9 @@ ChangeFrame ChangeDetector::Process(int64_t frame, const cv::Mat& grey,
     blob.box_max = ToFull(x1 + 0.5, y1 + 0.5);
     blob.area_px = area;
     blob.contrast = peak;
-    result.blobs.push_back(blob);
+    blobs.push_back(blob);
   }
-  result.frame = centre.frame;
-  result.frame_motion = centre.motion;
-  result.changed = std::move(changed);
-  result.valid = std::move(valid);
-  result.scale = scale_;
-  return result;
+  return blobs;
 }
 
 bool ChangeFrame::Compared(const Eigen::Vector2d& p) const {

@@ -110,6 +110,14 @@ class ChangeDetector {
     float gain = 1;
   };
   Eigen::Vector2d ToFull(double x, double y) const;
+  // The steps of Process(), in order.
+  void SetFrameSize(const cv::Size& size);  // a new frame size: processing size, scale, history
+  // Appends the frame at processing size, dropping the oldest beyond `capacity` frames.
+  void Remember(int64_t frame, const cv::Mat& grey,
+                const std::optional<Eigen::Matrix3d>& current_from_previous, size_t capacity);
+  bool Warp(size_t index, size_t centre, Other* other);
+  cv::Mat MarkChanged(const cv::Mat& image);
+  std::vector<ChangeBlob> FindBlobs(const cv::Mat& changed);
 
   ChangeOptions options_;
   cv::Size full_size_, small_size_;
