@@ -34,6 +34,7 @@
 #include "core/mosaic/loop_closure.h"
 #include "core/mosaic/mosaic_builder.h"
 #include "core/track/homography.h"
+#include "core/track/image_geometry.h"
 #include "core/util/check.h"
 #include "core/util/statistics.h"
 #include "core/util/timer.h"
@@ -57,10 +58,10 @@ namespace {
 using saker::Median;
 using saker::Stopwatch;
 
-using saker::mosaic::ImageCorners;
 using saker::mosaic::KeyFrameId;
 using saker::mosaic::Link;
 using saker::mosaic::LinkGraph;
+using saker::track::ImageCorners;
 using Matrix8 = Eigen::Matrix<double, 8, 8>;
 using Vector8 = Eigen::Matrix<double, 8, 1>;
 
@@ -87,7 +88,7 @@ class Noise {
 // The homography taking the 4 points `from` exactly to `to`.
 Eigen::Matrix3d FourPointHomography(const std::array<Eigen::Vector2d, 4>& from,
                                     const std::array<Eigen::Vector2d, 4>& to) {
-  const auto h = saker::mosaic::HomographyFromCorners(from, to, 1.0);
+  const auto h = saker::track::HomographyFromCorners(from, to, 1.0);
   SAKER_CHECK(h.ok()) << h.status().ToString();
   return h->target_from_source;
 }
@@ -422,7 +423,7 @@ void BenchmarkChain(const std::vector<int>& sizes, uint64_t seed) {
         measured[i] = saker::track::Transfer(exact, corners[i]) +
                       kChainSigmaPx * Eigen::Vector2d(noise.Gaussian(), noise.Gaussian());
       }
-      const auto h = saker::mosaic::HomographyFromCorners(corners, measured, kChainSigmaPx);
+      const auto h = saker::track::HomographyFromCorners(corners, measured, kChainSigmaPx);
       SAKER_CHECK(h.ok()) << h.status().ToString();
       steps[size_t(k)].next_from_previous = h->target_from_source;
       steps[size_t(k)].covariance = h->covariance;

@@ -14,7 +14,7 @@ packages=(
   libgdal-dev nlohmann-json3-dev libsqlite3-dev libtbb-dev libcli11-dev
   # Tests, benchmarks and headless GUI runs; clang and its runtimes for the fuzzers that
   # tests/run-all.sh runs (gcc's ASan, UBSan and TSan runtimes come with g++)
-  libgtest-dev libgmock-dev libbenchmark-dev xvfb xauth clang libclang-rt-14-dev
+  libgtest-dev libgmock-dev xvfb xauth clang libclang-rt-14-dev
 )
 if [[ "${1:-}" == "--sanitizers" ]]; then
   packages+=(clang libclang-rt-14-dev)

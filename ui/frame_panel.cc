@@ -372,7 +372,7 @@ void FramePanel::showObservation(size_t track_index, size_t point_index) {
     return;
   }
   pause();
-  click_timer_.start();
+  click_timer_.Restart();
   const int64_t frame = mission_->tracks[track_index].points[point_index].frame;
   // Another observation in the frame already on screen: only the mark moves.
   const bool on_screen = video_available_ && frame == displayed_frame_ && pending_ticket_ == 0;
@@ -381,7 +381,7 @@ void FramePanel::showObservation(size_t track_index, size_t point_index) {
   setObservation(track_index, point_index, true);
   if (on_screen) {
     canvas_->repaint();
-    last_recall_ms_ = static_cast<double>(click_timer_.nsecsElapsed()) / 1e6;
+    last_recall_ms_ = click_timer_.ElapsedMs();
     emit frameShown(frame, last_recall_ms_);
   }
 }
@@ -459,7 +459,7 @@ void FramePanel::play() {
     play_anchor_frame_ = -1;  // start from the recalled frame when it arrives
   } else {
     play_anchor_frame_ = displayed_frame_;
-    play_clock_.start();
+    play_clock_.Restart();
     requestNextPlayFrame();
   }
   emit playingChanged(true);
@@ -529,7 +529,7 @@ void FramePanel::onFrameReady(quint64 ticket, int64_t frame_index, const QImage&
   if (playing_ && play_anchor_frame_ >= 0) {
     const double interval_ms = 1000.0 / frameRate();
     const double due_ms = static_cast<double>(frame_index - play_anchor_frame_) * interval_ms;
-    const double wait_ms = due_ms - static_cast<double>(play_clock_.nsecsElapsed()) / 1e6;
+    const double wait_ms = due_ms - play_clock_.ElapsedMs();
     if (wait_ms > 1) {
       held_frame_ = frame_index;
       held_image_ = image;
@@ -539,7 +539,7 @@ void FramePanel::onFrameReady(quint64 ticket, int64_t frame_index, const QImage&
     if (wait_ms < -2 * interval_ms) {
       // Decoding fell behind: carry on from here at the frame rate instead of rushing to catch up.
       play_anchor_frame_ = frame_index;
-      play_clock_.start();
+      play_clock_.Restart();
     }
     present(frame_index, image);
     emit frameShown(frame_index, kNaN);
@@ -549,14 +549,14 @@ void FramePanel::onFrameReady(quint64 ticket, int64_t frame_index, const QImage&
   present(frame_index, image);
   if (pending_from_click_) {
     pending_from_click_ = false;
-    last_recall_ms_ = static_cast<double>(click_timer_.nsecsElapsed()) / 1e6;
+    last_recall_ms_ = click_timer_.ElapsedMs();
     emit frameShown(frame_index, last_recall_ms_);
   } else {
     emit frameShown(frame_index, kNaN);
   }
   if (playing_) {  // play() was pressed while this recall was pending: start from it
     play_anchor_frame_ = frame_index;
-    play_clock_.start();
+    play_clock_.Restart();
     requestNextPlayFrame();
   }
 }

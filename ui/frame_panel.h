@@ -10,8 +10,8 @@
 // it (the owner answers locateVideoRequested with setMission and the new path).
 
 #include "core/mission/mission.h"
+#include "core/util/timer.h"
 
-#include <QElapsedTimer>
 #include <QImage>
 #include <QPointF>
 #include <QString>
@@ -146,7 +146,7 @@ class FramePanel : public QWidget {
   // The request in flight (latest wins: answers to any other ticket are dropped).
   quint64 next_ticket_ = 0;
   quint64 pending_ticket_ = 0;  // 0: none
-  QElapsedTimer click_timer_;   // since the showObservation that asked for the pending frame
+  Stopwatch click_timer_;       // since the showObservation that asked for the pending frame
   bool pending_from_click_ = false;
   double last_recall_ms_;
   double last_decode_ms_;
@@ -154,7 +154,7 @@ class FramePanel : public QWidget {
   // Playback: frame n is due at play_anchor_frame_ + (n - anchor) / fps on play_clock_.
   bool playing_ = false;
   int64_t play_anchor_frame_ = 0;
-  QElapsedTimer play_clock_;
+  Stopwatch play_clock_;
   int64_t held_frame_ = -1;  // decoded, waiting for its time
   QImage held_image_;
 };

@@ -1,11 +1,11 @@
 #include "ui/frame_recall.h"
 
+#include "core/util/timer.h"
 #include "core/video/video_reader.h"
 
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include <QElapsedTimer>
 #include <atomic>
 #include <condition_variable>
 #include <exception>
@@ -23,10 +23,6 @@ struct Request {
   int64_t frame_index = 0;
   quint64 ticket = 0;
 };
-
-double MillisecondsSince(const QElapsedTimer& timer) {
-  return static_cast<double>(timer.nsecsElapsed()) / 1e6;
-}
 
 }  // namespace
 
@@ -104,8 +100,7 @@ void FrameRecall::run() {
   // Opens `path` and builds its frame index without pixel conversion, checking between frames
   // whether the video was replaced or the recall is being destroyed.
   auto warm_up = [&]() -> bool {
-    QElapsedTimer timer;
-    timer.start();
+    const Stopwatch timer;
     video::ReaderOptions recall_options;
     recall_options.want_bgr = true;
     if (!known_index.empty()) {
@@ -113,7 +108,7 @@ void FrameRecall::run() {
       if (opened.ok()) {
         reader = std::move(opened).value();
         const auto count = static_cast<qint64>(reader->frame_index().size());
-        const double fps = reader->info().fps, ms = MillisecondsSince(timer);
+        const double fps = reader->info().fps, ms = timer.ElapsedMs();
         const QString qpath = QString::fromStdString(path);
         post([this, qpath, count, fps, ms] { emit videoReady(qpath, count, fps, ms); });
         return true;
@@ -150,7 +145,7 @@ void FrameRecall::run() {
     }
     reader = std::move(opened).value();
     const auto count = static_cast<qint64>(reader->frame_index().size());
-    const double ms = MillisecondsSince(timer);
+    const double ms = timer.ElapsedMs();
     const QString qpath = QString::fromStdString(path);
     post([this, qpath, count, fps, ms] { emit videoReady(qpath, count, fps, ms); });
     return true;
@@ -204,8 +199,7 @@ void FrameRecall::run() {
       post([this, ticket, message] { emit failed(ticket, message); });
       continue;
     }
-    QElapsedTimer timer;
-    timer.start();
+    const Stopwatch timer;
     QString error;
     QImage image;
     try {
@@ -226,7 +220,7 @@ void FrameRecall::run() {
     } catch (const std::exception& exception) {
       error = QString::fromUtf8(exception.what());
     }
-    const double ms = MillisecondsSince(timer);
+    const double ms = timer.ElapsedMs();
     // A request for a video that has since been replaced answers nobody.
     if (superseded()) continue;
     if (!error.isEmpty()) {

@@ -2,12 +2,13 @@
 
 #include "core/mosaic/adjustment.h"
 #include "core/track/homography.h"
+#include "core/track/image_geometry.h"
 #include "core/util/statistics.h"
+#include "core/util/timer.h"
 #include "ui/tile_cache.h"
 
 #include <Eigen/LU>
 
-#include <QElapsedTimer>
 #include <QFontMetricsF>
 #include <QKeyEvent>
 #include <QLinearGradient>
@@ -331,10 +332,10 @@ void MosaicView::rebuildMissionGeometry() {
       const Eigen::Matrix2d covariance =
           track::TransferCovariance(k.map_from_frame, k.covariance, corners[i]);
       if (!covariance.allFinite()) continue;
-      const mosaic::Ellipse ellipse = mosaic::ConfidenceEllipse(
+      const track::Ellipse ellipse = track::ConfidenceEllipse(
           Eigen::Vector2d(outline[i].x(), outline[i].y()), covariance, 0.95);
       QPolygonF polygon;
-      for (const Eigen::Vector2d& p : mosaic::EllipsePolygon(ellipse, 36)) {
+      for (const Eigen::Vector2d& p : track::EllipsePolygon(ellipse, 36)) {
         polygon << QPointF(p.x(), p.y());
       }
       polygon << polygon.front();
@@ -771,8 +772,7 @@ void MosaicView::paintTracks(QPainter& painter) {
     return;
   }
   redraw_tracks_now_ = false;
-  QElapsedTimer timer;
-  timer.start();
+  const Stopwatch timer;
   if (track_layer_.size() != device_size) {
     track_layer_ = QImage(device_size, QImage::Format_ARGB32_Premultiplied);
   }
@@ -784,7 +784,7 @@ void MosaicView::paintTracks(QPainter& painter) {
   }
   track_layer_view_ = view;
   track_layer_version_ = tracks_version_;
-  track_draw_ms_ = double(timer.nsecsElapsed()) / 1e6;
+  track_draw_ms_ = timer.ElapsedMs();
   painter.drawImage(QPointF(0, 0), track_layer_);
 }
 

@@ -1,5 +1,6 @@
 #include "core/activity/activity.h"
 
+#include "core/track/image_geometry.h"
 #include "core/util/statistics.h"
 #include "core/util/timer.h"
 
@@ -14,13 +15,11 @@ namespace {
 using mission::ActivityTrack;
 using mission::TrackPoint;
 
-// Image corners of a width x height frame, pixel centres at integers (docs/architecture.md).
-Eigen::Matrix<double, 3, 4> ImageCorners(int width, int height) {
+// The image corners (track::ImageCorners) as homogeneous columns.
+Eigen::Matrix<double, 3, 4> HomogeneousImageCorners(int width, int height) {
   Eigen::Matrix<double, 3, 4> corners;
-  const double x1 = width - 1.0, y1 = height - 1.0;
-  corners << 0, x1, x1, 0,  //
-      0, 0, y1, y1,         //
-      1, 1, 1, 1;
+  const std::array<Eigen::Vector2d, 4> points = track::ImageCorners(width, height);
+  for (int i = 0; i < 4; ++i) corners.col(i) = points[size_t(i)].homogeneous();
   return corners;
 }
 
@@ -82,8 +81,8 @@ double HeadingDegrees(const Eigen::Vector2d& displacement, bool geo_referenced) 
 }
 
 CoverageIndex::CoverageIndex(const mission::Mission& mission, int stride) {
-  const Eigen::Matrix<double, 3, 4> image =
-      ImageCorners(std::max(mission.source.width, 2), std::max(mission.source.height, 2));
+  const Eigen::Matrix<double, 3, 4> image = HomogeneousImageCorners(
+      std::max(mission.source.width, 2), std::max(mission.source.height, 2));
   std::vector<double> sizes;
   int64_t placed = 0;
   for (const mission::FrameRecord& frame : mission.frames) {

@@ -2,6 +2,7 @@
 
 #include "core/geo/local_tangent_plane.h"
 #include "core/track/homography.h"
+#include "core/track/image_geometry.h"
 #include "core/util/statistics.h"
 #include "core/util/timer.h"
 
@@ -28,7 +29,7 @@ CornerErrors Errors(const std::vector<Eigen::Matrix3d>& map_from_frame,
   CornerErrors e;
   double sum_px = 0, sum_m = 0;
   int n = 0;
-  const auto corners = mosaic::ImageCorners(width, height);
+  const auto corners = track::ImageCorners(width, height);
   for (size_t k = 0; k < map_from_frame.size(); ++k) {
     for (int c = 0; c < 4; ++c) {
       const Eigen::Vector3d q =
@@ -71,7 +72,7 @@ Eigen::Matrix3d FitCorners(const std::vector<std::array<Eigen::Vector2d, 4>>& fr
 Eigen::Matrix3d GaugeFit(const std::vector<Eigen::Matrix3d>& map_from_frame,
                          const std::vector<std::array<Eigen::Vector2d, 4>>& truth_ground, int width,
                          int height) {
-  const auto corners = mosaic::ImageCorners(width, height);
+  const auto corners = track::ImageCorners(width, height);
   std::vector<std::array<Eigen::Vector2d, 4>> estimated(map_from_frame.size());
   for (size_t k = 0; k < map_from_frame.size(); ++k) {
     for (int c = 0; c < 4; ++c) {
@@ -88,7 +89,7 @@ struct KeyFrameTruth {
 };
 StatusOr<KeyFrameTruth> TruthOfKeyFrames(const mosaic::LinkGraph& graph, const sim::Truth& truth,
                                          const std::string& what) {
-  const auto corners = mosaic::ImageCorners(graph.image_width, graph.image_height);
+  const auto corners = track::ImageCorners(graph.image_width, graph.image_height);
   KeyFrameTruth t;
   for (size_t k = 0; k < graph.nodes.size(); ++k) {
     const int64_t f = graph.nodes[k].frame_index;
@@ -120,7 +121,7 @@ StatusOr<InBetweenAccuracy> EvaluateInBetween(const mosaic::MosaicResult& mosaic
                                 " frames but the truth has " + std::to_string(truth.frames.size()));
   }
   const int w = graph.image_width, h = graph.image_height;
-  const auto corners = mosaic::ImageCorners(w, h);
+  const auto corners = track::ImageCorners(w, h);
   // Per frame: truth ground corners and each frame's own RMS error in pixels.
   const auto frame_errors = [&](size_t f, const Eigen::Matrix3d& map_from_frame) {
     const Eigen::Matrix3d& frame_from_ground = truth.frames[f].frame_from_ground;
@@ -205,7 +206,7 @@ StatusOr<MosaicAccuracy> EvaluateMosaic(const mosaic::MosaicResult& mosaic,
                                                                         truth.origin_height_m}));
     SAKER_ASSIGN_OR_RETURN(map_plane, geo::LocalTangentPlane::Create(*mosaic.origin));
   }
-  const auto corners = mosaic::ImageCorners(graph.image_width, graph.image_height);
+  const auto corners = track::ImageCorners(graph.image_width, graph.image_height);
   std::vector<std::array<Eigen::Vector2d, 4>> ground(graph.nodes.size()),
       in_map(graph.nodes.size());
   std::vector<Eigen::Matrix3d> frame_from_ground(graph.nodes.size()), adjusted, chained;
@@ -264,7 +265,7 @@ StatusOr<MetadataExperiment> RunMetadataExperiment(const mosaic::MosaicResult& m
     return InvalidArgumentError("metadata experiment: bad options");
   }
   const int w = graph.image_width, h = graph.image_height;
-  const auto corners = mosaic::ImageCorners(w, h);
+  const auto corners = track::ImageCorners(w, h);
   const size_t n = graph.nodes.size();
   SAKER_ASSIGN_OR_RETURN(const KeyFrameTruth key_truth,
                          TruthOfKeyFrames(graph, truth, "metadata experiment"));
@@ -279,7 +280,7 @@ StatusOr<MetadataExperiment> RunMetadataExperiment(const mosaic::MosaicResult& m
   distorted[0].x() += shift;
   distorted[1].x() -= shift;
   SAKER_ASSIGN_OR_RETURN(track::HomographyWithCovariance keystone,
-                         mosaic::HomographyFromCorners(corners, distorted, 1.0));
+                         track::HomographyFromCorners(corners, distorted, 1.0));
 
   mosaic::LinkGraph start = graph;
   start.geo_referenced = true;
@@ -361,7 +362,7 @@ StatusOr<DecompositionExperiment> RunDecompositionExperiment(
     return InvalidArgumentError("decomposition experiment: the mosaic has no chained start");
   }
   const int w = graph.image_width, h = graph.image_height;
-  const auto corners = mosaic::ImageCorners(w, h);
+  const auto corners = track::ImageCorners(w, h);
   SAKER_ASSIGN_OR_RETURN(const KeyFrameTruth key_truth,
                          TruthOfKeyFrames(graph, truth, "decomposition experiment"));
   const std::vector<Eigen::Matrix3d>& frame_from_ground = key_truth.frame_from_ground;

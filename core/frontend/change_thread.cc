@@ -1,21 +1,11 @@
 #include "core/frontend/change_thread.h"
 
 #include "core/util/check.h"
+#include "core/util/timer.h"
 
-#include <chrono>
 #include <utility>
 
 namespace saker::frontend {
-namespace {
-
-using Clock = std::chrono::steady_clock;
-
-double MillisecondsSince(Clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-}
-
-}  // namespace
-
 ChangeThread::ChangeThread(const track::ChangeOptions& options, size_t queue_frames,
                            size_t lag_frames)
     : inputs_(queue_frames), answers_(lag_frames + 1) {
@@ -30,18 +20,18 @@ ChangeThread::~ChangeThread() {
 
 void ChangeThread::Submit(int64_t frame, cv::Mat grey, std::optional<Eigen::Matrix3d> motion) {
   SAKER_CHECK(outstanding_.empty() || frame > outstanding_.back());
-  const auto start = Clock::now();
+  const Stopwatch watch;
   const bool pushed = inputs_.Push({frame, std::move(grey), std::move(motion)});
-  wait_ms_ += MillisecondsSince(start);
+  wait_ms_ += watch.ElapsedMs();
   if (!pushed) RethrowOrFail();
   outstanding_.push_back(frame);
 }
 
 std::optional<ChangeThread::Answer> ChangeThread::NextThrough(int64_t frame) {
   if (outstanding_.empty() || outstanding_.front() > frame) return std::nullopt;
-  const auto start = Clock::now();
+  const Stopwatch watch;
   std::optional<Answer> answer = answers_.Pop();
-  wait_ms_ += MillisecondsSince(start);
+  wait_ms_ += watch.ElapsedMs();
   if (!answer) RethrowOrFail();
   SAKER_CHECK(answer->submitted == outstanding_.front());
   outstanding_.pop_front();
@@ -52,13 +42,13 @@ void ChangeThread::Run(const track::ChangeOptions& options) {
   try {
     track::ChangeDetector detector(options);
     while (std::optional<Input> input = inputs_.Pop()) {
-      const auto start = Clock::now();
+      const Stopwatch watch;
       Answer answer;
       answer.submitted = input->frame;
       answer.restart = !input->motion;
       answer.change = detector.Process(input->frame, input->grey, input->motion);
       input.reset();  // the frame is no longer needed here
-      answer.ms = MillisecondsSince(start);
+      answer.ms = watch.ElapsedMs();
       if (!answers_.Push(std::move(answer))) return;
     }
   } catch (...) {

@@ -5,12 +5,12 @@
 #include "core/util/bounded_queue.h"
 #include "core/util/check.h"
 #include "core/util/memory.h"
+#include "core/util/timer.h"
 
 #include <Eigen/LU>
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
-#include <chrono>
 #include <limits>
 #include <memory>
 #include <optional>
@@ -22,8 +22,6 @@
 namespace saker::frontend {
 namespace {
 
-using Clock = std::chrono::steady_clock;
-
 // Change detection answers are applied this many frames after their frame was submitted (see
 // FrontEnd::ApplyChangeThrough): the change thread may fall this far behind before the calling
 // thread waits for it. An answer belongs to the frame the longest baseline before the one
@@ -33,10 +31,6 @@ using Clock = std::chrono::steady_clock;
 constexpr int64_t kChangeLagFrames = 8;
 // How often the memory limit is checked: reading /proc costs about 10 us.
 constexpr int64_t kMemoryCheckFrames = 25;
-
-double MillisecondsSince(Clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-}
 
 // The scan decodes every frame and every KLV packet in one pass; grey frames only.
 ingest::ScanOptions ScanOptionsFor(const FrontEndOptions& options) {
@@ -57,14 +51,14 @@ class DecodeThread {
                int64_t pixels_from)
       : queue_(queue_frames) {
     thread_ = std::thread([this, path, options, pixels_from] {
-      auto start = Clock::now();
+      Stopwatch watch;
       scan_ = ingest::ScanVideo(path, options, &job_, [&](const video::Frame& frame) {
         video::Frame copy = frame;
         // The reader reuses its buffers; a frame that is only decoded needs no pixels.
         copy.grey = frame.index >= pixels_from ? frame.grey.clone() : cv::Mat();
-        decode_ms_ += MillisecondsSince(start);
+        decode_ms_ += watch.ElapsedMs();
         if (!queue_.Push(std::move(copy))) job_.RequestCancel();
-        start = Clock::now();
+        watch.Restart();
       });
       queue_.Close(scan_.ok() ? Status::Ok() : scan_.status());
     });
@@ -190,7 +184,7 @@ class FrontEnd {
   std::vector<track::TargetTrack> targets_by_change_;
   std::vector<Eigen::Matrix3d> image_placements_;  // preview_from_frame of each key frame image
   CheckpointTail delivered_;                       // what the checkpoints handed out so far
-  Clock::time_point last_checkpoint_;
+  Stopwatch since_checkpoint_;
 
   track::FeatureTracker tracker_;
   track::MotionSegmenter segmenter_;
@@ -233,8 +227,8 @@ StatusOr<FrontEndResult> FrontEnd::Run() {
   StartFromCheckpoint();
   DecodeThread decode(path_, ScanOptionsFor(options_), size_t(options_.queue_frames),
                       start_.warm_from);
-  const auto wall_start = Clock::now();
-  last_checkpoint_ = wall_start;
+  const Stopwatch wall;
+  since_checkpoint_.Restart();
   if (options_.change.enabled) {
     change_.emplace(options_.change, size_t(options_.change_queue_frames),
                     size_t(kChangeLagFrames));
@@ -250,7 +244,7 @@ StatusOr<FrontEndResult> FrontEnd::Run() {
   }
   SAKER_ASSIGN_OR_RETURN(ingest::VideoScan scan, decode.Finish());
   StatusOr<FrontEndResult> result = Finish(std::move(scan), decode.decode_ms());
-  if (result.ok()) result->timing.wall_s = MillisecondsSince(wall_start) / 1000.0;
+  if (result.ok()) result->timing.wall_s = wall.ElapsedSeconds();
   return result;
 }
 
@@ -320,9 +314,9 @@ Status FrontEnd::ProcessFrame(const video::Frame& frame) {
   fr.pts = frame.pts;
   fr.key_frame = frame.key_frame;
   FrontEndTiming& timing = result_.timing;
-  const auto start = Clock::now();
+  const Stopwatch watch;
   tracker_.Process(frame.index, frame.grey);
-  timing.track_ms += MillisecondsSince(start);
+  timing.track_ms += watch.ElapsedMs();
   fr.tracked = int(tracker_.points().size());
 
   std::optional<Eigen::Vector3d> epipole;
@@ -340,7 +334,7 @@ Status FrontEnd::ProcessFrame(const video::Frame& frame) {
   const bool new_key_frame = AddToChain(frame, estimate);
   if (frame.index > start_.through_frame) result_.frames.push_back(fr);
   if (new_key_frame && options_.on_checkpoint &&
-      MillisecondsSince(last_checkpoint_) >= 1000 * options_.checkpoint_interval_s) {
+      since_checkpoint_.ElapsedSeconds() >= options_.checkpoint_interval_s) {
     SAKER_RETURN_IF_ERROR(HandOutCheckpoint(frame.index, /*complete=*/false));
   }
   ReportProgress(double(result_.frames.size()));
@@ -351,7 +345,7 @@ Status FrontEnd::ProcessFrame(const video::Frame& frame) {
 // shows parallax.
 std::optional<track::HomographyEstimate> FrontEnd::EstimateGroundMotion(
     std::optional<Eigen::Vector3d>* epipole) {
-  const auto start = Clock::now();
+  const Stopwatch watch;
   std::vector<track::Correspondence> ground;
   ground.reserve(tracker_.matches().size());
   for (const track::Correspondence& m : tracker_.matches()) {
@@ -364,7 +358,7 @@ std::optional<track::HomographyEstimate> FrontEnd::EstimateGroundMotion(
     if (h.ok()) estimate = std::move(h).value();
   }
   if (estimate && options_.parallax_check) *epipole = ParallaxEpipole(ground, *estimate, options_);
-  result_.timing.homography_ms += MillisecondsSince(start);
+  result_.timing.homography_ms += watch.ElapsedMs();
   return estimate;
 }
 
@@ -373,17 +367,17 @@ std::optional<track::HomographyEstimate> FrontEnd::EstimateGroundMotion(
 void FrontEnd::SubmitForChange(const video::Frame& frame,
                                const std::optional<track::HomographyEstimate>& estimate) {
   if (!change_) return;
-  const auto start = Clock::now();
+  const Stopwatch watch;
   std::optional<Eigen::Matrix3d> motion;
   if (estimate) motion = estimate->target_from_source;
   change_->Submit(frame.index, frame.grey, motion);
-  change_side_ms_ += MillisecondsSince(start);
+  change_side_ms_ += watch.ElapsedMs();
 }
 
 void FrontEnd::Segment(const video::Frame& frame,
                        const std::optional<track::HomographyEstimate>& estimate,
                        const std::optional<Eigen::Vector3d>& epipole, FrameResult* frame_result) {
-  const auto start = Clock::now();
+  const Stopwatch watch;
   const double change_side_before = change_side_ms_;
   if (estimate) {
     preview_from_current_ = preview_from_current_ * estimate->target_from_source.inverse();
@@ -408,7 +402,7 @@ void FrontEnd::Segment(const video::Frame& frame,
   for (track::TargetTrack& t : target_tracker_.TakeFinished()) {
     KeepTarget(std::move(t), start_.through_frame, &result_.targets);
   }
-  result_.timing.segment_ms += MillisecondsSince(start) - (change_side_ms_ - change_side_before);
+  result_.timing.segment_ms += watch.ElapsedMs() - (change_side_ms_ - change_side_before);
 }
 
 // The change answers for every frame up to `frame`, waiting for them if need be. Applied at a
@@ -417,18 +411,18 @@ void FrontEnd::Segment(const video::Frame& frame,
 // frame before it, at the end all of them.
 void FrontEnd::ApplyChangeThrough(int64_t frame) {
   if (!change_) return;
-  const auto start = Clock::now();
+  const Stopwatch watch;
   while (std::optional<ChangeThread::Answer> answer = change_->NextThrough(frame)) {
     ApplyChangeAnswer(*answer);
   }
-  change_side_ms_ += MillisecondsSince(start);
+  change_side_ms_ += watch.ElapsedMs();
 }
 
 // What the single-threaded front end did right after the frame: the blob tracks (ended first
 // when the frame had no ground motion), the change evidence of the targets, the finished blob
 // tracks.
 void FrontEnd::ApplyChangeAnswer(const ChangeThread::Answer& answer) {
-  const auto start = Clock::now();
+  const Stopwatch watch;
   if (answer.restart) change_tracks_.FinishAll();
   const track::ChangeFrame& c = answer.change;
   if (c.answered()) {
@@ -446,7 +440,7 @@ void FrontEnd::ApplyChangeAnswer(const ChangeThread::Answer& answer) {
     KeepTarget(std::move(t), start_.change_through_frame, &targets_by_change_);
   }
   result_.timing.change_ms += answer.ms;
-  result_.timing.change_tracks_ms += MillisecondsSince(start);
+  result_.timing.change_tracks_ms += watch.ElapsedMs();
 }
 
 // A target this run finished, cut at the seam when resuming.
@@ -463,7 +457,7 @@ void FrontEnd::KeepTarget(track::TargetTrack target, int64_t cut,
 // result as they appear, numbered after the checkpoint's when resuming. True for a new key frame.
 bool FrontEnd::AddToChain(const video::Frame& frame,
                           const std::optional<track::HomographyEstimate>& estimate) {
-  const auto start = Clock::now();
+  const Stopwatch watch;
   std::vector<track::StationaryPoint> stationary;
   stationary.reserve(tracker_.points().size());
   for (const track::TrackedPoint& p : tracker_.points()) {
@@ -487,7 +481,7 @@ bool FrontEnd::AddToChain(const video::Frame& frame,
   for (; chain_breaks_ < chain_.breaks().size(); ++chain_breaks_) {
     result_.breaks.push_back(chain_.breaks()[chain_breaks_]);
   }
-  result_.timing.key_frames_ms += MillisecondsSince(start);
+  result_.timing.key_frames_ms += watch.ElapsedMs();
   return new_key_frame;
 }
 
@@ -521,7 +515,7 @@ Status FrontEnd::HandOutCheckpoint(int64_t through_frame, bool complete) {
     }
     c.change_through_frame = change_through_;
   }
-  last_checkpoint_ = Clock::now();
+  since_checkpoint_.Restart();
   const Status saved = options_.on_checkpoint(c);
   if (!saved.ok()) return Status(saved.code(), path_ + ": checkpoint: " + saved.message());
   return Status::Ok();

@@ -14,4 +14,11 @@ const char* LinkKindName(LinkKind kind) {
   return "unknown";
 }
 
+std::optional<LinkKind> LinkKindFromName(const std::string& name) {
+  for (LinkKind kind : {LinkKind::kSequential, LinkKind::kGeometric, LinkKind::kAppearance}) {
+    if (name == LinkKindName(kind)) return kind;
+  }
+  return std::nullopt;
+}
+
 }  // namespace saker::mission

@@ -2,7 +2,8 @@
 
 // A processed mission as plain data: what the mission file (`.saker`, an SQLite database)
 // stores, what the exports write and what the GUI shows. Nothing here refers to a running engine
-// stage; `mission/process.h` fills it from one, `mission/mission_store.h` saves and loads it.
+// stage; the pipeline (`core/pipeline/stages.h`) fills it from one, `mission_store.h` saves and
+// loads it.
 //
 // Conventions (docs/architecture.md): homographies are `target_from_source`, H(2,2) = 1, with
 // 8x8 covariances in the order of track/types.h; the map frame is east-north-up metres around
@@ -70,7 +71,12 @@ struct KeyFrameRecord {
   bool node = false;  // a node of the node/arc decomposition
 };
 
-enum class LinkKind { kSequential, kGeometric, kAppearance };
+// How two key frames came to be linked; the one definition, shared with the mosaic engine.
+enum class LinkKind {
+  kSequential,  // consecutive key frames of a segment (front end)
+  kGeometric,   // loop closure: features matched inside their predicted uncertainty ellipses
+  kAppearance,  // loop closure: SIFT matched without geometry, verified by RANSAC
+};
 
 struct LinkRecord {
   int32_t from = 0;  // KeyFrameId
@@ -141,6 +147,7 @@ struct Mission {
   Progress progress;
 };
 
-const char* LinkKindName(LinkKind kind);  // "sequential", "geometric", "appearance"
+const char* LinkKindName(LinkKind kind);  // "sequential", "geometric", "appearance"; "unknown"
+std::optional<LinkKind> LinkKindFromName(const std::string& name);  // LinkKindName's inverse
 
 }  // namespace saker::mission

@@ -244,17 +244,7 @@ class MetaReader {
   Status status_;
 };
 
-std::optional<LinkKind> LinkKindFromName(const std::string& name) {
-  for (LinkKind kind : {LinkKind::kSequential, LinkKind::kGeometric, LinkKind::kAppearance}) {
-    if (name == LinkKindName(kind)) return kind;
-  }
-  return std::nullopt;
-}
-
-bool ValidLinkKind(LinkKind kind) {
-  return kind == LinkKind::kSequential || kind == LinkKind::kGeometric ||
-         kind == LinkKind::kAppearance;
-}
+bool ValidLinkKind(LinkKind kind) { return LinkKindFromName(LinkKindName(kind)).has_value(); }
 
 // Reads the first `n` bytes of `path`: fewer when the file is shorter.
 StatusOr<std::string> ReadPrefix(const std::string& path, size_t n) {

@@ -2,6 +2,7 @@
 
 #include "core/mosaic/residuals.h"
 #include "core/track/homography.h"
+#include "core/track/image_geometry.h"
 #include "core/util/check.h"
 #include "core/util/statistics.h"
 #include "core/util/timer.h"
@@ -233,7 +234,7 @@ class AdjustmentProblem {
     problem_ = std::make_unique<ceres::Problem>(problem_options);
 
     const std::array<Eigen::Vector2d, 4> corners =
-        ImageCorners(graph.image_width, graph.image_height);
+        track::ImageCorners(graph.image_width, graph.image_height);
     for (const Link& link : graph.links) {
       auto* residual = new LinkResidual(
           MakeLinkResidual(link.to_from_from, link.covariance, corners, options.min_link_sigma_px));
@@ -337,7 +338,7 @@ class AdjustmentProblem {
 bool AlignGaugesToMetadata(const LinkGraph& graph, AdjustmentProblem* adjustment) {
   bool aligned = false;
   const std::array<Eigen::Vector2d, 4> corners =
-      ImageCorners(graph.image_width, graph.image_height);
+      track::ImageCorners(graph.image_width, graph.image_height);
   for (int c = 0; c < adjustment->components(); ++c) {
     if (!adjustment->has_metadata(c)) continue;
     std::vector<size_t> members;
@@ -606,39 +607,6 @@ StatusOr<std::vector<track::HomographyCovariance>> NodeCovariances(
     result[k] = 0.5 * (block + block.transpose());
   }
   return result;
-}
-
-Ellipse ConfidenceEllipse(const Eigen::Vector2d& centre, const Eigen::Matrix2d& covariance,
-                          double confidence) {
-  SAKER_CHECK(confidence > 0 && confidence < 1) << "confidence " << confidence;
-  SAKER_CHECK(covariance.allFinite());
-  const double k2 = -2.0 * std::log1p(-confidence);
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eigen(0.5 *
-                                                             (covariance + covariance.transpose()));
-  // Eigenvalues ascending: the major axis is the second eigenvector.
-  const Eigen::Vector2d major = eigen.eigenvectors().col(1);
-  Ellipse e;
-  e.centre = centre;
-  e.semi_major = std::sqrt(k2 * std::max(0.0, eigen.eigenvalues()(1)));
-  e.semi_minor = std::sqrt(k2 * std::max(0.0, eigen.eigenvalues()(0)));
-  double angle = std::atan2(major.y(), major.x());
-  if (angle <= -M_PI / 2) angle += M_PI;
-  if (angle > M_PI / 2) angle -= M_PI;
-  e.angle_rad = angle;
-  return e;
-}
-
-std::vector<Eigen::Vector2d> EllipsePolygon(const Ellipse& ellipse, int points) {
-  SAKER_CHECK(points >= 3) << "points " << points;
-  const double c = std::cos(ellipse.angle_rad), s = std::sin(ellipse.angle_rad);
-  std::vector<Eigen::Vector2d> polygon;
-  polygon.reserve(size_t(points));
-  for (int i = 0; i < points; ++i) {
-    const double t = 2.0 * M_PI * i / points;
-    const double a = ellipse.semi_major * std::cos(t), b = ellipse.semi_minor * std::sin(t);
-    polygon.push_back(ellipse.centre + Eigen::Vector2d(c * a - s * b, s * a + c * b));
-  }
-  return polygon;
 }
 
 }  // namespace saker::mosaic

@@ -101,19 +101,4 @@ StatusOr<std::vector<track::HomographyCovariance>> NodeCovariances(
     const LinkGraph& graph, const AdjustmentOptions& options,
     const std::vector<KeyFrameId>& nodes = {});
 
-// Uncertainty ellipse of a 2-D Gaussian at a confidence level (2-dof chi-square:
-// k^2 = -2 ln(1 - confidence)).
-struct Ellipse {
-  Eigen::Vector2d centre{0, 0};
-  double semi_major = 0, semi_minor = 0;
-  double angle_rad = 0;  // of the major axis, from +x towards +y, in (-pi/2, pi/2]
-};
-// confidence in (0, 1) and a finite covariance (SAKER_CHECK); negative eigenvalues from rounding
-// count as zero.
-Ellipse ConfidenceEllipse(const Eigen::Vector2d& centre, const Eigen::Matrix2d& covariance,
-                          double confidence);
-// `points` (>= 3, SAKER_CHECK) points on the ellipse, counter-clockwise in x-right y-up terms
-// (from +x towards +y), starting at the end of the major axis.
-std::vector<Eigen::Vector2d> EllipsePolygon(const Ellipse& ellipse, int points = 36);
-
 }  // namespace saker::mosaic

@@ -3,6 +3,7 @@
 #include "core/mosaic/link_graph.h"
 #include "core/mosaic/residuals.h"
 #include "core/track/homography.h"
+#include "core/track/image_geometry.h"
 
 #include <Eigen/LU>
 
@@ -518,7 +519,7 @@ StatusOr<ChainSolution> SolveChain(const Eigen::Matrix3d& map_from_first,
         "chain: map_from_last given for an empty chain (frame 0 would be fixed twice)");
   }
   const HomographyStep step = HomographyStep::ForImage(image_width, image_height);
-  const Corners corners = ImageCorners(image_width, image_height);
+  const Corners corners = track::ImageCorners(image_width, image_height);
   SAKER_RETURN_IF_ERROR(CheckEnd(map_from_first, "map_from_first", step));
   if (map_from_last) SAKER_RETURN_IF_ERROR(CheckEnd(*map_from_last, "map_from_last", step));
   for (size_t i = 0; i < n; ++i) SAKER_RETURN_IF_ERROR(CheckStep(steps[i], i, step, corners));

@@ -2,6 +2,7 @@
 
 #include "core/mosaic/residuals.h"
 #include "core/track/homography.h"
+#include "core/track/image_geometry.h"
 #include "core/util/check.h"
 #include "core/util/timer.h"
 
@@ -51,7 +52,7 @@ StatusOr<track::HomographyWithCovariance> ChainArc(const LinkGraph& graph, const
 // RMS per corner coordinate of the whitened misfit between a (reduced) link's measurement and the
 // relation its adjusted ends imply: the Mahalanobis length of the corner residual over 8.
 double Flex(const LinkGraph& reduced, const Link& link, double floor_px) {
-  const auto corners = ImageCorners(reduced.image_width, reduced.image_height);
+  const auto corners = track::ImageCorners(reduced.image_width, reduced.image_height);
   const Eigen::Matrix3d predicted = reduced.nodes[size_t(link.to)].map_from_frame.inverse() *
                                     reduced.nodes[size_t(link.from)].map_from_frame;
   Eigen::Matrix<double, internal::kResiduals, 1> error;

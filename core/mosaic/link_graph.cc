@@ -5,24 +5,6 @@
 
 namespace saker::mosaic {
 
-std::array<Eigen::Vector2d, 4> ImageCorners(int width, int height) {
-  const double x = width - 1, y = height - 1;
-  return {Eigen::Vector2d(0, 0), Eigen::Vector2d(x, 0), Eigen::Vector2d(x, y),
-          Eigen::Vector2d(0, y)};
-}
-
-const char* LinkKindName(LinkKind kind) {
-  switch (kind) {
-    case LinkKind::kSequential:
-      return "sequential";
-    case LinkKind::kGeometric:
-      return "geometric";
-    case LinkKind::kAppearance:
-      return "appearance";
-  }
-  return "sequential";
-}
-
 namespace {
 
 bool FiniteHomography(const Eigen::Matrix3d& h) {

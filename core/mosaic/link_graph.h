@@ -8,6 +8,7 @@
 // metadata corners (geo_referenced), otherwise the first key frame's pixel frame. Image points
 // are full-resolution pixels, integer = pixel centre. Homography parameters and covariances use
 // the order of core/track/types.h (h00 h01 h02 h10 h11 h12 h20 h21).
+#include "core/mission/mission.h"
 #include "core/track/types.h"
 #include "core/util/status.h"
 
@@ -23,10 +24,6 @@ namespace saker::mosaic {
 
 using track::KeyFrameId;
 
-// The image corners in MISB order: upper-left, upper-right, lower-right, lower-left; the centres
-// of the outermost pixels (0, 0) .. (width - 1, height - 1).
-std::array<Eigen::Vector2d, 4> ImageCorners(int width, int height);
-
 struct Node {
   KeyFrameId id{};          // == its index in LinkGraph::nodes
   int64_t frame_index = 0;  // in the video
@@ -38,12 +35,8 @@ struct Node {
   std::optional<std::array<Eigen::Vector2d, 4>> metadata_corners;
 };
 
-enum class LinkKind {
-  kSequential,  // consecutive key frames of a segment (front end)
-  kGeometric,   // loop closure: features matched inside their predicted uncertainty ellipses
-  kAppearance,  // loop closure: SIFT matched without geometry, verified by RANSAC
-};
-const char* LinkKindName(LinkKind kind);
+using mission::LinkKind;
+using mission::LinkKindName;
 
 struct Link {
   KeyFrameId from{};

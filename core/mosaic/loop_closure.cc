@@ -1,6 +1,7 @@
 #include "core/mosaic/loop_closure.h"
 
 #include "core/track/homography.h"
+#include "core/track/image_geometry.h"
 
 #include <Eigen/Geometry>
 #include <Eigen/LU>
@@ -383,7 +384,7 @@ bool PlausibleHomography(const Eigen::Matrix3d& b_from_a_in, int width, int heig
   const double norm = b_from_a_in.norm();
   if (!(norm > 0)) return false;
   Eigen::Matrix3d h = b_from_a_in / norm;
-  const std::array<Eigen::Vector2d, 4> corners = ImageCorners(width, height);
+  const std::array<Eigen::Vector2d, 4> corners = track::ImageCorners(width, height);
   std::array<double, 4> w{};
   for (int i = 0; i < 4; ++i) w[i] = h.row(2).transpose().dot(corners[i].homogeneous());
   // A homography is defined up to scale, sign included: make w positive if it can be.

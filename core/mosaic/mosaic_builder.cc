@@ -1,6 +1,7 @@
 #include "core/mosaic/mosaic_builder.h"
 
 #include "core/track/homography.h"
+#include "core/track/image_geometry.h"
 #include "core/util/check.h"
 #include "core/util/timer.h"
 
@@ -23,7 +24,7 @@ Eigen::Matrix3d Normalised(const Eigen::Matrix3d& h) { return h / h(2, 2); }
 // to a convex quadrilateral in front of the camera).
 double PredictedOverlap(const Eigen::Matrix3d& b_from_a, int width, int height) {
   std::vector<cv::Point2f> quad, rect, overlap;
-  for (const Eigen::Vector2d& c : ImageCorners(width, height)) {
+  for (const Eigen::Vector2d& c : track::ImageCorners(width, height)) {
     const Eigen::Vector3d q = b_from_a * c.homogeneous();
     if (!(q.z() > 1e-9)) return 0;
     quad.emplace_back(float(q.x() / q.z()), float(q.y() / q.z()));
@@ -38,7 +39,7 @@ double PredictedOverlap(const Eigen::Matrix3d& b_from_a, int width, int height) 
 // every projected corner, expressed on the parameters of `h` through the corners.
 HomographyCovariance UninformativeCovariance(const Eigen::Matrix3d& h, int width, int height) {
   Eigen::Matrix<double, 8, 8> j;
-  const auto corners = ImageCorners(width, height);
+  const auto corners = track::ImageCorners(width, height);
   for (int i = 0; i < 4; ++i) j.block<2, 8>(2 * i, 0) = track::TransferJacobian(h, corners[i]);
   // Map units per pixel near the centre, so that the sigma is one frame in the map too.
   const Eigen::Matrix2d a = track::TransferPointJacobian(h, {width / 2.0, height / 2.0});
@@ -113,8 +114,8 @@ struct Builder {
     }
     if (node.metadata_corners) {
       StatusOr<HomographyWithCovariance> h =
-          HomographyFromCorners(ImageCorners(width(), height()), *node.metadata_corners,
-                                options.adjustment.metadata_sigma_m);
+          track::HomographyFromCorners(track::ImageCorners(width(), height()),
+                                       *node.metadata_corners, options.adjustment.metadata_sigma_m);
       if (h.ok()) return *h;
     }
     HomographyWithCovariance guess;
@@ -140,8 +141,8 @@ struct Builder {
     }
     if (first == k) return;  // a segment start: Initial used the metadata directly
     StatusOr<HomographyWithCovariance> anchored =
-        HomographyFromCorners(ImageCorners(width(), height()), *node.metadata_corners,
-                              options.adjustment.metadata_sigma_m);
+        track::HomographyFromCorners(track::ImageCorners(width(), height()), *node.metadata_corners,
+                                     options.adjustment.metadata_sigma_m);
     if (!anchored.ok()) return;
     const Eigen::Matrix3d g = anchored->target_from_source * node.map_from_frame.inverse();
     for (int i = first; i <= k; ++i) {
@@ -149,11 +150,11 @@ struct Builder {
       n.map_from_frame = Normalised(g * n.map_from_frame);
       // Known to about the metadata's accuracy, like the anchor.
       std::array<Eigen::Vector2d, 4> corners;
-      const auto image = ImageCorners(width(), height());
+      const auto image = track::ImageCorners(width(), height());
       for (int c = 0; c < 4; ++c)
         corners[size_t(c)] = track::Transfer(n.map_from_frame, image[size_t(c)]);
       StatusOr<HomographyWithCovariance> h =
-          HomographyFromCorners(image, corners, options.adjustment.metadata_sigma_m);
+          track::HomographyFromCorners(image, corners, options.adjustment.metadata_sigma_m);
       if (h.ok()) result.covariances[size_t(i)] = h->covariance;
     }
   }
@@ -213,7 +214,7 @@ struct Builder {
           result.covariances[size_t(j)], j_from_map, centre, options.prediction_floor_px);
       // A covariance that is not finite (a degenerate solve) says nothing: lost.
       if (!cov.allFinite() ||
-          !(ConfidenceEllipse(centre, cov, options.match.confidence).semi_major < limit)) {
+          !(track::ConfidenceEllipse(centre, cov, options.match.confidence).semi_major < limit)) {
         lost = true;
         continue;
       }
@@ -375,39 +376,6 @@ Status MosaicOptions::Validate() const {
         "adjust_every_metadata >= 0");
   }
   return Status::Ok();
-}
-
-StatusOr<HomographyWithCovariance> HomographyFromCorners(
-    const std::array<Eigen::Vector2d, 4>& image, const std::array<Eigen::Vector2d, 4>& map,
-    double sigma) {
-  // u = (h00 x + h01 y + h02) / (h20 x + h21 y + 1), likewise v: linear in the 8 parameters.
-  Eigen::Matrix<double, 8, 8> a;
-  Eigen::Matrix<double, 8, 1> b;
-  for (int i = 0; i < 4; ++i) {
-    const double x = image[size_t(i)].x(), y = image[size_t(i)].y();
-    const double u = map[size_t(i)].x(), v = map[size_t(i)].y();
-    a.row(2 * i) << x, y, 1, 0, 0, 0, -x * u, -y * u;
-    a.row(2 * i + 1) << 0, 0, 0, x, y, 1, -x * v, -y * v;
-    b(2 * i) = u;
-    b(2 * i + 1) = v;
-  }
-  const Eigen::FullPivLU<Eigen::Matrix<double, 8, 8>> lu(a);
-  if (!lu.isInvertible() || !a.allFinite() || !b.allFinite()) {
-    return InvalidDataError("mosaic: the four corners do not define a homography");
-  }
-  HomographyWithCovariance h;
-  h.target_from_source = track::HomographyFromParameters(lu.solve(b));
-  Eigen::Matrix<double, 8, 8> j;
-  for (int i = 0; i < 4; ++i) {
-    j.block<2, 8>(2 * i, 0) = track::TransferJacobian(h.target_from_source, image[size_t(i)]);
-  }
-  const Eigen::FullPivLU<Eigen::Matrix<double, 8, 8>> lu_j(j);
-  if (!lu_j.isInvertible()) {
-    return InvalidDataError("mosaic: the four corners do not define a homography");
-  }
-  const Eigen::Matrix<double, 8, 8> inverse = lu_j.inverse();
-  h.covariance = sigma * sigma * inverse * inverse.transpose();
-  return h;
 }
 
 StatusOr<MosaicResult> BuildMosaic(const MosaicInput& input, const MosaicOptions& options,

@@ -107,11 +107,4 @@ struct MosaicResult {
 StatusOr<MosaicResult> BuildMosaic(const MosaicInput& input, const MosaicOptions& options,
                                    JobContext* job = nullptr);
 
-// The homography taking the four image corners to four map points, with the 8x8 covariance
-// implied by an isotropic standard deviation `sigma` on each map coordinate. InvalidData when the
-// points are degenerate (three collinear).
-StatusOr<track::HomographyWithCovariance> HomographyFromCorners(
-    const std::array<Eigen::Vector2d, 4>& image, const std::array<Eigen::Vector2d, 4>& map,
-    double sigma);
-
 }  // namespace saker::mosaic

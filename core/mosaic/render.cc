@@ -2,6 +2,7 @@
 
 #include "core/mosaic/adjustment.h"
 #include "core/track/homography.h"
+#include "core/track/image_geometry.h"
 #include "core/util/statistics.h"
 
 #include <Eigen/Geometry>
@@ -53,7 +54,7 @@ StatusOr<MosaicImage> RenderMosaic(const LinkGraph& graph,
     if (!image.grey.empty()) by_id[int(image.id)] = &image;
   }
   // Extent and resolution from the key frames' footprints.
-  const auto corners = ImageCorners(graph.image_width, graph.image_height);
+  const auto corners = track::ImageCorners(graph.image_width, graph.image_height);
   double x0 = std::numeric_limits<double>::infinity(), y0 = x0, x1 = -x0, y1 = -x0;
   std::vector<double> resolutions;
   for (const Node& node : graph.nodes) {
@@ -157,10 +158,10 @@ StatusOr<MosaicImage> RenderMosaic(const LinkGraph& graph,
       for (const Eigen::Vector2d& c : corners) {
         const Eigen::Matrix2d cov =
             track::TransferCovariance(node.map_from_frame, covariances[i], c);
-        const Ellipse e = ConfidenceEllipse(track::Transfer(node.map_from_frame, c), cov,
-                                            options.ellipse_confidence);
+        const track::Ellipse e = track::ConfidenceEllipse(track::Transfer(node.map_from_frame, c),
+                                                          cov, options.ellipse_confidence);
         std::vector<cv::Point> polygon;
-        for (const Eigen::Vector2d& p : EllipsePolygon(e, 48)) {
+        for (const Eigen::Vector2d& p : track::EllipsePolygon(e, 48)) {
           polygon.push_back(ToPoint(out.image_from_map, p));
         }
         cv::polylines(out.bgr, polygon, true, cv::Scalar(0, 255, 255), 1, cv::LINE_AA);

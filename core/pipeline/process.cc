@@ -97,12 +97,7 @@ StatusOr<std::unique_ptr<mission::MissionStore>> OpenToResume(
 
 }  // namespace
 
-Status ProcessOptions::Validate() const {
-  SAKER_RETURN_IF_ERROR(mosaic.Validate());
-  SAKER_RETURN_IF_ERROR(activity.Validate());
-  SAKER_RETURN_IF_ERROR(pyramid.Validate());
-  return {};
-}
+Status ProcessOptions::Validate() const { return StageOptions::Validate(); }
 
 std::string ProcessSummary::ToText() const {
   std::ostringstream out;

@@ -9,18 +9,6 @@
 namespace saker::pipeline {
 namespace {
 
-mission::LinkKind MissionLinkKind(mosaic::LinkKind kind) {
-  switch (kind) {
-    case mosaic::LinkKind::kSequential:
-      return mission::LinkKind::kSequential;
-    case mosaic::LinkKind::kGeometric:
-      return mission::LinkKind::kGeometric;
-    case mosaic::LinkKind::kAppearance:
-      return mission::LinkKind::kAppearance;
-  }
-  return mission::LinkKind::kSequential;
-}
-
 // Key frames and links of the adjusted graph, nodes of the last decomposition marked.
 void GraphRecords(const mosaic::MosaicResult& result, mission::Mission* m) {
   std::vector<bool> node(result.graph.nodes.size(), false);
@@ -47,7 +35,7 @@ void GraphRecords(const mosaic::MosaicResult& result, mission::Mission* m) {
     mission::LinkRecord r;
     r.from = int32_t(l.from);
     r.to = int32_t(l.to);
-    r.kind = MissionLinkKind(l.kind);
+    r.kind = l.kind;
     r.to_from_from = l.to_from_from;
     r.covariance = l.covariance;
     r.correspondences = int32_t(l.correspondences.size());
@@ -106,7 +94,6 @@ StatusOr<bool> ActivityStage(const StageOptions& options, JobContext* job, Missi
   m.tracks = TrackRecords(run->front);
   SAKER_ASSIGN_OR_RETURN(const activity::ActivitySummary mapped,
                          activity::MapActivity(m, &m.tracks, options.activity));
-  run->observations_dropped = mapped.observations_dropped;
   if (mapped.observations_dropped > 0) {
     run->warnings.push_back(std::to_string(mapped.observations_dropped) +
                             " target observations lie on frames that could not be placed on "
@@ -171,6 +158,7 @@ Status StageOptions::Validate() const {
 
 Status RunStages(const std::string& video, const StageOptions& options, const StageHooks& hooks,
                  JobContext* job, MissionRun* run) {
+  SAKER_RETURN_IF_ERROR(options.Validate());
   for (const Stage stage : {Stage::kFrontEnd, Stage::kMosaic, Stage::kActivity, Stage::kTiles}) {
     if (int(stage) > int(hooks.last)) break;
     if (stage == Stage::kTiles && !hooks.write_tiles) break;

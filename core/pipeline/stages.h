@@ -51,9 +51,8 @@ struct MissionRun {
   frontend::FrontEndResult front;
   mosaic::MosaicInput mosaic_input;
   std::optional<mosaic::MosaicResult> mosaic;  // nullopt: no mosaic (no key frame) or not run
-  Status
-      no_mosaic;  // why the mosaic stage made none (InvalidData: the front end found no key frame)
-  int64_t observations_dropped = 0;  // by the activity stage: on unplaced frames
+  // Why the mosaic stage made none (InvalidData: the front end found no key frame).
+  Status no_mosaic;
   int64_t tiles_written = 0;
   double seconds[4] = {0, 0, 0, 0};   // per Stage, wall time
   std::optional<Stage> failed;        // the stage whose error RunStages returned
@@ -74,10 +73,10 @@ struct StageHooks {
 };
 
 // Runs the stages on `video` up to hooks.last, filling `run` (its mission's source record is the
-// caller's). Errors name the video or the stage; Cancelled through `job`, with what completed
-// left in `run`. A video in which the front end finds no key frame is not an error: the mosaic
-// and later stages are skipped and a warning says so; likewise a mosaic with no picture for the
-// tiles.
+// caller's). Options are validated first. Errors name the video or the stage; Cancelled through
+// `job`, with what completed left in `run`. A video in which the front end finds no key frame is
+// not an error: the mosaic and later stages are skipped and a warning says so; likewise a mosaic
+// with no picture for the tiles.
 Status RunStages(const std::string& video, const StageOptions& options, const StageHooks& hooks,
                  JobContext* job, MissionRun* run);
 

@@ -12,6 +12,7 @@
 #include "core/mission/mission_store.h"
 #include "core/mosaic/adjustment.h"
 #include "core/track/homography.h"
+#include "core/track/image_geometry.h"
 #include "core/video/video_reader.h"
 #include "tests/testing/test_data.h"
 #include "tests/ui/ui_testing.h"
@@ -453,7 +454,7 @@ TEST(MosaicViewTest, OverlaysAreDrawn) {
   for (const mission::KeyFrameRecord& k : m->loaded.key_frames) {
     if (!k.node || k.covariance.isZero()) continue;
     const Eigen::Matrix2d cov = track::TransferCovariance(k.map_from_frame, k.covariance, {0, 0});
-    const double semi_major = mosaic::ConfidenceEllipse({0, 0}, cov, 0.95).semi_major;
+    const double semi_major = track::ConfidenceEllipse({0, 0}, cov, 0.95).semi_major;
     if (semi_major > widest) {
       widest = semi_major;
       corner = k.map_from_frame.col(2).head<2>() / k.map_from_frame(2, 2);

@@ -3,6 +3,7 @@
 #include "core/mosaic/link_graph.h"
 #include "core/mosaic/mosaic_builder.h"
 #include "core/track/homography.h"
+#include "core/track/image_geometry.h"
 #include "core/util/check.h"
 #include "core/util/job_context.h"
 #include "tests/core/mosaic/synthetic_camera.h"
@@ -95,7 +96,7 @@ double PredictedRms(const LinkGraph& graph, const std::vector<track::HomographyC
   double sum = 0;
   int count = 0;
   for (size_t k = 0; k < graph.nodes.size(); ++k) {
-    for (const Eigen::Vector2d& c : ImageCorners(kWidth, kHeight)) {
+    for (const Eigen::Vector2d& c : track::ImageCorners(kWidth, kHeight)) {
       sum += track::TransferCovariance(graph.nodes[k].map_from_frame, cov[k], c).trace();
       ++count;
     }
@@ -206,7 +207,7 @@ TEST(AdjustmentTest, MetadataBoundsAWrongStart) {
     graph.links.push_back(MeasureLink(truth, k, k + 1, CornerCovariance(0.5, noise), &noise));
   }
   // Image diagonal on the ground ~230 m: move each corner of node 0 by ~23 m.
-  const auto corners = ImageCorners(kWidth, kHeight);
+  const auto corners = track::ImageCorners(kWidth, kHeight);
   std::array<Eigen::Vector2d, 4> wrong_ground;
   const std::array<Eigen::Vector2d, 4> push = {Eigen::Vector2d(16, 16), Eigen::Vector2d(-10, 20),
                                                Eigen::Vector2d(16, -16), Eigen::Vector2d(20, -10)};
@@ -265,7 +266,7 @@ TEST(AdjustmentTest, MetadataBoundsAProjectivelyWrongStartOnALongFlight) {
     graph.links.push_back(MeasureLink(truth, from, to, CornerCovariance(2.0, noise), &noise));
   }
 
-  const auto corners = ImageCorners(kWidth, kHeight);
+  const auto corners = track::ImageCorners(kWidth, kHeight);
   std::array<Eigen::Vector2d, 4> keystone = corners;
   keystone[0].x() += 0.1 * kWidth;
   keystone[1].x() -= 0.1 * kWidth;
@@ -380,7 +381,7 @@ TEST(AdjustmentTest, CovarianceAgreesWithMonteCarlo) {
   EXPECT_EQ((*predicted)[0], track::HomographyCovariance::Zero());  // the gauge node
   EXPECT_GT((*predicted)[3].trace(), 0);
 
-  const auto corners = ImageCorners(kWidth, kHeight);
+  const auto corners = track::ImageCorners(kWidth, kHeight);
   // Samples of each (node, corner) map position.
   std::vector<std::vector<Eigen::Vector2d>> samples(size_t(kNodes) * 4);
   for (int d = 0; d < kDraws; ++d) {
@@ -433,35 +434,6 @@ TEST(AdjustmentTest, CovarianceAgreesWithMonteCarlo) {
   ASSERT_EQ(subset->size(), 2u);
   EXPECT_LT(((*subset)[0] - (*predicted)[3]).norm(), 1e-9 * (*predicted)[3].norm());
   EXPECT_EQ((*subset)[1], track::HomographyCovariance::Zero());
-}
-
-TEST(AdjustmentTest, ConfidenceEllipseAxesAndAngle) {
-  const double confidence = 1 - std::exp(-0.5);  // k = 1
-  const Ellipse e =
-      ConfidenceEllipse({5, 6}, Eigen::Vector2d(4, 1).asDiagonal().toDenseMatrix(), confidence);
-  EXPECT_NEAR(e.semi_major, 2, 1e-12);
-  EXPECT_NEAR(e.semi_minor, 1, 1e-12);
-  EXPECT_NEAR(e.angle_rad, 0, 1e-12);
-  EXPECT_EQ(e.centre, Eigen::Vector2d(5, 6));
-
-  const double angle = 30 * M_PI / 180;
-  const Eigen::Matrix2d r = Eigen::Rotation2Dd(angle).toRotationMatrix();
-  const Eigen::Matrix2d cov = r * Eigen::Vector2d(9, 1).asDiagonal() * r.transpose();
-  const Ellipse rotated = ConfidenceEllipse({0, 0}, cov, 0.95);
-  const double k = std::sqrt(-2 * std::log(0.05));
-  EXPECT_NEAR(rotated.semi_major, 3 * k, 1e-9);
-  EXPECT_NEAR(rotated.semi_minor, k, 1e-9);
-  EXPECT_NEAR(rotated.angle_rad, angle, 1e-9);
-  const Ellipse other =
-      ConfidenceEllipse({0, 0}, r.transpose() * Eigen::Vector2d(9, 1).asDiagonal() * r, 0.95);
-  EXPECT_NEAR(other.angle_rad, -angle, 1e-9);
-
-  const std::vector<Eigen::Vector2d> polygon = EllipsePolygon(rotated, 24);
-  ASSERT_EQ(polygon.size(), 24u);
-  for (const Eigen::Vector2d& p : polygon) {
-    EXPECT_NEAR(p.transpose() * cov.inverse() * p, k * k, 1e-9);
-  }
-  EXPECT_NEAR(polygon[0].norm(), 3 * k, 1e-9);
 }
 
 TEST(AdjustmentTest, CancelKeepsTheBestSolution) {

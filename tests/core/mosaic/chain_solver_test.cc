@@ -5,6 +5,7 @@
 #include "core/mosaic/mosaic_builder.h"
 #include "core/mosaic/residuals.h"
 #include "core/track/homography.h"
+#include "core/track/image_geometry.h"
 #include "core/util/check.h"
 #include "tests/core/mosaic/synthetic_camera.h"
 #include "tests/testing/noise.h"
@@ -74,13 +75,13 @@ ChainStep MeasureStep(const std::vector<Eigen::Matrix3d>& truth, size_t k, doubl
                       Noise& noise, bool noisy) {
   const Matrix8 corner_cov = CornerCovariance(sigma_px, noise);
   const Eigen::Matrix3d exact = Normalised(truth[k + 1].inverse() * truth[k]);
-  const auto corners = ImageCorners(kWidth, kHeight);
+  const auto corners = track::ImageCorners(kWidth, kHeight);
   const Vector8 error = noisy ? noise.Draw<8>(corner_cov) : Vector8::Zero();
   std::array<Eigen::Vector2d, 4> measured;
   for (int i = 0; i < 4; ++i) {
     measured[size_t(i)] = track::Transfer(exact, corners[size_t(i)]) + error.segment<2>(2 * i);
   }
-  const auto fitted = HomographyFromCorners(corners, measured, 1.0);
+  const auto fitted = track::HomographyFromCorners(corners, measured, 1.0);
   SAKER_CHECK(fitted.ok()) << fitted.status().ToString();
   ChainStep step;
   step.next_from_previous = fitted->target_from_source;
@@ -119,7 +120,7 @@ std::vector<Eigen::Matrix3d> Chained(const Eigen::Matrix3d& first,
 double CornerDifferencePx(const Eigen::Matrix3d& reference, const Eigen::Matrix3d& estimate) {
   const Eigen::Matrix3d e = estimate.inverse() * reference;
   double worst = 0;
-  for (const Eigen::Vector2d& c : ImageCorners(kWidth, kHeight)) {
+  for (const Eigen::Vector2d& c : track::ImageCorners(kWidth, kHeight)) {
     worst = std::max(worst, (track::Transfer(e, c) - c).norm());
   }
   return worst;
@@ -129,7 +130,7 @@ double CornerDifferencePx(const Eigen::Matrix3d& reference, const Eigen::Matrix3
 double CornerRmsPx(const Eigen::Matrix3d& reference, const Eigen::Matrix3d& estimate) {
   const Eigen::Matrix3d e = estimate.inverse() * reference;
   double sum = 0;
-  for (const Eigen::Vector2d& c : ImageCorners(kWidth, kHeight)) {
+  for (const Eigen::Vector2d& c : track::ImageCorners(kWidth, kHeight)) {
     sum += (track::Transfer(e, c) - c).squaredNorm();
   }
   return std::sqrt(sum / 4);
@@ -162,7 +163,7 @@ class CeresChain {
     const std::vector<Eigen::Matrix3d> chained = Chained(first, steps);
     for (const Eigen::Matrix3d& m : chained) frames_.push_back(ParametersOf(m));
     frames_.back() = ParametersOf(last);
-    const auto corners = ImageCorners(kWidth, kHeight);
+    const auto corners = track::ImageCorners(kWidth, kHeight);
     for (size_t i = 0; i < steps.size(); ++i) {
       problem_->AddResidualBlock(
           new ceres::AutoDiffCostFunction<internal::LinkResidual, 8, 8, 8>(
@@ -465,7 +466,7 @@ TEST(ChainSolverTest, AnalyticJacobiansMatchAutomaticDifferentiation) {
   const std::vector<ChainStep> steps = MeasureChain(truth, 0.5, 7);
   const internal::HomographyStep step = internal::HomographyStep::ForImage(kWidth, kHeight);
   const internal::LinkResidual link = internal::MakeLinkResidual(
-      steps[4].next_from_previous, steps[4].covariance, ImageCorners(kWidth, kHeight), 0.05);
+      steps[4].next_from_previous, steps[4].covariance, track::ImageCorners(kWidth, kHeight), 0.05);
   // Off the solution, in a map far from the origin, so that no term vanishes.
   Eigen::Matrix3d shift;
   shift << 1, 0, 3000, 0, 1, -2000, 0, 0, 1;

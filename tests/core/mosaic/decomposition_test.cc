@@ -3,6 +3,7 @@
 #include "core/mosaic/adjustment.h"
 #include "core/mosaic/link_graph.h"
 #include "core/track/homography.h"
+#include "core/track/image_geometry.h"
 #include "tests/core/mosaic/synthetic_camera.h"
 #include "tests/core/mosaic/synthetic_graph.h"
 #include "tests/testing/noise.h"
@@ -49,7 +50,7 @@ std::vector<int> Ids(const std::vector<KeyFrameId>& ids) {
 double MaxDifference(const LinkGraph& a, const LinkGraph& b) {
   double worst = 0;
   for (size_t k = 0; k < a.nodes.size(); ++k) {
-    for (const Eigen::Vector2d& c : ImageCorners(kWidth, kHeight)) {
+    for (const Eigen::Vector2d& c : track::ImageCorners(kWidth, kHeight)) {
       worst = std::max(worst, (track::Transfer(a.nodes[k].map_from_frame, c) -
                                track::Transfer(b.nodes[k].map_from_frame, c))
                                   .norm());
@@ -88,7 +89,7 @@ TEST(DecompositionTest, NodesAreCrossLinkEndsChainEndsMetadataAndSplitsOfLongArc
     if (k != 9) graph.links.push_back(IdentityLink(k, k + 1));
   }
   graph.links.push_back(IdentityLink(7, 2, LinkKind::kGeometric));
-  graph.nodes[12].metadata_corners = ImageCorners(kWidth, kHeight);
+  graph.nodes[12].metadata_corners = track::ImageCorners(kWidth, kHeight);
   ASSERT_TRUE(graph.Validate().ok());
 
   DecompositionOptions options;
@@ -155,7 +156,7 @@ TEST(DecompositionTest, ReducedGraphChainsEachArc) {
     const Link& link = reduced->links[a];
     const Eigen::Matrix3d expected = testing_support::Normalised(
         truth[size_t(d.arcs[a].to)].inverse() * truth[size_t(d.arcs[a].from)]);
-    for (const Eigen::Vector2d& c : ImageCorners(kWidth, kHeight)) {
+    for (const Eigen::Vector2d& c : track::ImageCorners(kWidth, kHeight)) {
       EXPECT_NEAR((track::Transfer(link.to_from_from, c) - track::Transfer(expected, c)).norm(), 0,
                   1e-6);
     }

@@ -3,6 +3,7 @@
 #include "core/mosaic/link_graph.h"
 #include "core/mosaic/mosaic_input.h"
 #include "core/track/homography.h"
+#include "core/track/image_geometry.h"
 #include "tests/core/mosaic/synthetic_camera.h"
 #include "tests/core/mosaic/synthetic_graph.h"
 #include "tests/testing/noise.h"
@@ -59,7 +60,7 @@ Video MakeVideo(int n, int spacing, uint64_t seed) {
 
 double CornerError(const Eigen::Matrix3d& estimate, const Eigen::Matrix3d& truth) {
   double sum = 0;
-  for (const Eigen::Vector2d& c : ImageCorners(kWidth, kHeight)) {
+  for (const Eigen::Vector2d& c : track::ImageCorners(kWidth, kHeight)) {
     sum += (track::Transfer(estimate, c) - track::Transfer(truth, c)).squaredNorm();
   }
   return std::sqrt(sum / 4);

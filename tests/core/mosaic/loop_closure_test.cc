@@ -3,6 +3,7 @@
 #include "core/sim/world.h"
 #include "core/sim/world_raster.h"
 #include "core/track/homography.h"
+#include "core/track/image_geometry.h"
 
 #include <Eigen/Geometry>
 #include <Eigen/LU>
@@ -85,7 +86,7 @@ View MakeView(const Eigen::Vector2d& centre, double angle_deg, int width, int he
   v.raster_from_view = RasterFromView(centre, angle_deg, width, height, raster_px_per_view_px);
   // Render the raster under the view's bounding box (and a margin for the interpolation).
   double x0 = 1e9, y0 = 1e9, x1 = -1e9, y1 = -1e9;
-  for (const Eigen::Vector2d& c : ImageCorners(width, height)) {
+  for (const Eigen::Vector2d& c : track::ImageCorners(width, height)) {
     const Eigen::Vector2d r = track::Transfer(v.raster_from_view, c);
     x0 = std::min(x0, r.x()), y0 = std::min(y0, r.y()), x1 = std::max(x1, r.x());
     y1 = std::max(y1, r.y());
@@ -131,7 +132,7 @@ KeyFrameFeatures Describe(KeyFrameId id, const View& v) {
 double CornerError(const Eigen::Matrix3d& estimate, const Eigen::Matrix3d& truth, int width,
                    int height) {
   double worst = 0;
-  for (const Eigen::Vector2d& c : ImageCorners(width, height)) {
+  for (const Eigen::Vector2d& c : track::ImageCorners(width, height)) {
     worst = std::max(worst, (track::Transfer(estimate, c) - track::Transfer(truth, c)).norm());
   }
   return worst;

@@ -8,6 +8,7 @@
 #include "core/pipeline/mosaic_input.h"
 #include "core/sim/simulator.h"
 #include "core/sim/truth.h"
+#include "core/track/image_geometry.h"
 #include "tests/testing/test_data.h"
 
 #include <gtest/gtest.h>
@@ -275,26 +276,6 @@ TEST(MosaicBuilderTest, NoKeyFramesIsAnErrorNotACrash) {
   StatusOr<MosaicResult> result = BuildMosaic(empty, {});
   ASSERT_FALSE(result.ok());
   EXPECT_EQ(result.status().code(), StatusCode::kInvalidData);
-}
-
-TEST(HomographyFromCornersTest, FitsFourCornersWithTheirCovariance) {
-  const auto image = ImageCorners(640, 360);
-  const std::array<Eigen::Vector2d, 4> map = {Eigen::Vector2d(0, 0), Eigen::Vector2d(128, 2),
-                                              Eigen::Vector2d(126, -70), Eigen::Vector2d(-1, -72)};
-  StatusOr<track::HomographyWithCovariance> h = HomographyFromCorners(image, map, 2.0);
-  ASSERT_TRUE(h.ok());
-  for (int i = 0; i < 4; ++i) {
-    EXPECT_LT((track::Transfer(h->target_from_source, image[size_t(i)]) - map[size_t(i)]).norm(),
-              1e-6);
-    // Each corner is known to the stated sigma: 2 m per coordinate.
-    const Eigen::Matrix2d cov =
-        track::TransferCovariance(h->target_from_source, h->covariance, image[size_t(i)]);
-    EXPECT_NEAR(cov(0, 0), 4.0, 1e-6);
-    EXPECT_NEAR(cov(1, 1), 4.0, 1e-6);
-  }
-  const std::array<Eigen::Vector2d, 4> collinear = {Eigen::Vector2d(0, 0), Eigen::Vector2d(1, 1),
-                                                    Eigen::Vector2d(2, 2), Eigen::Vector2d(3, 3)};
-  EXPECT_FALSE(HomographyFromCorners(image, collinear, 1.0).ok());
 }
 
 }  // namespace

@@ -7,6 +7,7 @@
 #include "core/mosaic/link_graph.h"
 #include "core/mosaic/mosaic_builder.h"
 #include "core/track/homography.h"
+#include "core/track/image_geometry.h"
 #include "core/util/check.h"
 #include "tests/core/mosaic/synthetic_camera.h"
 #include "tests/testing/noise.h"
@@ -73,14 +74,14 @@ inline std::vector<Eigen::Matrix3d> FigureEightPath(int n, double half_width,
 // The homography taking the 4 points `from` exactly to `to`.
 inline Eigen::Matrix3d FourPointHomography(const std::array<Eigen::Vector2d, 4>& from,
                                            const std::array<Eigen::Vector2d, 4>& to) {
-  const auto h = HomographyFromCorners(from, to, 1.0);
+  const auto h = track::HomographyFromCorners(from, to, 1.0);
   SAKER_CHECK(h.ok()) << h.status().ToString();
   return h->target_from_source;
 }
 
 inline Eigen::Matrix<double, 8, 8> StackedJacobian(const Eigen::Matrix3d& h) {
   Eigen::Matrix<double, 8, 8> j;
-  const auto corners = ImageCorners(kWidth, kHeight);
+  const auto corners = track::ImageCorners(kWidth, kHeight);
   for (int i = 0; i < 4; ++i)
     j.middleRows<2>(2 * i) = track::TransferJacobian(h, corners[size_t(i)]);
   return j;
@@ -100,7 +101,7 @@ inline Link MeasureLink(const std::vector<Eigen::Matrix3d>& truth, int from, int
                         const Matrix8& corner_cov, Noise* noise) {
   const Eigen::Matrix3d truth_to_from_from =
       Normalised(truth[size_t(to)].inverse() * truth[size_t(from)]);
-  const auto corners = ImageCorners(kWidth, kHeight);
+  const auto corners = track::ImageCorners(kWidth, kHeight);
   const Vector8 error = noise != nullptr ? noise->Draw<8>(corner_cov) : Vector8::Zero();
   std::array<Eigen::Vector2d, 4> measured;
   for (int i = 0; i < 4; ++i) {
@@ -166,7 +167,7 @@ inline double RmsCornerError(const LinkGraph& graph, const std::vector<Eigen::Ma
   double sum = 0;
   int count = 0;
   for (size_t k = begin; k < end; ++k) {
-    for (const Eigen::Vector2d& c : ImageCorners(kWidth, kHeight)) {
+    for (const Eigen::Vector2d& c : track::ImageCorners(kWidth, kHeight)) {
       sum += (track::Transfer(graph.nodes[k].map_from_frame, c) - track::Transfer(truth[k], c))
                  .squaredNorm();
       ++count;
@@ -179,7 +180,7 @@ inline double MaxCornerError(const LinkGraph& graph, const std::vector<Eigen::Ma
                              size_t begin = 0) {
   double worst = 0;
   for (size_t k = begin; k < graph.nodes.size(); ++k) {
-    for (const Eigen::Vector2d& c : ImageCorners(kWidth, kHeight)) {
+    for (const Eigen::Vector2d& c : track::ImageCorners(kWidth, kHeight)) {
       worst = std::max(
           worst, (track::Transfer(graph.nodes[k].map_from_frame, c) - track::Transfer(truth[k], c))
                      .norm());
