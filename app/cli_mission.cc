@@ -298,7 +298,7 @@ int InfoCommand::Run() const {
   int64_t observations = 0;
   for (const mission::ActivityTrack& t : m->tracks) {
     ++visits[t.visit];
-    observations += int64_t(t.points.size());
+    observations += static_cast<int64_t>(t.points.size());
   }
   int64_t placed = 0;
   for (const mission::FrameRecord& f : m->frames) placed += f.map_from_frame.has_value();

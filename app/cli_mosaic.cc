@@ -126,8 +126,8 @@ int MosaicCommand::RunOn(const std::string& video, const std::string& output) co
   if (s.json) {
     nlohmann::json closures = nlohmann::json::array();
     for (const mosaic::LoopClosure& c : result->closures) {
-      closures.push_back({{"from", int(c.from)},
-                          {"to", int(c.to)},
+      closures.push_back({{"from", static_cast<int>(c.from)},
+                          {"to", static_cast<int>(c.to)},
                           {"kind", mosaic::LinkKindName(c.kind)},
                           {"inliers", c.inliers}});
     }
@@ -147,7 +147,8 @@ int MosaicCommand::RunOn(const std::string& video, const std::string& output) co
         {"loop_closures", closures},
         {"adjustments", adjustments},
         {"adjust_mode", s.adjust},
-        {"nodes", result->decomposition ? result->decomposition->nodes : int(graph.nodes.size())},
+        {"nodes", result->decomposition ? result->decomposition->nodes
+                                        : static_cast<int>(graph.nodes.size())},
         {"arcs", result->decomposition ? result->decomposition->arcs : 0},
         {"frames_placed",
          result->in_between.key_frames + result->in_between.solved + result->in_between.chained},
@@ -173,8 +174,8 @@ int MosaicCommand::RunOn(const std::string& video, const std::string& output) co
   for (const auto& [kind, n] : links) std::cout << " " << n << " " << kind;
   std::cout << "\n  loop closures: " << result->closures.size() << "\n";
   for (const mosaic::LoopClosure& c : result->closures) {
-    std::cout << "    key frame " << int(c.from) << " -> " << int(c.to) << " ("
-              << mosaic::LinkKindName(c.kind) << ", " << c.inliers << " inliers)\n";
+    std::cout << "    key frame " << static_cast<int>(c.from) << " -> " << static_cast<int>(c.to)
+              << " (" << mosaic::LinkKindName(c.kind) << ", " << c.inliers << " inliers)\n";
   }
   std::cout << "  adjustments: " << result->adjustments.size();
   if (!result->adjustments.empty())

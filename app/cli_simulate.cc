@@ -30,10 +30,11 @@ class ProgressBar {
     since_last_.Restart();
     const double elapsed = start_.ElapsedSeconds();
     const int width = 30;
-    const int filled = int(fraction * width);
+    const int filled = static_cast<int>(fraction * width);
     std::fprintf(stderr, "\rsimulate [%s%s] %3d%%  %.0f s  ",
-                 std::string(size_t(filled), '#').c_str(),
-                 std::string(size_t(width - filled), ' ').c_str(), int(fraction * 100), elapsed);
+                 std::string(static_cast<size_t>(filled), '#').c_str(),
+                 std::string(static_cast<size_t>(width - filled), ' ').c_str(),
+                 static_cast<int>(fraction * 100), elapsed);
     if (fraction > 0 && fraction < 1)
       std::fprintf(stderr, "eta %.0f s ", elapsed * (1 - fraction) / fraction);
     if (fraction >= 1.0) std::fprintf(stderr, "\n");
@@ -68,7 +69,7 @@ int RunSimulation(const sim::SimulationOptions& options, bool quiet) {
                 << " repeated";
     }
     std::cout << "), " << summary->klv_packets << " KLV packets, " << summary->targets
-              << " moving targets, track " << int(summary->track_length_m) << " m, "
+              << " moving targets, track " << static_cast<int>(summary->track_length_m) << " m, "
               << summary->nominal_gsd_m << " m/pixel at nadir\n"
               << "wrote " << summary->truth.string() << "\n";
   }

@@ -6,7 +6,6 @@
 #include "core/util/statistics.h"
 #include "core/util/timer.h"
 
-#include <signal.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -14,6 +13,7 @@
 #include <cctype>
 #include <cerrno>
 #include <cmath>
+#include <csignal>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -166,7 +166,7 @@ void RemoveStaleTemporaries(const fs::path& cache_dir) {
     }
     if (name.size() <= pid_start) continue;
     const long pid = std::strtol(name.c_str() + pid_start, nullptr, 10);
-    if (pid <= 0 || (kill(pid_t(pid), 0) != 0 && errno == ESRCH)) {
+    if (pid <= 0 || (kill(static_cast<pid_t>(pid), 0) != 0 && errno == ESRCH)) {
       fs::remove_all(entry.path(), ec);
     }
   }
@@ -176,14 +176,14 @@ void RemoveStaleTemporaries(const fs::path& cache_dir) {
 
 std::optional<double> Ratio(int64_t numerator, int64_t denominator) {
   if (denominator <= 0) return std::nullopt;
-  return double(numerator) / double(denominator);
+  return static_cast<double>(numerator) / static_cast<double>(denominator);
 }
 
 std::optional<double> PooledRms(double sum_sq, int64_t count, CorpusFigures::MosaicUnit unit) {
   if (count <= 0 || unit == CorpusFigures::MosaicUnit::kMixed ||
       unit == CorpusFigures::MosaicUnit::kNone)
     return std::nullopt;
-  return std::sqrt(sum_sq / double(count));
+  return std::sqrt(sum_sq / static_cast<double>(count));
 }
 
 const char* MosaicUnitName(CorpusFigures::MosaicUnit unit) {
@@ -227,8 +227,8 @@ CorpusFigures FiguresOf(const eval::VideoEvaluation& e, const sim::Truth& truth)
     const double before = metres ? m.before_absolute->rms_m : m.before.rms_px;
     const double after = metres ? m.after_absolute->rms_m : m.after.rms_px;
     f.mosaic_key_frames = m.key_frames;
-    f.mosaic_before_sq = double(m.key_frames) * before * before;
-    f.mosaic_after_sq = double(m.key_frames) * after * after;
+    f.mosaic_before_sq = static_cast<double>(m.key_frames) * before * before;
+    f.mosaic_after_sq = static_cast<double>(m.key_frames) * after * after;
   }
   f.cuts = ScoreCuts(truth.CutFrames(), e.front_end.breaks);
   return f;
@@ -381,7 +381,8 @@ std::vector<std::pair<std::string, std::vector<const CaseResult*>>> ByCondition(
 
 std::string Elapsed(double seconds) {
   char text[32];
-  std::snprintf(text, sizeof(text), "%d:%02d", int(seconds) / 60, int(seconds) % 60);
+  std::snprintf(text, sizeof(text), "%d:%02d", static_cast<int>(seconds) / 60,
+                static_cast<int>(seconds) % 60);
   return text;
 }
 
@@ -417,8 +418,9 @@ eval::FrontEndEvaluationOptions CorpusScoring::ForFrameRate(double fps) const {
   eval::FrontEndEvaluationOptions options;
   options.min_speed_mps = min_speed_mps;
   options.gate_px = gate_px;
-  options.min_mover_frames = std::max(kMinMoverFrames, int(std::lround(min_mover_s * fps)));
-  options.max_sighting_gap_frames = int(std::lround(max_sighting_gap_s * fps));
+  options.min_mover_frames =
+      std::max(kMinMoverFrames, static_cast<int>(std::lround(min_mover_s * fps)));
+  options.max_sighting_gap_frames = static_cast<int>(std::lround(max_sighting_gap_s * fps));
   return options;
 }
 
@@ -559,8 +561,8 @@ StatusOr<std::string> SimulationKey(const sim::SimulationOptions& options) {
     if (!in) return NotFoundError(options.ground_image.string() + ": cannot read the ground image");
     std::vector<char> buffer(1 << 20);
     while (in) {
-      in.read(buffer.data(), std::streamsize(buffer.size()));
-      hash = Fnv1a(buffer.data(), size_t(in.gcount()), hash);
+      in.read(buffer.data(), static_cast<std::streamsize>(buffer.size()));
+      hash = Fnv1a(buffer.data(), static_cast<size_t>(in.gcount()), hash);
     }
   }
   char key[17];
@@ -618,7 +620,8 @@ int64_t CountOverlayTracks(const frontend::FrontEndResult& result, const sim::Tr
     const auto on = std::count_if(
         target.observations.begin(), target.observations.end(),
         [&](const track::TargetObservation& o) { return truth.OnOverlay(o.position); });
-    if (!target.observations.empty() && 2 * size_t(on) >= target.observations.size()) ++count;
+    if (!target.observations.empty() && 2 * static_cast<size_t>(on) >= target.observations.size())
+      ++count;
   }
   return count;
 }
@@ -627,7 +630,7 @@ CutScore ScoreCuts(const std::vector<int64_t>& cut_frames,
                    const std::vector<track::ChainBreak>& breaks, int64_t tolerance) {
   const auto near = [&](int64_t a, int64_t b) { return std::abs(a - b) <= tolerance; };
   CutScore score;
-  score.expected = int64_t(cut_frames.size());
+  score.expected = static_cast<int64_t>(cut_frames.size());
   for (int64_t cut : cut_frames) {
     score.found += std::any_of(breaks.begin(), breaks.end(), [&](const track::ChainBreak& b) {
       return near(b.frame_index, cut);
@@ -749,7 +752,8 @@ std::vector<CaseResult> RunCorpus(const std::vector<CorpusCase>& cases,
       }
     }
   };
-  const size_t threads = std::clamp<size_t>(size_t(std::max(1, options.jobs)), 1, cases.size());
+  const size_t threads =
+      std::clamp<size_t>(static_cast<size_t>(std::max(1, options.jobs)), 1, cases.size());
   std::vector<std::thread> workers;
   for (size_t t = 1; t < threads; ++t) workers.emplace_back(work);
   work();

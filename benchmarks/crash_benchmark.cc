@@ -29,13 +29,13 @@
 
 #include <CLI/CLI.hpp>
 #include <fcntl.h>
-#include <signal.h>
 #include <sqlite3.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <chrono>
 #include <cmath>
+#include <csignal>
 #include <cstdio>
 #include <filesystem>
 #include <functional>
@@ -67,7 +67,8 @@ struct Snapshot {
   int64_t tiles = 0;
   int stages() const {  // completed stages in order, counting the "source" commit as 1
     const saker::mission::Progress& p = progress;
-    return 1 + int(p.front_end) + int(p.mosaic) + int(p.activity) + int(p.tiles);
+    return 1 + static_cast<int>(p.front_end) + static_cast<int>(p.mosaic) +
+           static_cast<int>(p.activity) + static_cast<int>(p.tiles);
   }
 };
 
@@ -152,11 +153,11 @@ std::string Inconsistency(const Snapshot& s, const Snapshot& reference, bool exa
     }
   }
   const auto near = [](size_t a, size_t b, double tolerance) {
-    return std::abs(double(a) - double(b)) <= tolerance;
+    return std::abs(static_cast<double>(a) - static_cast<double>(b)) <= tolerance;
   };
   if (!exact) {
-    if (p.mosaic &&
-        !near(m.key_frames.size(), r.key_frames.size(), 0.15 * double(r.key_frames.size()) + 1)) {
+    if (p.mosaic && !near(m.key_frames.size(), r.key_frames.size(),
+                          0.15 * static_cast<double>(r.key_frames.size()) + 1)) {
       return "mosaic (resumed): " + std::to_string(m.key_frames.size()) +
              " key frames, not about " + std::to_string(r.key_frames.size());
     }

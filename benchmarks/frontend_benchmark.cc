@@ -39,8 +39,8 @@ using saker::Stopwatch;
 
 namespace fs = std::filesystem;
 
-double ResidentMb() { return double(saker::ResidentMemoryBytes()) / 1e6; }
-double PeakMb() { return double(saker::PeakResidentMemoryBytes()) / 1e6; }
+double ResidentMb() { return static_cast<double>(saker::ResidentMemoryBytes()) / 1e6; }
+double PeakMb() { return static_cast<double>(saker::PeakResidentMemoryBytes()) / 1e6; }
 
 // Memory on a long video: see the file comment.
 int MeasureMemory(double clip_minutes, int height, int repeat) {
@@ -69,7 +69,7 @@ int MeasureMemory(double clip_minutes, int height, int repeat) {
   // little longer than asked for.
   sim.scenario = saker::sim::Scenario::kFigureEight;
   sim.flight.figure_eight_key_frames =
-      std::max(8, int(std::ceil(75 * sim.duration_s / 504 * 1.05)));
+      std::max(8, static_cast<int>(std::ceil(75 * sim.duration_s / 504 * 1.05)));
   std::printf("simulating %g minutes of %dx%d video (figure of eight)...\n", clip_minutes, width,
               height);
   std::fflush(stdout);
@@ -79,7 +79,7 @@ int MeasureMemory(double clip_minutes, int height, int repeat) {
     return 1;
   }
   std::printf("  done in %.0f s, %.0f MB\n", start.ElapsedSeconds(),
-              double(fs::file_size(sim.output)) / 1e6);
+              static_cast<double>(fs::file_size(sim.output)) / 1e6);
   std::string video = sim.output.string();
   if (repeat > 1) {
     const fs::path joined = dir / "joined.ts";
@@ -97,7 +97,7 @@ int MeasureMemory(double clip_minutes, int height, int repeat) {
     fs::remove(sim.output);
     video = joined.string();
     std::printf("  joined %d copies: %g minutes, %.0f MB\n", repeat, minutes,
-                double(fs::file_size(joined)) / 1e6);
+                static_cast<double>(fs::file_size(joined)) / 1e6);
   }
   // What the simulator freed goes back to the system, and the peak starts again from here
   // ("5" resets VmHWM, Linux 4.0 and later), so the figures below are the front end's.
@@ -121,7 +121,7 @@ int MeasureMemory(double clip_minutes, int height, int repeat) {
   int64_t frames_done = 0;
   start.Restart();
   saker::JobContext job([&](const std::string&, double) {
-    const double minutes_done = double(++frames_done) / (sim.fps * 60);
+    const double minutes_done = static_cast<double>(++frames_done) / (sim.fps * 60);
     while (next < checkpoints.size() && minutes_done >= checkpoints[next] - 1e-9) {
       const double rss = ResidentMb();
       std::printf(
@@ -144,35 +144,39 @@ int MeasureMemory(double clip_minutes, int height, int repeat) {
       "front end done: %lld frames in %.0f s (%.1f fps); with its result: RSS %.0f MB (+%.0f MB), "
       "peak %.0f MB (+%.0f MB)\n",
       static_cast<long long>(result->timing.frames), result->timing.wall_s,
-      double(result->timing.frames) / result->timing.wall_s, rss_end, rss_end - rss_start, peak,
-      peak - rss_start);
+      static_cast<double>(result->timing.frames) / result->timing.wall_s, rss_end,
+      rss_end - rss_start, peak, peak - rss_start);
 
   // What the result keeps, by design (frames are not kept).
   const auto mb = [](double bytes) { return bytes / 1e6; };
   double key_image_bytes = 0, key_point_bytes = 0, link_bytes = 0, observation_bytes = 0;
-  for (const auto& k : result->key_frame_images) key_image_bytes += double(k.grey.total());
+  for (const auto& k : result->key_frame_images)
+    key_image_bytes += static_cast<double>(k.grey.total());
   for (const auto& k : result->key_frames) {
-    key_point_bytes += double(k.points.size() * sizeof(k.points[0]));
+    key_point_bytes += static_cast<double>(k.points.size() * sizeof(k.points[0]));
   }
   for (const auto& l : result->links) {
-    link_bytes += double(sizeof(l) + l.correspondences.size() * sizeof(l.correspondences[0]));
+    link_bytes +=
+        static_cast<double>(sizeof(l) + l.correspondences.size() * sizeof(l.correspondences[0]));
   }
   int64_t observations = 0;
   for (const auto& t : result->targets) {
     for (const auto& o : t.observations) {
       ++observations;
-      observation_bytes += double(sizeof(o) + o.features.size() * sizeof(o.features[0]));
+      observation_bytes +=
+          static_cast<double>(sizeof(o) + o.features.size() * sizeof(o.features[0]));
     }
   }
   std::printf(
       "kept: %zu per-frame results (%.1f MB), %zu scan frame records (%.1f MB) and %zu KLV "
       "packets (%.1f MB before their decoded items), %zu key frames (grey images %.1f MB, "
       "points %.1f MB), %zu links (%.1f MB), %zu target tracks with %lld observations (%.1f MB)\n",
-      result->frames.size(), mb(double(result->frames.size() * sizeof(result->frames[0]))),
+      result->frames.size(),
+      mb(static_cast<double>(result->frames.size() * sizeof(result->frames[0]))),
       result->scan.frames.size(),
-      mb(double(result->scan.frames.size() * sizeof(result->scan.frames[0]))),
+      mb(static_cast<double>(result->scan.frames.size() * sizeof(result->scan.frames[0]))),
       result->scan.packets.size(),
-      mb(double(result->scan.packets.size() * sizeof(result->scan.packets[0]))),
+      mb(static_cast<double>(result->scan.packets.size() * sizeof(result->scan.packets[0]))),
       result->key_frames.size(), mb(key_image_bytes), mb(key_point_bytes), result->links.size(),
       mb(link_bytes), result->targets.size(), static_cast<long long>(observations),
       mb(observation_bytes));
@@ -210,7 +214,7 @@ double DecodeOnlyFps(const std::string& path) {
     if (!more.ok() || !*more) break;
     ++frames;
   }
-  return double(frames) / start.ElapsedSeconds();
+  return static_cast<double>(frames) / start.ElapsedSeconds();
 }
 
 }  // namespace
@@ -262,7 +266,7 @@ int main(int argc, char** argv) {
       return 1;
     }
     const auto& t = result->timing;
-    const double front_fps = double(t.frames) / t.wall_s;
+    const double front_fps = static_cast<double>(t.frames) / t.wall_s;
     if (json) {
       out.push_back({{"width", w},
                      {"height", h},

@@ -82,8 +82,8 @@ double ReadBytesSeconds(const fs::path& path) {
   std::ifstream in(path, std::ios::binary);
   std::vector<char> buffer(1 << 20);
   size_t total = 0;
-  while (in.read(buffer.data(), std::streamsize(buffer.size())) || in.gcount() > 0) {
-    total += size_t(in.gcount());
+  while (in.read(buffer.data(), static_cast<std::streamsize>(buffer.size())) || in.gcount() > 0) {
+    total += static_cast<size_t>(in.gcount());
   }
   volatile size_t sink = total;
   (void)sink;
@@ -179,7 +179,7 @@ int main(int argc, char** argv) {
     open_ms.push_back(begin.ElapsedSeconds() * 1e3);
     mission = std::move(loaded).value();
   }
-  const double file_mb = double(fs::file_size(mission_path)) / (1 << 20);
+  const double file_mb = static_cast<double>(fs::file_size(mission_path)) / (1 << 20);
 
   // Picking: half the points near an observation (a click on a track), half anywhere on the map.
   const Stopwatch index_begin;
@@ -255,7 +255,8 @@ int main(int argc, char** argv) {
       {"pick_hits", hits},
       {"brute_force_median_us", brute_median},
       {"brute_force_per_pick", brute_median / std::max(pick_median, 1e-9)},
-      {"brute_force_agreement", brute_us.empty() ? 1.0 : double(agree) / double(brute_us.size())},
+      {"brute_force_agreement",
+       brute_us.empty() ? 1.0 : static_cast<double>(agree) / static_cast<double>(brute_us.size())},
   };
   if (json) {
     std::cout << out.dump(2) << "\n";
@@ -265,8 +266,9 @@ int main(int argc, char** argv) {
   std::printf(
       "                 %.1f s, %lld frames; mission: %lld key frames, %lld tracks, "
       "%lld tiles, %.1f MiB\n",
-      duration_s, (long long)summary->frames, (long long)summary->key_frames,
-      (long long)summary->tracks, (long long)summary->tiles, file_mb);
+      duration_s, static_cast<long long>(summary->frames),
+      static_cast<long long>(summary->key_frames), static_cast<long long>(summary->tracks),
+      static_cast<long long>(summary->tiles), file_mb);
   std::printf(
       "processing       %.2f s (front end %.2f, mosaic %.2f, activity %.2f, tiles %.2f, "
       "saves %.2f)\n",

@@ -104,22 +104,22 @@ Link MeasureLink(const std::vector<Eigen::Matrix3d>& truth, int from, int to, No
   for (int i = 0; i < 8; ++i) z(i) = noise.Gaussian();
   const Vector8 error = Matrix8(corner_cov.llt().matrixL()) * z;
   const Eigen::Matrix3d truth_to_from_from =
-      Normalised(truth[size_t(to)].inverse() * truth[size_t(from)]);
+      Normalised(truth[static_cast<size_t>(to)].inverse() * truth[static_cast<size_t>(from)]);
   const auto corners = ImageCorners(kWidth, kHeight);
   std::array<Eigen::Vector2d, 4> measured;
   for (size_t i = 0; i < 4; ++i) {
     measured[i] = saker::track::Transfer(truth_to_from_from, corners[i]) +
-                  error.segment<2>(2 * Eigen::Index(i));
+                  error.segment<2>(2 * static_cast<Eigen::Index>(i));
   }
   Link link;
-  link.from = KeyFrameId(from);
-  link.to = KeyFrameId(to);
+  link.from = static_cast<KeyFrameId>(from);
+  link.to = static_cast<KeyFrameId>(to);
   link.kind =
       to == from + 1 ? saker::mosaic::LinkKind::kSequential : saker::mosaic::LinkKind::kGeometric;
   link.to_from_from = FourPointHomography(corners, measured);
   Matrix8 j;
   for (size_t i = 0; i < 4; ++i) {
-    j.middleRows<2>(2 * Eigen::Index(i)) =
+    j.middleRows<2>(2 * static_cast<Eigen::Index>(i)) =
         saker::track::TransferJacobian(link.to_from_from, corners[i]);
   }
   const Matrix8 j_inv = j.inverse();
@@ -138,28 +138,28 @@ void ChainStart(Scene* scene) {
   LinkGraph& graph = scene->graph;
   graph.nodes[0].map_from_frame = scene->truth[0];
   for (const Link& link : graph.links) {
-    if (int(link.to) == int(link.from) + 1) {
-      graph.nodes[size_t(link.to)].map_from_frame =
-          Normalised(graph.nodes[size_t(link.from)].map_from_frame * link.to_from_from.inverse());
+    if (static_cast<int>(link.to) == static_cast<int>(link.from) + 1) {
+      graph.nodes[static_cast<size_t>(link.to)].map_from_frame = Normalised(
+          graph.nodes[static_cast<size_t>(link.from)].map_from_frame * link.to_from_from.inverse());
     }
   }
 }
 
 // About n key frames in rows of `columns`, flown back and forth (boustrophedon).
 Scene MakeRaster(int n, uint64_t seed) {
-  const int columns = std::max(2, int(std::lround(std::sqrt(1.6 * n))));
+  const int columns = std::max(2, static_cast<int>(std::lround(std::sqrt(1.6 * n))));
   const int rows = std::max(1, (n + columns - 1) / columns);
   Noise noise(seed);
   Scene scene;
   std::vector<std::pair<int, int>> cell;  // (row, column) per key frame along the path
   for (int r = 0; r < rows; ++r) {
-    for (int c = 0; c < columns && int(cell.size()) < n; ++c) {
+    for (int c = 0; c < columns && static_cast<int>(cell.size()) < n; ++c) {
       const int column = r % 2 == 0 ? c : columns - 1 - c;
       const double heading = r % 2 == 0 ? 0 : M_PI;
       const size_t k = cell.size();
       scene.truth.push_back(GroundFromImage(kStepM * column, kRowSpacingM * r, heading,
-                                            0.02 * std::sin(0.37 * double(k)),
-                                            0.02 * std::cos(0.23 * double(k))));
+                                            0.02 * std::sin(0.37 * static_cast<double>(k)),
+                                            0.02 * std::cos(0.23 * static_cast<double>(k))));
       cell.emplace_back(r, column);
     }
   }
@@ -169,24 +169,25 @@ Scene MakeRaster(int n, uint64_t seed) {
   graph.geo_referenced = true;  // ENU metres, no metadata: node 0 holds the gauge
   for (size_t k = 0; k < cell.size(); ++k) {
     saker::mosaic::Node node;
-    node.id = KeyFrameId(int(k));
-    node.frame_index = int64_t(k) * 25;
+    node.id = static_cast<KeyFrameId>(static_cast<int>(k));
+    node.frame_index = static_cast<int64_t>(k) * 25;
     graph.nodes.push_back(node);
   }
-  std::vector<int> index(size_t(rows * columns), -1);
+  std::vector<int> index(static_cast<size_t>(rows * columns), -1);
   for (size_t k = 0; k < cell.size(); ++k) {
-    index[size_t(cell[k].first * columns + cell[k].second)] = int(k);
+    index[static_cast<size_t>(cell[k].first * columns + cell[k].second)] = static_cast<int>(k);
   }
   for (size_t k = 0; k + 1 < cell.size(); ++k) {
-    graph.links.push_back(MeasureLink(scene.truth, int(k), int(k) + 1, noise));
+    graph.links.push_back(
+        MeasureLink(scene.truth, static_cast<int>(k), static_cast<int>(k) + 1, noise));
   }
   for (size_t k = 0; k < cell.size(); ++k) {
     const auto [r, c] = cell[k];
     if (r == 0) continue;
-    const int below = index[size_t((r - 1) * columns + c)];
+    const int below = index[static_cast<size_t>((r - 1) * columns + c)];
     // Not the turn link, which is already sequential.
-    if (below >= 0 && below + 1 != int(k)) {
-      graph.links.push_back(MeasureLink(scene.truth, below, int(k), noise));
+    if (below >= 0 && below + 1 != static_cast<int>(k)) {
+      graph.links.push_back(MeasureLink(scene.truth, below, static_cast<int>(k), noise));
     }
   }
   ChainStart(&scene);
@@ -202,7 +203,7 @@ double RmsCornerError(const LinkGraph& graph, const std::vector<Eigen::Matrix3d>
                  .squaredNorm();
     }
   }
-  return std::sqrt(sum / double(4 * graph.nodes.size()));
+  return std::sqrt(sum / static_cast<double>(4 * graph.nodes.size()));
 }
 
 // Predicted RMS corner error (map units) from node covariances (of the listed nodes, or all).
@@ -211,13 +212,13 @@ double PredictedRms(const LinkGraph& graph,
                     const std::vector<KeyFrameId>& nodes) {
   double sum = 0;
   for (size_t k = 0; k < covariances.size(); ++k) {
-    const size_t node = nodes.empty() ? k : size_t(nodes[k]);
+    const size_t node = nodes.empty() ? k : static_cast<size_t>(nodes[k]);
     for (const Eigen::Vector2d& c : ImageCorners(kWidth, kHeight)) {
       sum += saker::track::TransferCovariance(graph.nodes[node].map_from_frame, covariances[k], c)
                  .trace();
     }
   }
-  return std::sqrt(sum / double(4 * covariances.size()));
+  return std::sqrt(sum / static_cast<double>(4 * covariances.size()));
 }
 
 // Bundle adjustment and covariance timing per graph size. Returns the median adjustment time
@@ -234,7 +235,7 @@ std::vector<double> BenchmarkAdjustment(const std::vector<int>& sizes,
               "adjust_s", "cov_s", "rms_start", "rms_adj", "rms_pred");
   std::vector<double> times;
   for (int n : sizes) {
-    const Scene scene = MakeRaster(n, seed + uint64_t(n));
+    const Scene scene = MakeRaster(n, seed + static_cast<uint64_t>(n));
     std::vector<double> run_times;
     saker::mosaic::AdjustmentSummary summary;
     LinkGraph adjusted;
@@ -251,10 +252,11 @@ std::vector<double> BenchmarkAdjustment(const std::vector<int>& sizes,
     }
     // Covariances of all nodes, or of covariance_max nodes spread over the graph beyond that.
     std::vector<KeyFrameId> wanted;
-    const bool all = int(adjusted.nodes.size()) <= covariance_max;
+    const bool all = static_cast<int>(adjusted.nodes.size()) <= covariance_max;
     if (!all) {
       for (int k = 0; k < covariance_max; ++k) {
-        wanted.push_back(KeyFrameId(int(adjusted.nodes.size()) * k / covariance_max));
+        wanted.push_back(
+            static_cast<KeyFrameId>(static_cast<int>(adjusted.nodes.size()) * k / covariance_max));
       }
     }
     const Stopwatch cov_start;
@@ -266,7 +268,7 @@ std::vector<double> BenchmarkAdjustment(const std::vector<int>& sizes,
     }
     char cov_text[40];
     std::snprintf(cov_text, sizeof(cov_text), all ? "%.3f" : "%.3f (%d)", cov_s,
-                  int(wanted.size()));
+                  static_cast<int>(wanted.size()));
     const double t = Median(run_times);
     times.push_back(t);
     std::printf("%6zu %6zu %7d %6d %9.3f %13s %11.2f %10.2f %10.2f\n", adjusted.nodes.size(),
@@ -277,7 +279,7 @@ std::vector<double> BenchmarkAdjustment(const std::vector<int>& sizes,
   }
   if (times.size() >= 2) {
     std::printf("time(%d) / time(%d) = %.1f (key frame ratio %.1f)\n", sizes.back(), sizes.front(),
-                times.back() / times.front(), double(sizes.back()) / sizes.front());
+                times.back() / times.front(), static_cast<double>(sizes.back()) / sizes.front());
   }
   std::printf(
       "rms_*: RMS corner error against the truth in metres (gauge: node 0 at its truth) of the\n"
@@ -314,12 +316,12 @@ void BenchmarkQuery(const std::vector<int>& sizes, uint64_t seed) {
   const int per_frame = 900;
   const auto frame = [&](int id) {
     KeyFrameFeatures f;
-    f.id = saker::mosaic::KeyFrameId(id);
+    f.id = static_cast<saker::mosaic::KeyFrameId>(id);
     f.descriptors = PlaceDescriptors(places, per_frame, random);
     for (int i = 0; i < per_frame; ++i) {
       f.points.emplace_back(std::uniform_real_distribution<double>(0, 1279)(random),
                             std::uniform_real_distribution<double>(0, 719)(random));
-      f.track_ids.push_back(saker::track::FeatureTrackId(i));
+      f.track_ids.push_back(static_cast<saker::track::FeatureTrackId>(i));
     }
     return f;
   };
@@ -363,9 +365,10 @@ void BenchmarkQuery(const std::vector<int>& sizes, uint64_t seed) {
 // second, about 10 px at 0.156 m/px), pitching and rolling a little: the truth of frame k.
 Eigen::Matrix3d CircuitFrame(int64_t k) {
   constexpr double kRadiusM = 1500, kFrameStepM = 1.6;
-  const double t = double(k) * kFrameStepM / kRadiusM;
+  const double t = static_cast<double>(k) * kFrameStepM / kRadiusM;
   return GroundFromImage(kRadiusM * std::cos(t), kRadiusM * std::sin(t), t + M_PI / 2,
-                         0.03 * std::sin(0.05 * double(k)), 0.02 * std::cos(0.031 * double(k)));
+                         0.03 * std::sin(0.05 * static_cast<double>(k)),
+                         0.02 * std::cos(0.031 * static_cast<double>(k)));
 }
 
 // Where `estimate` puts each frame's image corners against the truth, metres: the RMS over all
@@ -379,7 +382,7 @@ ChainError ChainErrorM(const std::vector<Eigen::Matrix3d>& estimate) {
   std::vector<double> per_frame;
   per_frame.reserve(estimate.size());
   for (size_t k = 0; k < estimate.size(); ++k) {
-    const Eigen::Matrix3d truth = CircuitFrame(int64_t(k));
+    const Eigen::Matrix3d truth = CircuitFrame(static_cast<int64_t>(k));
     double frame = 0;
     for (const Eigen::Vector2d& c : corners) {
       const Eigen::Vector3d p = estimate[k] * c.homogeneous(), q = truth * c.homogeneous();
@@ -388,7 +391,7 @@ ChainError ChainErrorM(const std::vector<Eigen::Matrix3d>& estimate) {
     sum += frame;
     per_frame.push_back(std::sqrt(frame / 4));
   }
-  return {std::sqrt(sum / double(4 * estimate.size())), Median(std::move(per_frame))};
+  return {std::sqrt(sum / static_cast<double>(4 * estimate.size())), Median(std::move(per_frame))};
 }
 
 // In-between frames: SolveChain time against the chain length, both ends fixed at the truth. The
@@ -411,7 +414,7 @@ void BenchmarkChain(const std::vector<int>& sizes, uint64_t seed) {
   for (int n : sizes) {
     // The measured steps: the truth's corners moved by isotropic noise, fitted exactly, with the
     // covariance that noise implies.
-    Noise noise(seed + uint64_t(n));
+    Noise noise(seed + static_cast<uint64_t>(n));
     std::vector<saker::mosaic::ChainStep> steps(static_cast<size_t>(n));
     Eigen::Matrix3d previous = CircuitFrame(0);
     const Eigen::Matrix3d first = previous;
@@ -425,8 +428,8 @@ void BenchmarkChain(const std::vector<int>& sizes, uint64_t seed) {
       }
       const auto h = saker::track::HomographyFromCorners(corners, measured, kChainSigmaPx);
       SAKER_CHECK(h.ok()) << h.status().ToString();
-      steps[size_t(k)].next_from_previous = h->target_from_source;
-      steps[size_t(k)].covariance = h->covariance;
+      steps[static_cast<size_t>(k)].next_from_previous = h->target_from_source;
+      steps[static_cast<size_t>(k)].covariance = h->covariance;
       previous = next;
     }
     const Eigen::Matrix3d last = previous;
@@ -462,7 +465,7 @@ void BenchmarkChain(const std::vector<int>& sizes, uint64_t seed) {
       return;
     }
     std::vector<Eigen::Matrix3d> chained = {first};
-    chained.reserve(size_t(n) + 1);
+    chained.reserve(static_cast<size_t>(n) + 1);
     for (const saker::mosaic::ChainStep& step : steps) {
       chained.push_back(Normalised(chained.back() * step.next_from_previous.inverse()));
     }
@@ -494,25 +497,25 @@ Scene MakeLoops(int n, uint64_t seed) {
   Scene scene;
   std::vector<Eigen::Vector2d> centre;
   std::vector<int> loop_of;  // per key frame: its loop, or -1 on a transit
-  for (int loop = 0; int(scene.truth.size()) < n; ++loop) {
+  for (int loop = 0; static_cast<int>(scene.truth.size()) < n; ++loop) {
     const Eigen::Vector2d c(kSpacingM * loop, 0);
-    for (int j = 0; j < kLoop && int(scene.truth.size()) < n; ++j) {
+    for (int j = 0; j < kLoop && static_cast<int>(scene.truth.size()) < n; ++j) {
       const double angle = M_PI + 2 * M_PI * j / kLoop;  // from the west point, anticlockwise
       const size_t k = scene.truth.size();
       const Eigen::Vector2d p = c + radius * Eigen::Vector2d(std::cos(angle), std::sin(angle));
       scene.truth.push_back(GroundFromImage(p.x(), p.y(), angle + M_PI / 2,
-                                            0.02 * std::sin(0.37 * double(k)),
-                                            0.02 * std::cos(0.23 * double(k))));
+                                            0.02 * std::sin(0.37 * static_cast<double>(k)),
+                                            0.02 * std::cos(0.23 * static_cast<double>(k))));
       centre.push_back(p);
       loop_of.push_back(loop);
     }
     // Transit from this west point to the next circle's, heading east.
     const double from = c.x() - radius, to = from + kSpacingM;
-    for (double x = from + kStepM; x < to - 0.5 * kStepM && int(scene.truth.size()) < n;
-         x += kStepM) {
+    for (double x = from + kStepM;
+         x < to - 0.5 * kStepM && static_cast<int>(scene.truth.size()) < n; x += kStepM) {
       const size_t k = scene.truth.size();
-      scene.truth.push_back(GroundFromImage(x, 0, 0, 0.02 * std::sin(0.37 * double(k)),
-                                            0.02 * std::cos(0.23 * double(k))));
+      scene.truth.push_back(GroundFromImage(x, 0, 0, 0.02 * std::sin(0.37 * static_cast<double>(k)),
+                                            0.02 * std::cos(0.23 * static_cast<double>(k))));
       centre.emplace_back(x, 0);
       loop_of.push_back(-1);
     }
@@ -523,23 +526,25 @@ Scene MakeLoops(int n, uint64_t seed) {
   graph.geo_referenced = true;  // ENU metres, no metadata: node 0 holds the gauge
   for (size_t k = 0; k < scene.truth.size(); ++k) {
     saker::mosaic::Node node;
-    node.id = KeyFrameId(int(k));
-    node.frame_index = int64_t(k) * 25;
+    node.id = static_cast<KeyFrameId>(static_cast<int>(k));
+    node.frame_index = static_cast<int64_t>(k) * 25;
     graph.nodes.push_back(node);
   }
   for (size_t k = 0; k + 1 < scene.truth.size(); ++k) {
-    graph.links.push_back(MeasureLink(scene.truth, int(k), int(k) + 1, noise));
+    graph.links.push_back(
+        MeasureLink(scene.truth, static_cast<int>(k), static_cast<int>(k) + 1, noise));
   }
   // Per loop: its key frames.
   std::vector<std::vector<int>> members;
   for (size_t k = 0; k < loop_of.size(); ++k) {
     if (loop_of[k] < 0) continue;
-    if (size_t(loop_of[k]) >= members.size()) members.resize(size_t(loop_of[k]) + 1);
-    members[size_t(loop_of[k])].push_back(int(k));
+    if (static_cast<size_t>(loop_of[k]) >= members.size())
+      members.resize(static_cast<size_t>(loop_of[k]) + 1);
+    members[static_cast<size_t>(loop_of[k])].push_back(static_cast<int>(k));
   }
   for (size_t loop = 0; loop < members.size(); ++loop) {
     const std::vector<int>& m = members[loop];
-    if (int(m.size()) == kLoop)
+    if (static_cast<int>(m.size()) == kLoop)
       graph.links.push_back(MeasureLink(scene.truth, m.back(), m.front(), noise));
     // The crossings with the two previous loops: the closest pair in each half (north, south).
     for (size_t back = 1; back <= std::min<size_t>(2, loop); ++back) {
@@ -547,9 +552,10 @@ Scene MakeLoops(int n, uint64_t seed) {
         double best = 40;  // metres: overlapping footprints
         std::pair<int, int> pair{-1, -1};
         for (int a : members[loop - back]) {
-          if (side * centre[size_t(a)].y() <= 0) continue;
+          if (side * centre[static_cast<size_t>(a)].y() <= 0) continue;
           for (int b : m) {
-            const double d = (centre[size_t(a)] - centre[size_t(b)]).norm();
+            const double d =
+                (centre[static_cast<size_t>(a)] - centre[static_cast<size_t>(b)]).norm();
             if (d < best) best = d, pair = {a, b};
           }
         }
@@ -566,10 +572,11 @@ Scene MakeLoops(int n, uint64_t seed) {
 // The first m key frames of `graph` and the links among them.
 LinkGraph Prefix(const LinkGraph& graph, int m) {
   LinkGraph prefix = graph;
-  prefix.nodes.resize(size_t(m));
+  prefix.nodes.resize(static_cast<size_t>(m));
   prefix.links.clear();
   for (const Link& link : graph.links) {
-    if (int(link.from) < m && int(link.to) < m) prefix.links.push_back(link);
+    if (static_cast<int>(link.from) < m && static_cast<int>(link.to) < m)
+      prefix.links.push_back(link);
   }
   return prefix;
 }
@@ -577,9 +584,11 @@ LinkGraph Prefix(const LinkGraph& graph, int m) {
 // Key frames from `first` on chained through the sequential links from key frame first - 1.
 void ChainFrom(LinkGraph* graph, int first) {
   for (const Link& link : graph->links) {
-    if (int(link.to) == int(link.from) + 1 && int(link.to) >= first) {
-      graph->nodes[size_t(link.to)].map_from_frame =
-          Normalised(graph->nodes[size_t(link.from)].map_from_frame * link.to_from_from.inverse());
+    if (static_cast<int>(link.to) == static_cast<int>(link.from) + 1 &&
+        static_cast<int>(link.to) >= first) {
+      graph->nodes[static_cast<size_t>(link.to)].map_from_frame =
+          Normalised(graph->nodes[static_cast<size_t>(link.from)].map_from_frame *
+                     link.to_from_from.inverse());
     }
   }
 }
@@ -591,7 +600,7 @@ void ChainFrom(LinkGraph* graph, int first) {
 double WarmStart(const Scene& scene, int every, const saker::mosaic::AdjustmentOptions& options,
                  LinkGraph* start) {
   *start = scene.graph;
-  const int n = int(scene.graph.nodes.size());
+  const int n = static_cast<int>(scene.graph.nodes.size());
   double seconds = 0;
   for (int m = every; m < n; m += every) {
     LinkGraph prefix = Prefix(*start, m);
@@ -599,7 +608,8 @@ double WarmStart(const Scene& scene, int every, const saker::mosaic::AdjustmentO
     const auto summary = saker::mosaic::AdjustDecomposed(&prefix, options, {});
     seconds += begin.ElapsedSeconds();
     SAKER_CHECK(summary.ok()) << summary.status().ToString();
-    for (int k = 0; k < m; ++k) start->nodes[size_t(k)] = prefix.nodes[size_t(k)];
+    for (int k = 0; k < m; ++k)
+      start->nodes[static_cast<size_t>(k)] = prefix.nodes[static_cast<size_t>(k)];
     ChainFrom(start, m);
   }
   return seconds;
@@ -620,7 +630,7 @@ void BenchmarkDecomposition(const std::vector<int>& sizes,
               "links", "nodes", "arcs", "full_s", "decomp_s", "nodes_s", "place_s", "speedup",
               "full_cost", "dec_cost", "start_rms", "full_rms", "dec_rms");
   for (const int n : sizes) {
-    const Scene scene = MakeLoops(n, seed + uint64_t(n));
+    const Scene scene = MakeLoops(n, seed + static_cast<uint64_t>(n));
     std::vector<std::pair<const char*, LinkGraph>> starts = {{"chained", scene.graph}};
     double warm_s = 0;
     if (warm_every > 0 && n > warm_every) {

@@ -57,7 +57,7 @@ Figures Measure(int width, int height, double seconds, const fs::path& dir) {
     std::exit(1);
   }
   f.frames = summary->frames;
-  f.simulate_fps = double(f.frames) / elapsed;
+  f.simulate_fps = static_cast<double>(f.frames) / elapsed;
 
   // The steps on their own, on the same frames.
   StatusOr<sim::SimulationSetup> setup = sim::SimulationSetup::Create(options);
@@ -69,7 +69,7 @@ Figures Measure(int width, int height, double seconds, const fs::path& dir) {
   std::vector<cv::Mat> rendered;
   double ground_s = 0, targets_s = 0, effects_s = 0;
   for (int64_t i = 0; i < f.frames; ++i) {
-    const double t = double(i) * setup->frame_interval_s();
+    const double t = static_cast<double>(i) * setup->frame_interval_s();
     const Eigen::Matrix3d h = sim::FrameFromGround(options.camera, setup->flight().PoseAt(t));
     if (i > 0) targets->Step(setup->frame_interval_s());
     Stopwatch step;
@@ -83,11 +83,11 @@ Figures Measure(int width, int height, double seconds, const fs::path& dir) {
     effects_s += step.ElapsedSeconds();
     if (i % 5 == 0) rendered.push_back(with_effects);
   }
-  f.ground_ms = 1000 * ground_s / double(f.frames);
-  f.targets_ms = 1000 * targets_s / double(f.frames);
+  f.ground_ms = 1000 * ground_s / static_cast<double>(f.frames);
+  f.targets_ms = 1000 * targets_s / static_cast<double>(f.frames);
   // Render() without targets = ground + effects: the difference is the effects. The baseline
   // encodes frames with their noise, which costs the encoder as much as in the simulation.
-  f.effects_ms = std::max(0.0, 1000 * effects_s / double(f.frames) - f.ground_ms);
+  f.effects_ms = std::max(0.0, 1000 * effects_s / static_cast<double>(f.frames) - f.ground_ms);
 
   // Baseline: encoding alone, the same frame count, frames prepared beforehand.
   video::TsWriterOptions writer_options;
@@ -98,10 +98,11 @@ Figures Measure(int width, int height, double seconds, const fs::path& dir) {
   const Stopwatch encode_start;
   auto writer = video::TsWriter::Open(dir / "encode_only.ts", writer_options);
   for (int64_t i = 0; i < f.frames; ++i) {
-    if (!(*writer)->WriteFrame(rendered[size_t(i / 5) % rendered.size()]).ok()) std::exit(1);
+    if (!(*writer)->WriteFrame(rendered[static_cast<size_t>(i / 5) % rendered.size()]).ok())
+      std::exit(1);
   }
   if (!(*writer)->Close().ok()) std::exit(1);
-  f.encode_only_fps = double(f.frames) / encode_start.ElapsedSeconds();
+  f.encode_only_fps = static_cast<double>(f.frames) / encode_start.ElapsedSeconds();
   return f;
 }
 

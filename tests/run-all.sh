@@ -4,10 +4,12 @@
 #   asan     configure + build + ctest, the whole suite under AddressSanitizer + UBSan (Debug)
 #   tsan     configure + build + ctest, the tests labelled `threads` under ThreadSanitizer
 #   fuzz     tests/fuzz/run-fuzzers.sh --seconds 20, when that script exists
+#   tidy     clang-tidy with the repository's .clang-tidy over every source file (on request only:
+#            about 8 minutes on 2 cores, which CI's time budget does not cover)
 # Prints one timing line per stage and a summary; the exit status is the failing stage's (or 0).
 # Installs nothing: packaging/install-deps.sh does that. ccache is used when installed.
 #
-# Usage: tests/run-all.sh [STAGE...]   (default: all four, in the order above)
+# Usage: tests/run-all.sh [STAGE...]   (default: release asan tsan fuzz, in that order)
 # Environment: SAKER_JOBS (build jobs, default: the number of cores).
 set -uo pipefail
 
@@ -18,9 +20,9 @@ if (($# > 0)); then
   stages=("$@")
   for s in "${stages[@]}"; do
     case "$s" in
-      release | asan | tsan | fuzz) ;;
+      release | asan | tsan | fuzz | tidy) ;;
       *)
-        echo "run-all: unknown stage '$s' (stages: ${all_stages[*]})" >&2
+        echo "run-all: unknown stage '$s' (stages: ${all_stages[*]} tidy)" >&2
         exit 2
         ;;
     esac
@@ -77,6 +79,15 @@ for stage in "${stages[@]}"; do
   case "$stage" in
     release | asan | tsan)
       run_cmake_stage "$stage"
+      status=$?
+      ;;
+    tidy)
+      # Over the release tree's compile_commands.json, built first (the GUI's sources include
+      # generated headers); only the project's own sources, not those generated in the build tree.
+      step configure cmake --preset release "${configure_args[@]}" &&
+        step build cmake --build --preset release -j "$jobs" &&
+        step tidy run-clang-tidy -p build/release -j "$jobs" -quiet \
+          "^$PWD/(core|ui|app|tests|benchmarks)/"
       status=$?
       ;;
     fuzz)

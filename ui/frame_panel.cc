@@ -36,7 +36,7 @@ std::vector<video::FrameIndexEntry> StoredFrameIndex(const mission::Mission& mis
   std::vector<video::FrameIndexEntry> index;
   index.reserve(mission.frames.size());
   for (const mission::FrameRecord& f : mission.frames) {
-    if (!f.pts || f.index != int64_t(index.size()) ||
+    if (!f.pts || f.index != static_cast<int64_t>(index.size()) ||
         (!index.empty() && *f.pts <= index.back().pts))
       return {};
     index.push_back({f.index, *f.pts, f.time_s, f.key_frame});

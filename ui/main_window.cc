@@ -67,7 +67,7 @@ QString SettingsKeyForVideo(const std::string& fingerprint) {
 }
 
 QString Duration(double seconds) {
-  const int total = int(std::lround(seconds));
+  const int total = static_cast<int>(std::lround(seconds));
   return QString("%1:%2").arg(total / 60).arg(total % 60, 2, 10, QChar('0'));
 }
 
@@ -107,7 +107,7 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
     stage_label_->setText(processing_video_.isEmpty()
                               ? stage
                               : tr("%1: %2").arg(QFileInfo(processing_video_).fileName(), stage));
-    progress_->setValue(int(std::lround(fraction * kProgressSteps)));
+    progress_->setValue(static_cast<int>(std::lround(fraction * kProgressSteps)));
   });
   connect(jobs_, &TaskRunner::finished, this, &MainWindow::jobEnded);
   connect(loader_, &TaskRunner::finished, this, [this](const QString&, const Status& status) {
@@ -272,7 +272,7 @@ void MainWindow::createActions() {
   for (const auto& [mode, label] : modes) {
     QAction* action = colour->addAction(label);
     action->setCheckable(true);
-    action->setData(int(mode));
+    action->setData(static_cast<int>(mode));
     action->setShortcut(QKeySequence(QString("Ctrl+%1").arg(key++)));
     action->setObjectName(QString("colourBy_") + activity::ColourModeName(mode));
     colour_group_->addAction(action);
@@ -498,9 +498,10 @@ void MainWindow::missionLoaded(const Loaded& loaded) {
   updateMissionFacts();
   updateActions();
   if (!jobs_->isRunning()) {
-    statusBar()->showMessage(tr("Opened %1: %n track(s)", nullptr, int(mission_->tracks.size()))
-                                 .arg(QFileInfo(mission_path_).fileName()),
-                             5000);
+    statusBar()->showMessage(
+        tr("Opened %1: %n track(s)", nullptr, static_cast<int>(mission_->tracks.size()))
+            .arg(QFileInfo(mission_path_).fileName()),
+        5000);
   }
   emit missionOpened(mission_path_);
 }
@@ -843,7 +844,7 @@ bool MainWindow::pickAt(const Eigen::Vector2d& map_point, double tolerance) {
 void MainWindow::setColourMode(activity::ColourMode mode) {
   view_->setColourMode(mode);
   for (QAction* action : colour_group_->actions()) {
-    if (action->data().toInt() == int(mode)) action->setChecked(true);
+    if (action->data().toInt() == static_cast<int>(mode)) action->setChecked(true);
   }
 }
 

@@ -208,8 +208,8 @@ void MosaicView::addPreviewKeyFrame(const frontend::KeyFramePreview& preview) {
                   0.25 * wanted.height());
     const double canvas_scale =
         std::min(1.0 / scale, kMaxCanvasSide / std::max(wanted.width(), wanted.height()));
-    QImage canvas(std::max(1, int(std::ceil(wanted.width() * canvas_scale))),
-                  std::max(1, int(std::ceil(wanted.height() * canvas_scale))),
+    QImage canvas(std::max(1, static_cast<int>(std::ceil(wanted.width() * canvas_scale))),
+                  std::max(1, static_cast<int>(std::ceil(wanted.height() * canvas_scale))),
                   QImage::Format_ARGB32_Premultiplied);
     canvas.fill(Qt::transparent);
     const QTransform canvas_from_preview(canvas_scale, 0, 0, canvas_scale,
@@ -387,7 +387,8 @@ const activity::Legend& MosaicView::legend() const {
 std::optional<activity::Rgb> MosaicView::trackColour(size_t track_index) const {
   if (track_index >= track_colours_.size() || !isTrackVisible(track_index)) return std::nullopt;
   const QColor& c = track_colours_[track_index];
-  return activity::Rgb{uint8_t(c.red()), uint8_t(c.green()), uint8_t(c.blue())};
+  return activity::Rgb{static_cast<uint8_t>(c.red()), static_cast<uint8_t>(c.green()),
+                       static_cast<uint8_t>(c.blue())};
 }
 
 void MosaicView::setTrackFilter(const TrackFilter& filter) {
@@ -555,7 +556,9 @@ int MosaicView::tileLevel() const {
   // pixel: a coarser one would be magnified (blurred) while a finer one is there.
   const double px = ppu_ * std::abs(p.step_x) * devicePixelRatioF();
   int level = 0;
-  while (level + 1 < p.levels && px * double(int64_t(1) << (level + 1)) <= 1.0 + 1e-9) ++level;
+  while (level + 1 < p.levels &&
+         px * static_cast<double>(static_cast<int64_t>(1) << (level + 1)) <= 1.0 + 1e-9)
+    ++level;
   return level;
 }
 
@@ -564,9 +567,10 @@ MosaicView::TileRange MosaicView::visibleTiles(int level) const {
   range.level = level;
   if (frame_ != Frame::kMap || !mission_->pyramid) return range;
   const mission::PyramidInfo& p = *mission_->pyramid;
-  const double span = double(int64_t(p.tile_size) << level);  // level-0 pixels per tile
-  const int columns = int((p.width + span - 1) / span);
-  const int rows = int((p.height + span - 1) / span);
+  const double span =
+      static_cast<double>(static_cast<int64_t>(p.tile_size) << level);  // level-0 pixels per tile
+  const int columns = static_cast<int>((p.width + span - 1) / span);
+  const int rows = static_cast<int>((p.height + span - 1) / span);
   const QRectF r = visibleMapRect();
   // Level-0 pixel-centre coordinates of the visible rectangle; tiles start at -0.5.
   const double ua = (r.left() - p.map_origin.x()) / p.step_x + 0.5;
@@ -574,7 +578,7 @@ MosaicView::TileRange MosaicView::visibleTiles(int level) const {
   const double va = (r.top() - p.map_origin.y()) / p.step_y + 0.5;
   const double vb = (r.bottom() - p.map_origin.y()) / p.step_y + 0.5;
   const auto index = [span](double u, int count) {
-    return int(std::clamp(std::floor(u / span), -1.0, double(count)));
+    return static_cast<int>(std::clamp(std::floor(u / span), -1.0, static_cast<double>(count)));
   };
   range.x0 = std::max(0, index(std::min(ua, ub), columns));
   range.x1 = std::min(columns - 1, index(std::max(ua, ub), columns));
@@ -585,7 +589,7 @@ MosaicView::TileRange MosaicView::visibleTiles(int level) const {
 
 QRectF MosaicView::tileRect(int level, int x, int y) const {
   const mission::PyramidInfo& p = *mission_->pyramid;
-  const double f = double(int64_t(1) << level);
+  const double f = static_cast<double>(static_cast<int64_t>(1) << level);
   const double t = p.tile_size;
   // A level-l pixel averages 2^l x 2^l level-0 pixels: its edges lie half a level-0 pixel
   // before their centres.
@@ -689,7 +693,7 @@ void MosaicView::paintTiles(QPainter& painter) {
         const int cx = x >> d, cy = y >> d;
         const QImage parent = tiles_->tile(coarse, cx, cy);
         if (!parent.isNull()) {
-          const double sub = double(parent.width()) / double(1 << d);
+          const double sub = static_cast<double>(parent.width()) / static_cast<double>(1 << d);
           const QRectF source((x - (cx << d)) * sub, (y - (cy << d)) * sub, sub, sub);
           painter.drawImage(target, parent, source);
           break;
@@ -752,7 +756,8 @@ void MosaicView::paintTracks(QPainter& painter) {
   }
   const QTransform view = widgetFromMapTransform();
   const double dpr = devicePixelRatioF();
-  const QSize device_size(int(std::ceil(width() * dpr)), int(std::ceil(height() * dpr)));
+  const QSize device_size(static_cast<int>(std::ceil(width() * dpr)),
+                          static_cast<int>(std::ceil(height() * dpr)));
   const bool current = !track_layer_.isNull() && track_layer_version_ == tracks_version_ &&
                        track_layer_.size() == device_size;
   if (current && track_layer_view_ == view) {
@@ -800,7 +805,7 @@ void MosaicView::drawTracks(QPainter& painter) const {
     const TrackShape& shape = track_shapes_[i];
     if (!track_visible_[i] || shape.points.empty() || !Overlaps(shape.bounds, view)) continue;
     QPolygonF line;
-    line.reserve(qsizetype(shape.points.size()));
+    line.reserve(static_cast<qsizetype>(shape.points.size()));
     for (const QPointF& point : shape.points) {
       const QPointF p = transform.map(point);
       if (!line.isEmpty() && (std::abs(p.x() - line.back().x()) < kDecimatePx &&
@@ -893,7 +898,7 @@ void MosaicView::paintLegend(QPainter& painter) {
       content_width = std::max(
           content_width, kSwatch + 6 + metrics.horizontalAdvance(QString::fromStdString(e.label)));
     }
-    content_height += double(legend.entries.size()) * (metrics.height() + 2);
+    content_height += static_cast<double>(legend.entries.size()) * (metrics.height() + 2);
   }
   const QRectF panel(kPanelMargin, height() - kPanelMargin - content_height - 2 * kPanelPadding,
                      content_width + 2 * kPanelPadding, content_height + 2 * kPanelPadding);
@@ -914,7 +919,7 @@ void MosaicView::paintLegend(QPainter& painter) {
     QLinearGradient gradient(ramp.topLeft(), ramp.topRight());
     constexpr int kStops = 48;
     for (int i = 0; i <= kStops; ++i) {
-      const double position = double(i) / kStops;
+      const double position = static_cast<double>(i) / kStops;
       gradient.setColorAt(position, ToQColor(colouring_->RampColour(position)));
     }
     painter.fillRect(ramp, gradient);

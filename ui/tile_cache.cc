@@ -197,7 +197,7 @@ bool TileCache::wanted(const TileKey& key) const {
   if (!pyramid_ || key.level < 0 || key.level >= pyramid_->levels || key.x < 0 || key.y < 0) {
     return false;
   }
-  const int64_t span = int64_t(pyramid_->tile_size) << key.level;
+  const int64_t span = static_cast<int64_t>(pyramid_->tile_size) << key.level;
   if (key.x >= (pyramid_->width + span - 1) / span ||
       key.y >= (pyramid_->height + span - 1) / span) {
     return false;

@@ -33,8 +33,9 @@ struct TileKey {
 };
 
 inline size_t qHash(const TileKey& key, size_t seed = 0) {
-  return ::qHash((quint64(uint32_t(key.level)) << 48) ^ (quint64(uint32_t(key.x)) << 24) ^
-                     quint64(uint32_t(key.y)),
+  return ::qHash((static_cast<quint64>(static_cast<uint32_t>(key.level)) << 48) ^
+                     (static_cast<quint64>(static_cast<uint32_t>(key.x)) << 24) ^
+                     static_cast<quint64>(static_cast<uint32_t>(key.y)),
                  seed);
 }
 
@@ -77,7 +78,9 @@ class TileCache : public QObject {
   void setByteBudget(qint64 bytes);
   qint64 byteBudget() const { return byte_budget_; }
   qint64 bytesUsed() const { return bytes_used_; }
-  int queuedCount() const { return int(pending_.size()); }  // requests not yet answered
+  int queuedCount() const {
+    return static_cast<int>(pending_.size());
+  }  // requests not yet answered
 
  signals:
   // A requested tile was answered (loaded or found empty), on the GUI thread.
@@ -112,7 +115,7 @@ class TileCache : public QObject {
   QHash<TileKey, Entry> entries_;
   QSet<TileKey> pending_;           // sent to the worker, not answered yet
   mutable std::list<TileKey> lru_;  // front: most recently used
-  qint64 byte_budget_ = qint64(256) << 20;
+  qint64 byte_budget_ = static_cast<qint64>(256) << 20;
   qint64 bytes_used_ = 0;
 };
 

@@ -19,7 +19,7 @@ using mission::TrackPoint;
 Eigen::Matrix<double, 3, 4> HomogeneousImageCorners(int width, int height) {
   Eigen::Matrix<double, 3, 4> corners;
   const std::array<Eigen::Vector2d, 4> points = track::ImageCorners(width, height);
-  for (int i = 0; i < 4; ++i) corners.col(i) = points[size_t(i)].homogeneous();
+  for (int i = 0; i < 4; ++i) corners.col(i) = points[static_cast<size_t>(i)].homogeneous();
   return corners;
 }
 
@@ -36,7 +36,8 @@ bool InsideQuad(const Eigen::Matrix<double, 2, 4>& q, const Eigen::Vector2d& p) 
 }
 
 int64_t CellKey(int64_t cx, int64_t cy) {
-  return int64_t(uint64_t(cx) << 32) ^ int64_t(uint32_t(cy));
+  return static_cast<int64_t>(static_cast<uint64_t>(cx) << 32) ^
+         static_cast<int64_t>(static_cast<uint32_t>(cy));
 }
 
 // Centred moving average over `window_s` (by time) of the points' map positions; the window
@@ -53,11 +54,11 @@ std::vector<Eigen::Vector2d> Smoothed(const std::vector<TrackPoint>& points, dou
   for (size_t i = 0; i < points.size(); ++i) {
     const double half =
         std::min({0.5 * window_s, times[i] - times.front(), times.back() - times[i]});
-    const size_t lo =
-        size_t(std::lower_bound(times.begin(), times.end(), times[i] - half) - times.begin());
-    const size_t hi =
-        size_t(std::upper_bound(times.begin(), times.end(), times[i] + half) - times.begin());
-    smooth[i] = (prefix[hi] - prefix[lo]) / double(hi - lo);
+    const size_t lo = static_cast<size_t>(
+        std::lower_bound(times.begin(), times.end(), times[i] - half) - times.begin());
+    const size_t hi = static_cast<size_t>(
+        std::upper_bound(times.begin(), times.end(), times[i] + half) - times.begin());
+    smooth[i] = (prefix[hi] - prefix[lo]) / static_cast<double>(hi - lo);
   }
   return smooth;
 }
@@ -107,11 +108,11 @@ CoverageIndex::CoverageIndex(const mission::Mission& mission, int stride) {
     }
     const Eigen::Vector2d lo = footprints_[i].corners.rowwise().minCoeff();
     const Eigen::Vector2d hi = footprints_[i].corners.rowwise().maxCoeff();
-    for (int64_t cx = int64_t(std::floor(lo.x() / cell_));
-         cx <= int64_t(std::floor(hi.x() / cell_)); ++cx) {
-      for (int64_t cy = int64_t(std::floor(lo.y() / cell_));
-           cy <= int64_t(std::floor(hi.y() / cell_)); ++cy) {
-        grid_[CellKey(cx, cy)].push_back(int32_t(i));
+    for (int64_t cx = static_cast<int64_t>(std::floor(lo.x() / cell_));
+         cx <= static_cast<int64_t>(std::floor(hi.x() / cell_)); ++cx) {
+      for (int64_t cy = static_cast<int64_t>(std::floor(lo.y() / cell_));
+           cy <= static_cast<int64_t>(std::floor(hi.y() / cell_)); ++cy) {
+        grid_[CellKey(cx, cy)].push_back(static_cast<int32_t>(i));
       }
     }
   }
@@ -121,13 +122,13 @@ std::vector<CoverageIndex::Interval> CoverageIndex::Visits(const Eigen::Vector2d
                                                            double gap_s) const {
   std::vector<Interval> visits;
   if (!point.allFinite()) return visits;
-  const auto cell = grid_.find(
-      CellKey(int64_t(std::floor(point.x() / cell_)), int64_t(std::floor(point.y() / cell_))));
+  const auto cell = grid_.find(CellKey(static_cast<int64_t>(std::floor(point.x() / cell_)),
+                                       static_cast<int64_t>(std::floor(point.y() / cell_))));
   if (cell == grid_.end()) return visits;
   std::vector<double> times;
   for (const int32_t i : cell->second) {
-    if (InsideQuad(footprints_[size_t(i)].corners, point))
-      times.push_back(footprints_[size_t(i)].time_s);
+    if (InsideQuad(footprints_[static_cast<size_t>(i)].corners, point))
+      times.push_back(footprints_[static_cast<size_t>(i)].time_s);
   }
   std::sort(times.begin(), times.end());
   for (const double t : times) {
@@ -146,7 +147,7 @@ StatusOr<ActivitySummary> MapActivity(const mission::Mission& mission,
   SAKER_RETURN_IF_ERROR(options.Validate());
   const Stopwatch begin;
   ActivitySummary summary;
-  summary.tracks_in = int64_t(tracks->size());
+  summary.tracks_in = static_cast<int64_t>(tracks->size());
   // Frame records by index (mission frames are in increasing index, usually 0..n-1).
   std::unordered_map<int64_t, size_t> frame_at;
   frame_at.reserve(mission.frames.size());
@@ -215,11 +216,11 @@ StatusOr<ActivitySummary> MapActivity(const mission::Mission& mission,
     double best = std::numeric_limits<double>::infinity();
     for (size_t v = 0; v < visits.size(); ++v) {
       const double off = std::max({0.0, visits[v].start_s - t, t - visits[v].end_s});
-      if (off < best) best = off, track.visit = int(v) + 1;
+      if (off < best) best = off, track.visit = static_cast<int>(v) + 1;
     }
     summary.max_visit = std::max(summary.max_visit, track.visit);
   }
-  summary.tracks_out = int64_t(tracks->size());
+  summary.tracks_out = static_cast<int64_t>(tracks->size());
   summary.time_s = begin.ElapsedSeconds();
   return summary;
 }
@@ -239,14 +240,14 @@ TrackIndex::TrackIndex(const std::vector<ActivityTrack>* tracks) : tracks_(track
   if (count_ == 0) return;
   // About four observations per occupied cell on a uniform spread.
   const double extent = std::max((hi - lo).maxCoeff(), 1e-6);
-  cell_ = std::max(extent / std::sqrt(double(count_) / 4.0), extent * 1e-6);
+  cell_ = std::max(extent / std::sqrt(static_cast<double>(count_) / 4.0), extent * 1e-6);
   for (size_t t = 0; t < tracks->size(); ++t) {
     const std::vector<TrackPoint>& points = (*tracks)[t].points;
     for (size_t p = 0; p < points.size(); ++p) {
       if (!points[p].map.allFinite()) continue;
-      grid_[CellKey(int64_t(std::floor(points[p].map.x() / cell_)),
-                    int64_t(std::floor(points[p].map.y() / cell_)))]
-          .emplace_back(uint32_t(t), uint32_t(p));
+      grid_[CellKey(static_cast<int64_t>(std::floor(points[p].map.x() / cell_)),
+                    static_cast<int64_t>(std::floor(points[p].map.y() / cell_)))]
+          .emplace_back(static_cast<uint32_t>(t), static_cast<uint32_t>(p));
     }
   }
 }
@@ -260,11 +261,12 @@ std::optional<Pick> TrackIndex::Nearest(const Eigen::Vector2d& map_point, double
     const double d = ((*tracks_)[t].points[p].map - map_point).norm();
     if (d <= tolerance && (!best || d < best->distance)) best = Pick{t, p, d};
   };
-  const int64_t x0 = int64_t(std::floor((map_point.x() - tolerance) / cell_));
-  const int64_t x1 = int64_t(std::floor((map_point.x() + tolerance) / cell_));
-  const int64_t y0 = int64_t(std::floor((map_point.y() - tolerance) / cell_));
-  const int64_t y1 = int64_t(std::floor((map_point.y() + tolerance) / cell_));
-  if (double(x1 - x0 + 1) * double(y1 - y0 + 1) > double(grid_.size())) {
+  const int64_t x0 = static_cast<int64_t>(std::floor((map_point.x() - tolerance) / cell_));
+  const int64_t x1 = static_cast<int64_t>(std::floor((map_point.x() + tolerance) / cell_));
+  const int64_t y0 = static_cast<int64_t>(std::floor((map_point.y() - tolerance) / cell_));
+  const int64_t y1 = static_cast<int64_t>(std::floor((map_point.y() + tolerance) / cell_));
+  if (static_cast<double>(x1 - x0 + 1) * static_cast<double>(y1 - y0 + 1) >
+      static_cast<double>(grid_.size())) {
     for (const auto& [key, entries] : grid_) {  // fewer occupied cells than cells in range
       for (const auto& [t, p] : entries) consider(t, p);
     }

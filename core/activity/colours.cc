@@ -17,7 +17,7 @@ Rgb FromHsv(double hue, double saturation, double value) {
   const double x = c * (1 - std::abs(std::fmod(hue / 60.0, 2.0) - 1));
   const double m = value - c;
   double r = 0, g = 0, b = 0;
-  switch (int(hue / 60.0)) {
+  switch (static_cast<int>(hue / 60.0)) {
     case 0:
       r = c, g = x;
       break;
@@ -37,7 +37,9 @@ Rgb FromHsv(double hue, double saturation, double value) {
       r = c, b = x;
       break;
   }
-  const auto byte = [](double v) { return uint8_t(std::lround(std::clamp(v, 0.0, 1.0) * 255)); };
+  const auto byte = [](double v) {
+    return static_cast<uint8_t>(std::lround(std::clamp(v, 0.0, 1.0) * 255));
+  };
   return {byte(r + m), byte(g + m), byte(b + m)};
 }
 
@@ -45,13 +47,13 @@ Rgb FromHsv(double hue, double saturation, double value) {
 Rgb Sequential(double t) {
   static constexpr std::array<std::array<double, 3>, 5> kStops = {
       {{68, 1, 84}, {59, 82, 139}, {33, 145, 140}, {94, 201, 98}, {253, 231, 37}}};
-  t = std::clamp(t, 0.0, 1.0) * double(kStops.size() - 1);
-  const size_t i = std::min(size_t(t), kStops.size() - 2);
-  const double f = t - double(i);
+  t = std::clamp(t, 0.0, 1.0) * static_cast<double>(kStops.size() - 1);
+  const size_t i = std::min(static_cast<size_t>(t), kStops.size() - 2);
+  const double f = t - static_cast<double>(i);
   Rgb out;
   uint8_t* channels[3] = {&out.r, &out.g, &out.b};
   for (size_t c = 0; c < 3; ++c) {
-    *channels[c] = uint8_t(std::lround(kStops[i][c] * (1 - f) + kStops[i + 1][c] * f));
+    *channels[c] = static_cast<uint8_t>(std::lround(kStops[i][c] * (1 - f) + kStops[i + 1][c] * f));
   }
   return out;
 }
@@ -59,7 +61,7 @@ Rgb Sequential(double t) {
 Rgb VisitColour(int visit) {
   static constexpr std::array<Rgb, 6> kVisits = {
       {{220, 40, 40}, {40, 90, 220}, {40, 170, 60}, {240, 150, 20}, {150, 60, 190}, {140, 90, 50}}};
-  return kVisits[size_t(std::max(visit, 1) - 1) % kVisits.size()];
+  return kVisits[static_cast<size_t>(std::max(visit, 1) - 1) % kVisits.size()];
 }
 
 std::string Ordinal(int n) {
@@ -167,7 +169,7 @@ Rgb TrackColouring::RampColour(double position) const {
     case ColourMode::kDirection:
       return FromHsv(360 * position, 0.85, 0.95);
     case ColourMode::kVisit:
-      return VisitColour(1 + int(position * 5));
+      return VisitColour(1 + static_cast<int>(position * 5));
     case ColourMode::kTime:
       return Sequential(position);
   }

@@ -25,19 +25,19 @@ constexpr double kPickWindowS = 0.5;   // the picked observation's time against 
 int MatchTarget(const mission::ActivityTrack& track, const sim::Truth& truth) {
   std::map<int, int> votes;
   for (const mission::TrackPoint& p : track.points) {
-    if (p.frame < 0 || size_t(p.frame) >= truth.frames.size()) continue;
+    if (p.frame < 0 || static_cast<size_t>(p.frame) >= truth.frames.size()) continue;
     int best = -1;
     double best_d = kGatePx;
     for (size_t t = 0; t < truth.targets.size(); ++t) {
-      const sim::TargetSampleTruth& s = truth.targets[t].samples[size_t(p.frame)];
+      const sim::TargetSampleTruth& s = truth.targets[t].samples[static_cast<size_t>(p.frame)];
       if (!s.visible) continue;
       const double d = (s.image_px - p.image).norm();
-      if (d < best_d) best_d = d, best = int(t);
+      if (d < best_d) best_d = d, best = static_cast<int>(t);
     }
     if (best >= 0) ++votes[best];
   }
   for (const auto& [target, n] : votes) {
-    if (2 * n > int(track.points.size())) return target;
+    if (2 * n > static_cast<int>(track.points.size())) return target;
   }
   return -1;
 }
@@ -75,7 +75,7 @@ StatusOr<ActivityAccuracy> EvaluateActivity(const mission::Mission& mission,
   const activity::CoverageIndex truth_coverage(truth_cover, 5);
 
   ActivityAccuracy a;
-  a.tracks = int64_t(mission.tracks.size());
+  a.tracks = static_cast<int64_t>(mission.tracks.size());
   std::vector<double> speed_errors, relative, direction_errors, pick_times;
   int64_t visits_agree = 0, picks_ok = 0;
   const activity::TrackIndex index(&mission.tracks);
@@ -88,16 +88,20 @@ StatusOr<ActivityAccuracy> EvaluateActivity(const mission::Mission& mission,
     const int target = matches[i];
     if (target < 0) continue;
     ++a.matched;
-    const std::vector<sim::TargetSampleTruth>& samples = truth.targets[size_t(target)].samples;
+    const std::vector<sim::TargetSampleTruth>& samples =
+        truth.targets[static_cast<size_t>(target)].samples;
     const int64_t first = track.points.front().frame, last = track.points.back().frame;
     // Truth path length and displacement over the track's span.
     double length = 0;
     for (int64_t f = first; f < last; ++f) {
-      length += (samples[size_t(f + 1)].ground_m - samples[size_t(f)].ground_m).norm();
+      length +=
+          (samples[static_cast<size_t>(f + 1)].ground_m - samples[static_cast<size_t>(f)].ground_m)
+              .norm();
     }
-    const double duration = truth.frames[size_t(last)].time_s - truth.frames[size_t(first)].time_s;
+    const double duration = truth.frames[static_cast<size_t>(last)].time_s -
+                            truth.frames[static_cast<size_t>(first)].time_s;
     const Eigen::Vector2d displacement =
-        samples[size_t(last)].ground_m - samples[size_t(first)].ground_m;
+        samples[static_cast<size_t>(last)].ground_m - samples[static_cast<size_t>(first)].ground_m;
     if (track.speed_mps && duration > 0) {
       const double truth_speed = length / duration;
       if (truth_speed > 0.3) {
@@ -114,7 +118,8 @@ StatusOr<ActivityAccuracy> EvaluateActivity(const mission::Mission& mission,
     }
     // Visit: the truth's passes over the target's ground position at the track's middle.
     const mission::TrackPoint& middle = track.points[track.points.size() / 2];
-    const auto visits = truth_coverage.Visits(samples[size_t(middle.frame)].ground_m, visit_gap_s);
+    const auto visits =
+        truth_coverage.Visits(samples[static_cast<size_t>(middle.frame)].ground_m, visit_gap_s);
     if (!visits.empty()) {
       ++a.compared_visit;
       int truth_visit = 1;
@@ -122,17 +127,17 @@ StatusOr<ActivityAccuracy> EvaluateActivity(const mission::Mission& mission,
       for (size_t v = 0; v < visits.size(); ++v) {
         const double off =
             std::max({0.0, visits[v].start_s - middle.time_s, middle.time_s - visits[v].end_s});
-        if (off < best) best = off, truth_visit = int(v) + 1;
+        if (off < best) best = off, truth_visit = static_cast<int>(v) + 1;
       }
       visits_agree += truth_visit == track.visit;
     }
     // Pick where the mosaic shows the truth's position of the middle observation: the truth's
     // image position through the frame's own homography (the mosaic's absolute accuracy is
     // measured separately).
-    const mission::FrameRecord& frame = mission.frames[size_t(middle.frame)];
+    const mission::FrameRecord& frame = mission.frames[static_cast<size_t>(middle.frame)];
     if (!frame.map_from_frame) continue;
     const Eigen::Vector2d at =
-        (*frame.map_from_frame * samples[size_t(middle.frame)].image_px.homogeneous())
+        (*frame.map_from_frame * samples[static_cast<size_t>(middle.frame)].image_px.homogeneous())
             .hnormalized();
     ++a.picks;
     const Stopwatch watch;
@@ -150,7 +155,7 @@ StatusOr<ActivityAccuracy> EvaluateActivity(const mission::Mission& mission,
     const mission::TrackPoint& picked = mission.tracks[pick->track].points[pick->point];
     const bool in_time = std::abs(picked.time_s - middle.time_s) <= kPickWindowS;
     const bool on_target =
-        (samples[size_t(picked.frame)].image_px - picked.image).norm() <= kGatePx;
+        (samples[static_cast<size_t>(picked.frame)].image_px - picked.image).norm() <= kGatePx;
     picks_ok += in_time && on_target;
   }
   a.speed_median_error_mps = Quantile(speed_errors, 0.5);
@@ -160,8 +165,10 @@ StatusOr<ActivityAccuracy> EvaluateActivity(const mission::Mission& mission,
   a.speed_relative_errors = std::move(relative);
   a.direction_median_error_deg = Quantile(direction_errors, 0.5);
   a.direction_p90_error_deg = Quantile(direction_errors, 0.9);
-  a.visit_agreement = a.compared_visit > 0 ? double(visits_agree) / double(a.compared_visit) : 0;
-  a.pick_accuracy = a.picks > 0 ? double(picks_ok) / double(a.picks) : 0;
+  a.visit_agreement = a.compared_visit > 0 ? static_cast<double>(visits_agree) /
+                                                 static_cast<double>(a.compared_visit)
+                                           : 0;
+  a.pick_accuracy = a.picks > 0 ? static_cast<double>(picks_ok) / static_cast<double>(a.picks) : 0;
   a.pick_median_us = Quantile(pick_times, 0.5);
   return a;
 }
@@ -195,11 +202,12 @@ std::string ActivityAccuracyToText(const ActivityAccuracy& a) {
       "  visit: %.0f %% agree with the truth over %lld tracks\n"
       "  pick at the truth position: %.0f %% right (same target, within 0.5 s and 12 px) of "
       "%lld, %.1f us each\n",
-      (long long)a.tracks, (long long)a.matched, a.speed_median_error_mps,
+      static_cast<long long>(a.tracks), static_cast<long long>(a.matched), a.speed_median_error_mps,
       100 * a.speed_median_relative, a.speed_p90_error_mps, 100 * a.speed_p90_relative,
-      (long long)a.compared_speed, a.direction_median_error_deg, a.direction_p90_error_deg,
-      (long long)a.compared_direction, 100 * a.visit_agreement, (long long)a.compared_visit,
-      100 * a.pick_accuracy, (long long)a.picks, a.pick_median_us);
+      static_cast<long long>(a.compared_speed), a.direction_median_error_deg,
+      a.direction_p90_error_deg, static_cast<long long>(a.compared_direction),
+      100 * a.visit_agreement, static_cast<long long>(a.compared_visit), 100 * a.pick_accuracy,
+      static_cast<long long>(a.picks), a.pick_median_us);
   return text;
 }
 

@@ -49,11 +49,11 @@ HomographyAccuracy EvaluateHomographies(const frontend::FrontEndResult& result,
     }
     errors.push_back(error);
   }
-  accuracy.frames = int64_t(errors.size());
+  accuracy.frames = static_cast<int64_t>(errors.size());
   if (!errors.empty()) {
     double sum = 0;
     for (double e : errors) sum += e;
-    accuracy.mean_px = sum / double(errors.size());
+    accuracy.mean_px = sum / static_cast<double>(errors.size());
     accuracy.median_px = Median(errors);
     accuracy.p95_px = Quantile(errors, 0.95);
     accuracy.max_px = *std::max_element(errors.begin(), errors.end());
@@ -72,8 +72,8 @@ std::vector<std::pair<int64_t, int64_t>> Sightings(const sim::TargetTruth& targe
   int64_t last_visible = -1;
   for (size_t f = 0; f < target.samples.size(); ++f) {
     if (!target.samples[f].visible) continue;
-    const int64_t frame = int64_t(f);
-    if (sightings.empty() || frame - last_visible > int64_t(max_gap) + 1) {
+    const int64_t frame = static_cast<int64_t>(f);
+    if (sightings.empty() || frame - last_visible > static_cast<int64_t>(max_gap) + 1) {
       sightings.emplace_back(frame, frame + 1);
     }
     sightings.back().second = frame + 1;
@@ -101,7 +101,8 @@ DetectionAccuracy EvaluateTargets(const frontend::FrontEndResult& result, const 
   for (size_t k = 0; k < result.targets.size(); ++k) {
     for (size_t o = 0; o < result.targets[k].observations.size(); ++o) {
       const int64_t f = result.targets[k].observations[o].frame;
-      if (f >= 0 && size_t(f) < frames) detections[size_t(f)].emplace_back(k, o);
+      if (f >= 0 && static_cast<size_t>(f) < frames)
+        detections[static_cast<size_t>(f)].emplace_back(k, o);
     }
   }
   // Greedy pairing per frame, nearest first, against every considered truth target in view; a
@@ -135,10 +136,10 @@ DetectionAccuracy EvaluateTargets(const frontend::FrontEndResult& result, const 
       detection_used[c.detection] = truth_used[c.truth] = true;
       const size_t k = detections[f][c.detection].first;
       ++track_paired_frames[k];
-      track_truth_pairs[{k, c.truth}].push_back(int64_t(f));
+      track_truth_pairs[{k, c.truth}].push_back(static_cast<int64_t>(f));
       if (is_mover(*considered[c.truth], f)) ++a.paired;
     }
-    a.detections += int64_t(detections[f].size());
+    a.detections += static_cast<int64_t>(detections[f].size());
     for (size_t t = 0; t < considered.size(); ++t)
       a.truth_mover_frames += is_mover(*considered[t], f);
   }
@@ -150,7 +151,7 @@ DetectionAccuracy EvaluateTargets(const frontend::FrontEndResult& result, const 
       int mover_frames = 0;
       int64_t first_mover = -1;
       for (int64_t f = begin; f < end; ++f) {
-        if (is_mover(*considered[t], size_t(f))) {
+        if (is_mover(*considered[t], static_cast<size_t>(f))) {
           ++mover_frames;
           if (first_mover < 0) first_mover = f;
         }
@@ -168,12 +169,12 @@ DetectionAccuracy EvaluateTargets(const frontend::FrontEndResult& result, const 
         if (last == first) continue;
         ++outcome.tracks_paired;
         if (last - first > outcome.best_track_frames) {
-          outcome.best_track_frames = int(last - first);
-          outcome.best_track = int64_t(result.targets[k].id);
+          outcome.best_track_frames = static_cast<int>(last - first);
+          outcome.best_track = static_cast<int64_t>(result.targets[k].id);
         }
         if (!outcome.found && 2 * (last - first) >= mover_frames) {
           outcome.found = true;
-          outcome.latency_s = double(std::max<int64_t>(0, *first - first_mover)) / fps;
+          outcome.latency_s = static_cast<double>(std::max<int64_t>(0, *first - first_mover)) / fps;
           ++a.found_targets;
           latencies.push_back(outcome.latency_s);
         }
@@ -185,27 +186,34 @@ DetectionAccuracy EvaluateTargets(const frontend::FrontEndResult& result, const 
     const track::TargetTrack& track = result.targets[k];
     ++a.detected_tracks;
     TrackOutcome outcome;
-    outcome.track_id = int64_t(track.id);
+    outcome.track_id = static_cast<int64_t>(track.id);
     outcome.first_frame = track.observations.front().frame;
     outcome.last_frame = track.observations.back().frame;
-    outcome.observations = int64_t(track.observations.size());
+    outcome.observations = static_cast<int64_t>(track.observations.size());
     outcome.from_features = track.max_features > 0;
-    outcome.correct = 2 * track_paired_frames[k] >= int(track.observations.size());
+    outcome.correct = 2 * track_paired_frames[k] >= static_cast<int>(track.observations.size());
     for (const auto& [key, frames_paired] : track_truth_pairs) {
-      if (key.first == k && int(frames_paired.size()) > outcome.best_target_frames) {
-        outcome.best_target_frames = int(frames_paired.size());
+      if (key.first == k && static_cast<int>(frames_paired.size()) > outcome.best_target_frames) {
+        outcome.best_target_frames = static_cast<int>(frames_paired.size());
         outcome.best_target = considered[key.second]->id;
       }
     }
     if (outcome.correct) ++a.correct_tracks;
     a.tracks.push_back(outcome);
   }
-  a.track_recall = a.truth_targets > 0 ? double(a.found_targets) / double(a.truth_targets) : 1.0;
-  a.track_precision =
-      a.detected_tracks > 0 ? double(a.correct_tracks) / double(a.detected_tracks) : 1.0;
-  a.frame_recall = a.truth_mover_frames > 0 ? double(a.paired) / double(a.truth_mover_frames) : 1.0;
+  a.track_recall = a.truth_targets > 0
+                       ? static_cast<double>(a.found_targets) / static_cast<double>(a.truth_targets)
+                       : 1.0;
+  a.track_precision = a.detected_tracks > 0 ? static_cast<double>(a.correct_tracks) /
+                                                  static_cast<double>(a.detected_tracks)
+                                            : 1.0;
+  a.frame_recall = a.truth_mover_frames > 0
+                       ? static_cast<double>(a.paired) / static_cast<double>(a.truth_mover_frames)
+                       : 1.0;
   for (int n : track_paired_frames) a.paired_detections += n;
-  a.frame_precision = a.detections > 0 ? double(a.paired_detections) / double(a.detections) : 1.0;
+  a.frame_precision = a.detections > 0 ? static_cast<double>(a.paired_detections) /
+                                             static_cast<double>(a.detections)
+                                       : 1.0;
   a.median_latency_s = Median(latencies);
   return a;
 }
@@ -273,8 +281,8 @@ StatusOr<FrontEndEvaluation> EvaluateFrontEnd(const frontend::FrontEndResult& re
   e.targets = EvaluateTargets(result, truth, options, Classes::kAll);
   e.vehicles = EvaluateTargets(result, truth, options, Classes::kVehicles);
   e.people = EvaluateTargets(result, truth, options, Classes::kPeople);
-  e.key_frames = int64_t(result.key_frames.size());
-  e.chain_breaks = int64_t(result.breaks.size());
+  e.key_frames = static_cast<int64_t>(result.key_frames.size());
+  e.chain_breaks = static_cast<int64_t>(result.breaks.size());
   return e;
 }
 

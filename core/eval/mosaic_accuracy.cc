@@ -33,11 +33,11 @@ CornerErrors Errors(const std::vector<Eigen::Matrix3d>& map_from_frame,
   for (size_t k = 0; k < map_from_frame.size(); ++k) {
     for (int c = 0; c < 4; ++c) {
       const Eigen::Vector3d q =
-          truth_from_map * map_from_frame[k] * corners[size_t(c)].homogeneous();
+          truth_from_map * map_from_frame[k] * corners[static_cast<size_t>(c)].homogeneous();
       const Eigen::Vector2d ground = q.hnormalized();
-      const double m = (ground - truth_ground[k][size_t(c)]).norm();
+      const double m = (ground - truth_ground[k][static_cast<size_t>(c)]).norm();
       const Eigen::Vector3d image = frame_from_truth[k] * ground.homogeneous();
-      const double px = (image.hnormalized() - corners[size_t(c)]).norm();
+      const double px = (image.hnormalized() - corners[static_cast<size_t>(c)]).norm();
       sum_m += m * m;
       sum_px += px * px;
       e.max_m = std::max(e.max_m, m);
@@ -58,8 +58,8 @@ Eigen::Matrix3d FitCorners(const std::vector<std::array<Eigen::Vector2d, 4>>& fr
   std::vector<cv::Point2d> p, q;
   for (size_t k = 0; k < from.size(); ++k) {
     for (int c = 0; c < 4; ++c) {
-      p.emplace_back(from[k][size_t(c)].x(), from[k][size_t(c)].y());
-      q.emplace_back(to[k][size_t(c)].x(), to[k][size_t(c)].y());
+      p.emplace_back(from[k][static_cast<size_t>(c)].x(), from[k][static_cast<size_t>(c)].y());
+      q.emplace_back(to[k][static_cast<size_t>(c)].x(), to[k][static_cast<size_t>(c)].y());
     }
   }
   Eigen::Matrix3d g = Eigen::Matrix3d::Identity();
@@ -76,7 +76,8 @@ Eigen::Matrix3d GaugeFit(const std::vector<Eigen::Matrix3d>& map_from_frame,
   std::vector<std::array<Eigen::Vector2d, 4>> estimated(map_from_frame.size());
   for (size_t k = 0; k < map_from_frame.size(); ++k) {
     for (int c = 0; c < 4; ++c) {
-      estimated[k][size_t(c)] = track::Transfer(map_from_frame[k], corners[size_t(c)]);
+      estimated[k][static_cast<size_t>(c)] =
+          track::Transfer(map_from_frame[k], corners[static_cast<size_t>(c)]);
     }
   }
   return FitCorners(estimated, truth_ground);
@@ -93,15 +94,16 @@ StatusOr<KeyFrameTruth> TruthOfKeyFrames(const mosaic::LinkGraph& graph, const s
   KeyFrameTruth t;
   for (size_t k = 0; k < graph.nodes.size(); ++k) {
     const int64_t f = graph.nodes[k].frame_index;
-    if (f < 0 || size_t(f) >= truth.frames.size()) {
+    if (f < 0 || static_cast<size_t>(f) >= truth.frames.size()) {
       return InvalidArgumentError(what + ": the truth does not cover key frame " +
                                   std::to_string(k));
     }
-    t.frame_from_ground.push_back(truth.frames[size_t(f)].frame_from_ground);
+    t.frame_from_ground.push_back(truth.frames[static_cast<size_t>(f)].frame_from_ground);
     const Eigen::Matrix3d ground_from_frame = t.frame_from_ground.back().inverse();
     std::array<Eigen::Vector2d, 4> ground;
     for (int c = 0; c < 4; ++c) {
-      ground[size_t(c)] = track::Transfer(ground_from_frame, corners[size_t(c)]);
+      ground[static_cast<size_t>(c)] =
+          track::Transfer(ground_from_frame, corners[static_cast<size_t>(c)]);
     }
     t.ground.push_back(ground);
   }
@@ -128,14 +130,15 @@ StatusOr<InBetweenAccuracy> EvaluateInBetween(const mosaic::MosaicResult& mosaic
     const Eigen::Matrix3d ground_from_frame = frame_from_ground.inverse();
     std::array<Eigen::Vector2d, 4> ground;
     for (int c = 0; c < 4; ++c) {
-      ground[size_t(c)] = track::Transfer(ground_from_frame, corners[size_t(c)]);
+      ground[static_cast<size_t>(c)] =
+          track::Transfer(ground_from_frame, corners[static_cast<size_t>(c)]);
     }
     return Errors({map_from_frame}, {ground}, {frame_from_ground}, truth_from_map, w, h);
   };
   std::vector<double> key_error_px(placed.size(), -1);
   std::vector<bool> is_key(placed.size(), false);
   for (const mosaic::Node& node : graph.nodes) {
-    const size_t f = size_t(node.frame_index);
+    const size_t f = static_cast<size_t>(node.frame_index);
     if (f >= placed.size()) continue;
     is_key[f] = true;
     key_error_px[f] = frame_errors(f, node.map_from_frame).rms_px;
@@ -172,7 +175,7 @@ StatusOr<InBetweenAccuracy> EvaluateInBetween(const mosaic::MosaicResult& mosaic
     a.frames_error.rms_px = std::sqrt(sum_px / corners_counted);
     a.frames_error.rms_m = std::sqrt(sum_m / corners_counted);
   }
-  a.between = int(excess.size());
+  a.between = static_cast<int>(excess.size());
   if (!excess.empty()) {
     a.median_excess_px = Median(excess);
     a.max_excess_px = *std::max_element(excess.begin(), excess.end());
@@ -192,7 +195,7 @@ StatusOr<MosaicAccuracy> EvaluateMosaic(const mosaic::MosaicResult& mosaic,
                                 std::to_string(truth.width) + "x" + std::to_string(truth.height));
   }
   MosaicAccuracy a;
-  a.key_frames = int(graph.nodes.size());
+  a.key_frames = static_cast<int>(graph.nodes.size());
   a.geo_referenced = graph.geo_referenced;
   a.closures = mosaic.closures;
   if (graph.nodes.empty()) return a;
@@ -212,19 +215,20 @@ StatusOr<MosaicAccuracy> EvaluateMosaic(const mosaic::MosaicResult& mosaic,
   std::vector<Eigen::Matrix3d> frame_from_ground(graph.nodes.size()), adjusted, chained;
   for (size_t k = 0; k < graph.nodes.size(); ++k) {
     const int64_t f = graph.nodes[k].frame_index;
-    if (f < 0 || size_t(f) >= truth.frames.size()) {
+    if (f < 0 || static_cast<size_t>(f) >= truth.frames.size()) {
       return InvalidArgumentError("evaluate: key frame " + std::to_string(k) + " is frame " +
                                   std::to_string(f) + " but the truth has " +
                                   std::to_string(truth.frames.size()) + " frames");
     }
-    frame_from_ground[k] = truth.frames[size_t(f)].frame_from_ground;
+    frame_from_ground[k] = truth.frames[static_cast<size_t>(f)].frame_from_ground;
     const Eigen::Matrix3d ground_from_frame = frame_from_ground[k].inverse();
     for (int c = 0; c < 4; ++c) {
-      ground[k][size_t(c)] = track::Transfer(ground_from_frame, corners[size_t(c)]);
+      ground[k][static_cast<size_t>(c)] =
+          track::Transfer(ground_from_frame, corners[static_cast<size_t>(c)]);
       if (truth_plane) {
-        const geo::Wgs84 w =
-            truth_plane->Wgs84FromEnu({ground[k][size_t(c)].x(), ground[k][size_t(c)].y(), 0.0});
-        in_map[k][size_t(c)] = map_plane->EnuFromWgs84(w).head<2>();
+        const geo::Wgs84 w = truth_plane->Wgs84FromEnu(
+            {ground[k][static_cast<size_t>(c)].x(), ground[k][static_cast<size_t>(c)].y(), 0.0});
+        in_map[k][static_cast<size_t>(c)] = map_plane->EnuFromWgs84(w).head<2>();
       }
     }
     adjusted.push_back(graph.nodes[k].map_from_frame);
@@ -291,7 +295,8 @@ StatusOr<MetadataExperiment> RunMetadataExperiment(const mosaic::MosaicResult& m
     // else keep the previous one's (a break).
     Eigen::Matrix3d m = start.nodes[k - 1].map_from_frame;
     for (const mosaic::Link& l : graph.links) {
-      if (l.kind == mosaic::LinkKind::kSequential && size_t(l.to) == k && size_t(l.from) == k - 1) {
+      if (l.kind == mosaic::LinkKind::kSequential && static_cast<size_t>(l.to) == k &&
+          static_cast<size_t>(l.from) == k - 1) {
         m = m * l.to_from_from.inverse();
       }
     }
@@ -323,9 +328,12 @@ StatusOr<MetadataExperiment> RunMetadataExperiment(const mosaic::MosaicResult& m
   std::mt19937_64 random(options.seed);
   std::normal_distribution<double> noise(0.0, sigma);
   mosaic::LinkGraph with = start;
-  const int count = std::min<int>(options.metadata_key_frames, int(n));
+  const int count = std::min<int>(options.metadata_key_frames, static_cast<int>(n));
   for (int i = 0; i < count; ++i) {
-    const size_t k = count == 1 ? 0 : size_t(std::lround(double(i) * double(n - 1) / (count - 1)));
+    const size_t k = count == 1
+                         ? 0
+                         : static_cast<size_t>(std::lround(
+                               static_cast<double>(i) * static_cast<double>(n - 1) / (count - 1)));
     std::array<Eigen::Vector2d, 4> noisy = ground[k];
     for (Eigen::Vector2d& p : noisy) p += Eigen::Vector2d(noise(random), noise(random));
     if (!with.nodes[k].metadata_corners) ++e.metadata_key_frames;
@@ -376,7 +384,7 @@ StatusOr<DecompositionExperiment> RunDecompositionExperiment(
   };
 
   DecompositionExperiment e;
-  e.key_frames = int(n);
+  e.key_frames = static_cast<int>(n);
   mosaic::LinkGraph full = start;
   Stopwatch watch;
   SAKER_RETURN_IF_ERROR(mosaic::Adjust(&full, adjustment).status());
@@ -404,7 +412,7 @@ StatusOr<DecompositionExperiment> RunDecompositionExperiment(
       e.difference_max_px = std::max(e.difference_max_px, d);
     }
   }
-  e.difference_rms_px = std::sqrt(sum / double(4 * std::max<size_t>(1, n)));
+  e.difference_rms_px = std::sqrt(sum / static_cast<double>(4 * std::max<size_t>(1, n)));
   const std::vector<Eigen::Matrix3d> full_m = solution(full), decomposed_m = solution(decomposed);
   e.full = Errors(full_m, ground, frame_from_ground, GaugeFit(full_m, ground, w, h), w, h);
   e.decomposed =
@@ -452,8 +460,8 @@ nlohmann::json MosaicAccuracyToJson(const MosaicAccuracy& a) {
   };
   nlohmann::json closures = nlohmann::json::array();
   for (const mosaic::LoopClosure& c : a.closures) {
-    closures.push_back({{"from", int(c.from)},
-                        {"to", int(c.to)},
+    closures.push_back({{"from", static_cast<int>(c.from)},
+                        {"to", static_cast<int>(c.to)},
                         {"kind", mosaic::LinkKindName(c.kind)},
                         {"inliers", c.inliers}});
   }
@@ -504,8 +512,8 @@ std::string MosaicAccuracyToText(const MosaicAccuracy& a) {
   }
   out << "  loop closures: " << a.closures.size();
   for (const mosaic::LoopClosure& c : a.closures) {
-    out << "\n    key frame " << int(c.from) << " -> " << int(c.to) << " ("
-        << mosaic::LinkKindName(c.kind) << ", " << c.inliers << " inliers)";
+    out << "\n    key frame " << static_cast<int>(c.from) << " -> " << static_cast<int>(c.to)
+        << " (" << mosaic::LinkKindName(c.kind) << ", " << c.inliers << " inliers)";
   }
   out << "\n";
   return out.str();

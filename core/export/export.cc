@@ -298,7 +298,8 @@ std::string KmlPlacemark(const mission::ActivityTrack& track, const Positions& p
   KmlData("speed_mps", track.speed_mps ? FormatNumber(*track.speed_mps) : "", out);
   KmlData("heading_deg", FormatNumber(track.heading_deg), out);
   KmlData("point_count", std::to_string(track.points.size()), out);
-  KmlData("frames", KmlList(track, [](const Point& p) { return double(p.frame); }), out);
+  KmlData("frames", KmlList(track, [](const Point& p) { return static_cast<double>(p.frame); }),
+          out);
   KmlData("times_s", KmlList(track, [](const Point& p) { return p.time_s; }), out);
   KmlData("image_x", KmlList(track, [](const Point& p) { return p.image.x(); }), out);
   KmlData("image_y", KmlList(track, [](const Point& p) { return p.image.y(); }), out);
@@ -452,8 +453,8 @@ StatusOr<GeoFit> FitUtmGeotransform(const geo::Wgs84& origin, const mission::Pyr
   Eigen::MatrixXd target(kFitGrid * kFitGrid, 2);
   for (int j = 0; j < kFitGrid; ++j) {
     for (int i = 0; i < kFitGrid; ++i) {
-      const double u = width * double(i) / (kFitGrid - 1);
-      const double v = height * double(j) / (kFitGrid - 1);
+      const double u = width * static_cast<double>(i) / (kFitGrid - 1);
+      const double v = height * static_cast<double>(j) / (kFitGrid - 1);
       SAKER_ASSIGN_OR_RETURN(const Eigen::Vector2d utm, exact(u, v));
       const int row = j * kFitGrid + i;
       design.row(row) << 1.0, (u - uc) / su, (v - vc) / sv;
@@ -468,8 +469,8 @@ StatusOr<GeoFit> FitUtmGeotransform(const geo::Wgs84& origin, const mission::Pyr
   constexpr int kCheckGrid = 2 * (kFitGrid - 1) + 1;
   for (int j = 0; j < kCheckGrid; ++j) {
     for (int i = 0; i < kCheckGrid; ++i) {
-      const double u = width * double(i) / (kCheckGrid - 1);
-      const double v = height * double(j) / (kCheckGrid - 1);
+      const double u = width * static_cast<double>(i) / (kCheckGrid - 1);
+      const double v = height * static_cast<double>(j) / (kCheckGrid - 1);
       SAKER_ASSIGN_OR_RETURN(const Eigen::Vector2d utm, exact(u, v));
       const auto& g = fit.geotransform;
       const Eigen::Vector2d affine(g[0] + u * g[1] + v * g[2], g[3] + u * g[4] + v * g[5]);

@@ -106,7 +106,7 @@ std::optional<Eigen::Vector3d> ParallaxEpipole(const std::vector<track::Correspo
         (track::Transfer(plane.target_from_source, ground[i].source) - ground[i].target).norm();
     off_plane += transfer > options.frame_homography.ransac_threshold_px;
   }
-  const int needed = std::max(options.min_parallax_points, int(ground.size() / 20));
+  const int needed = std::max(options.min_parallax_points, static_cast<int>(ground.size() / 20));
   if (off_plane < needed) return std::nullopt;
   return f->epipole_target;
 }
@@ -127,12 +127,14 @@ std::vector<track::TargetTrack> CombineTargets(std::vector<track::TargetTrack> b
   std::stable_sort(all.begin(), all.end(), [](const auto& a, const auto& b) {
     return a.observations.front().frame < b.observations.front().frame;
   });
-  for (size_t i = 0; i < all.size(); ++i) all[i].id = track::TargetTrackId(int64_t(i) + 1);
+  for (size_t i = 0; i < all.size(); ++i)
+    all[i].id = static_cast<track::TargetTrackId>(static_cast<int64_t>(i) + 1);
   track::GroundMotion ground;
   for (const FrameResult& f : frames) ground.Add(f.index, f.homography_ok, f.current_from_previous);
   all = track::LinkFragments(std::move(all), options.EffectiveTargets(), &ground);
   all = track::DropChangeEchoes(std::move(all), options.change_echoes);
-  for (size_t i = 0; i < all.size(); ++i) all[i].id = track::TargetTrackId(int64_t(i) + 1);
+  for (size_t i = 0; i < all.size(); ++i)
+    all[i].id = static_cast<track::TargetTrackId>(static_cast<int64_t>(i) + 1);
   return all;
 }
 
@@ -225,18 +227,18 @@ FrontEnd::FrontEnd(const std::string& path, const FrontEndOptions& options, JobC
 StatusOr<FrontEndResult> FrontEnd::Run() {
   SAKER_RETURN_IF_ERROR(Open());
   StartFromCheckpoint();
-  DecodeThread decode(path_, ScanOptionsFor(options_), size_t(options_.queue_frames),
+  DecodeThread decode(path_, ScanOptionsFor(options_), static_cast<size_t>(options_.queue_frames),
                       start_.warm_from);
   const Stopwatch wall;
   since_checkpoint_.Restart();
   if (options_.change.enabled) {
-    change_.emplace(options_.change, size_t(options_.change_queue_frames),
-                    size_t(kChangeLagFrames));
+    change_.emplace(options_.change, static_cast<size_t>(options_.change_queue_frames),
+                    static_cast<size_t>(kChangeLagFrames));
   }
   while (std::optional<video::Frame> frame = decode.Pop()) {
     if (job_ != nullptr && job_->IsCancelled()) return CancelledError("front end: cancelled");
     if (frame->index < start_.warm_from) {
-      ReportProgress(double(frame->index + 1));
+      ReportProgress(static_cast<double>(frame->index + 1));
       continue;  // done before: only decoded, for the scan
     }
     SAKER_RETURN_IF_ERROR(CheckMemory(*frame));
@@ -254,7 +256,7 @@ Status FrontEnd::Open() {
                          video::VideoReader::Open(path_, ScanOptionsFor(options_).reader));
   result_.video = probe->info();
   // For progress only: the declared count, else duration x rate.
-  expected_frames_ = double(result_.video.declared_frame_count);
+  expected_frames_ = static_cast<double>(result_.video.declared_frame_count);
   if (expected_frames_ <= 0) expected_frames_ = result_.video.duration_s * result_.video.fps;
   expected_frames_ = std::max(1.0, expected_frames_);
   return Status::Ok();
@@ -317,7 +319,7 @@ Status FrontEnd::ProcessFrame(const video::Frame& frame) {
   const Stopwatch watch;
   tracker_.Process(frame.index, frame.grey);
   timing.track_ms += watch.ElapsedMs();
-  fr.tracked = int(tracker_.points().size());
+  fr.tracked = static_cast<int>(tracker_.points().size());
 
   std::optional<Eigen::Vector3d> epipole;
   const std::optional<track::HomographyEstimate> estimate = EstimateGroundMotion(&epipole);
@@ -337,7 +339,7 @@ Status FrontEnd::ProcessFrame(const video::Frame& frame) {
       since_checkpoint_.ElapsedSeconds() >= options_.checkpoint_interval_s) {
     SAKER_RETURN_IF_ERROR(HandOutCheckpoint(frame.index, /*complete=*/false));
   }
-  ReportProgress(double(result_.frames.size()));
+  ReportProgress(static_cast<double>(result_.frames.size()));
   return Status::Ok();
 }
 
@@ -385,10 +387,10 @@ void FrontEnd::Segment(const video::Frame& frame,
     frame_result->homography_ok = true;
     frame_result->current_from_previous = estimate->target_from_source;
     frame_result->covariance = estimate->covariance;
-    frame_result->inliers = int(estimate->inliers.size());
+    frame_result->inliers = static_cast<int>(estimate->inliers.size());
     segmenter_.AddFrame(tracker_.matches(), estimate->target_from_source, epipole);
     target_tracker_.AddFrame(frame.index, segmenter_.moving());
-    frame_result->moving = int(segmenter_.moving().size());
+    frame_result->moving = static_cast<int>(segmenter_.moving().size());
   } else if (segment_open_) {
     // No reliable ground motion (blank, featureless, a cut): the chain breaks here; the next
     // frame starts afresh. The targets first take the change evidence of the segment's frames.
@@ -489,7 +491,7 @@ void FrontEnd::AddKeyFrameImage(const track::KeyFrame& key, const cv::Mat& grey)
   KeyFrameImage image;
   image.id = key.id;
   image.frame_index = key.frame_index;
-  image.scale = std::max(1.0, double(grey.cols) / options_.key_frame_image_width);
+  image.scale = std::max(1.0, static_cast<double>(grey.cols) / options_.key_frame_image_width);
   cv::resize(grey, image.grey, cv::Size(), 1.0 / image.scale, 1.0 / image.scale, cv::INTER_AREA);
   if (options_.on_key_frame) options_.on_key_frame({image, preview_from_current_});
   result_.key_frame_images.push_back(std::move(image));
@@ -540,7 +542,7 @@ StatusOr<FrontEndResult> FrontEnd::Finish(ingest::VideoScan scan, double decode_
   }
   FrontEndTiming& timing = result_.timing;
   if (change_) timing.change_wait_ms = change_->wait_ms();
-  const double n = double(std::max<int64_t>(1, timing.frames));
+  const double n = static_cast<double>(std::max<int64_t>(1, timing.frames));
   timing.decode_ms = decode_ms / n;
   timing.track_ms /= n, timing.homography_ms /= n, timing.segment_ms /= n, timing.change_ms /= n,
       timing.change_tracks_ms /= n, timing.change_wait_ms /= n, timing.key_frames_ms /= n;

@@ -13,11 +13,12 @@ namespace {
 int64_t MaxFeatureId(const FrontEndCheckpoint& c) {
   int64_t max_id = 0;
   for (const track::KeyFrame& k : c.key_frames) {
-    for (const track::StationaryPoint& p : k.points) max_id = std::max(max_id, int64_t(p.first));
+    for (const track::StationaryPoint& p : k.points)
+      max_id = std::max(max_id, static_cast<int64_t>(p.first));
   }
   for (const track::SequentialLink& l : c.links) {
     for (const track::Correspondence& m : l.correspondences) {
-      max_id = std::max(max_id, int64_t(m.id));
+      max_id = std::max(max_id, static_cast<int64_t>(m.id));
     }
   }
   return max_id;
@@ -26,7 +27,7 @@ int64_t MaxFeatureId(const FrontEndCheckpoint& c) {
 // The part of `all` past `*from`, which moves to its end.
 template <typename T>
 std::vector<T> Tail(const std::vector<T>& all, size_t* from) {
-  std::vector<T> part(all.begin() + std::ptrdiff_t(*from), all.end());
+  std::vector<T> part(all.begin() + static_cast<std::ptrdiff_t>(*from), all.end());
   *from = all.size();
   return part;
 }
@@ -57,19 +58,20 @@ void FrontEndCheckpoint::Append(FrontEndCheckpoint next) {
 }
 
 Status FrontEndCheckpoint::Validate() const {
-  if (through_frame < 0 || frames.size() != size_t(through_frame) + 1) {
+  if (through_frame < 0 || frames.size() != static_cast<size_t>(through_frame) + 1) {
     return InvalidArgumentError("checkpoint: " + std::to_string(frames.size()) +
                                 " frames for frames 0.." + std::to_string(through_frame));
   }
   for (size_t i = 0; i < frames.size(); ++i) {
-    if (frames[i].index != int64_t(i)) {
+    if (frames[i].index != static_cast<int64_t>(i)) {
       return InvalidArgumentError("checkpoint: frame " + std::to_string(i) + " is numbered " +
                                   std::to_string(frames[i].index));
     }
   }
   for (size_t i = 0; i < key_frames.size(); ++i) {
     const track::KeyFrame& k = key_frames[i];
-    if (int64_t(k.id) != int64_t(i) || k.frame_index < 0 || k.frame_index > through_frame ||
+    if (static_cast<int64_t>(k.id) != static_cast<int64_t>(i) || k.frame_index < 0 ||
+        k.frame_index > through_frame ||
         (i > 0 && (k.frame_index <= key_frames[i - 1].frame_index ||
                    k.segment < key_frames[i - 1].segment))) {
       return InvalidArgumentError("checkpoint: key frame " + std::to_string(i) +
@@ -80,15 +82,15 @@ Status FrontEndCheckpoint::Validate() const {
     return InvalidArgumentError("checkpoint: does not end at a key frame");
   }
   for (size_t i = 0; i < key_frame_images.size(); ++i) {
-    const int64_t id = int64_t(key_frame_images[i].image.id);
-    if (id < 0 || size_t(id) >= key_frames.size() ||
-        (i > 0 && id <= int64_t(key_frame_images[i - 1].image.id))) {
+    const int64_t id = static_cast<int64_t>(key_frame_images[i].image.id);
+    if (id < 0 || static_cast<size_t>(id) >= key_frames.size() ||
+        (i > 0 && id <= static_cast<int64_t>(key_frame_images[i - 1].image.id))) {
       return InvalidArgumentError("checkpoint: image of unknown key frame " + std::to_string(id));
     }
   }
   for (const track::SequentialLink& l : links) {
-    if (int64_t(l.from) < 0 || size_t(l.from) >= key_frames.size() || int64_t(l.to) < 0 ||
-        size_t(l.to) >= key_frames.size()) {
+    if (static_cast<int64_t>(l.from) < 0 || static_cast<size_t>(l.from) >= key_frames.size() ||
+        static_cast<int64_t>(l.to) < 0 || static_cast<size_t>(l.to) >= key_frames.size()) {
       return InvalidArgumentError("checkpoint: a link between unknown key frames");
     }
   }
@@ -134,7 +136,8 @@ std::optional<track::TargetTrack> TargetSeam::Trim(track::TargetTrack target, in
   });
   if (!seen) return target;
   obs.erase(obs.begin(), after);
-  if (int(obs.size()) < min_frames_) return std::nullopt;  // a stray end of a checkpoint target
+  if (static_cast<int>(obs.size()) < min_frames_)
+    return std::nullopt;  // a stray end of a checkpoint target
   return target;
 }
 
@@ -148,15 +151,15 @@ std::optional<track::KeyFrame> ChainSeam::Continue(track::KeyFrame key, bool fir
                                                    std::vector<track::ChainBreak>* breaks) {
   if (first && last_ != nullptr) {
     if (key.frame_index == last_->frame_index) {
-      key_frame_base_ = int(last_->id);  // the same key frame, seen again
+      key_frame_base_ = static_cast<int>(last_->id);  // the same key frame, seen again
       segment_base_ = last_->segment;
       return std::nullopt;
     }
-    key_frame_base_ = int(last_->id) + 1;
+    key_frame_base_ = static_cast<int>(last_->id) + 1;
     segment_base_ = last_->segment + 1;
     breaks->push_back(
         {key.frame_index, "the resumed run could not continue the chain from key frame " +
-                              std::to_string(int(last_->id))});
+                              std::to_string(static_cast<int>(last_->id))});
   }
   key.id = NewKeyFrameId(key.id);
   key.segment += segment_base_;
@@ -172,11 +175,11 @@ track::SequentialLink ChainSeam::Continue(track::SequentialLink link) const {
 }
 
 track::KeyFrameId ChainSeam::NewKeyFrameId(track::KeyFrameId id) const {
-  return track::KeyFrameId(key_frame_base_ + int(id));
+  return static_cast<track::KeyFrameId>(key_frame_base_ + static_cast<int>(id));
 }
 
 track::FeatureTrackId ChainSeam::NewFeatureId(track::FeatureTrackId id) const {
-  return track::FeatureTrackId(int64_t(id) + feature_id_offset_);
+  return static_cast<track::FeatureTrackId>(static_cast<int64_t>(id) + feature_id_offset_);
 }
 
 CheckpointTail::CheckpointTail(const FrontEndResult& result, size_t change_targets)

@@ -4,11 +4,11 @@
 #include "core/mission/sqlite.h"
 #include "core/util/durable_file.h"
 
-#include <signal.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
 #include <cerrno>
+#include <csignal>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
@@ -122,7 +122,7 @@ void MissionStore::RemoveStaleTemporaries(const std::string& path) {
       if (digits == 0 || rest.empty()) continue;
       const long pid = std::strtol(rest.substr(0, digits).c_str(), nullptr, 10);
       // Only a dead job's: a live one (this process or another) may be building it now.
-      if (pid <= 0 || ::kill(pid_t(pid), 0) == 0 || errno != ESRCH) continue;
+      if (pid <= 0 || ::kill(static_cast<pid_t>(pid), 0) == 0 || errno != ESRCH) continue;
       std::error_code ignored;
       std::filesystem::remove(it->path(), ignored);
     }
@@ -198,7 +198,7 @@ Status MissionStore::Save(const Mission& mission, unsigned parts) {
   if (impl_->mode != OpenMode::kReadWrite) {
     return InvalidArgumentError(impl_->path() + ": cannot save: the mission is open read-only");
   }
-  if ((parts & ~unsigned(kSaveAll)) != 0) {
+  if ((parts & ~static_cast<unsigned>(kSaveAll)) != 0) {
     return InvalidArgumentError(impl_->path() + ": cannot save: unknown parts " +
                                 std::to_string(parts));
   }
@@ -384,7 +384,7 @@ StatusOr<int64_t> MissionStore::CountTiles() const {
   sqlite::ResetOnExit reset(stmt);
   const int rc = sqlite3_step(stmt);
   if (rc != SQLITE_ROW) return impl_->db.Error(rc, "counting tiles");
-  return int64_t(sqlite3_column_int64(stmt, 0));
+  return static_cast<int64_t>(sqlite3_column_int64(stmt, 0));
 }
 
 }  // namespace saker::mission

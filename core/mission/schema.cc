@@ -200,14 +200,15 @@ class MetaReader {
     return v->integer;
   }
   int Int32(const char* key) {
-    return int(Int(key, std::numeric_limits<int32_t>::min(), std::numeric_limits<int32_t>::max()));
+    return static_cast<int>(
+        Int(key, std::numeric_limits<int32_t>::min(), std::numeric_limits<int32_t>::max()));
   }
   bool Bool(const char* key) { return Int(key, 0, 1) == 1; }
   double Real(const char* key) {
     const MetaValue* v = Find(key);
     if (v == nullptr) return 0;
     if (v->type == SQLITE_NULL) return std::numeric_limits<double>::quiet_NaN();
-    if (v->type == SQLITE_INTEGER) return double(v->integer);
+    if (v->type == SQLITE_INTEGER) return static_cast<double>(v->integer);
     if (v->type != SQLITE_FLOAT) {
       Fail(std::string("key '") + key + "': expected a real number, found " +
            sqlite::TypeName(v->type));
@@ -257,7 +258,7 @@ StatusOr<std::string> ReadPrefix(const std::string& path, size_t n) {
   std::string bytes(n, '\0');
   size_t got = 0;
   while (got < n) {
-    const ssize_t r = ::pread(fd, bytes.data() + got, n - got, off_t(got));
+    const ssize_t r = ::pread(fd, bytes.data() + got, n - got, static_cast<off_t>(got));
     if (r < 0 && errno == EINTR) continue;
     if (r < 0) {
       const int err = errno;
@@ -265,7 +266,7 @@ StatusOr<std::string> ReadPrefix(const std::string& path, size_t n) {
       return IoError(path + ": cannot read: " + std::strerror(err));
     }
     if (r == 0) break;
-    got += size_t(r);
+    got += static_cast<size_t>(r);
   }
   ::close(fd);
   bytes.resize(got);
@@ -273,8 +274,10 @@ StatusOr<std::string> ReadPrefix(const std::string& path, size_t n) {
 }
 
 uint32_t BigEndian32(const std::string& bytes, size_t offset) {
-  return uint32_t(uint8_t(bytes[offset])) << 24 | uint32_t(uint8_t(bytes[offset + 1])) << 16 |
-         uint32_t(uint8_t(bytes[offset + 2])) << 8 | uint32_t(uint8_t(bytes[offset + 3]));
+  return static_cast<uint32_t>(static_cast<uint8_t>(bytes[offset])) << 24 |
+         static_cast<uint32_t>(static_cast<uint8_t>(bytes[offset + 1])) << 16 |
+         static_cast<uint32_t>(static_cast<uint8_t>(bytes[offset + 2])) << 8 |
+         static_cast<uint32_t>(static_cast<uint8_t>(bytes[offset + 3]));
 }
 
 std::string Hex32(uint32_t v) {
@@ -301,7 +304,7 @@ StatusOr<int> ReadSchemaVersion(const sqlite::Database& db) {
     return InvalidDataError(db.path() + ": table meta: schema_version " + std::to_string(version) +
                             " is not a valid version");
   }
-  return int(version);
+  return static_cast<int>(version);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -401,8 +404,8 @@ Status WriteFrames(const sqlite::Database& db, const std::vector<FrameRecord>& f
     if (f.metadata_corners) {
       double values[kCornerValues];
       for (int i = 0; i < 4; ++i) {
-        values[2 * i] = (*f.metadata_corners)[size_t(i)].x();
-        values[2 * i + 1] = (*f.metadata_corners)[size_t(i)].y();
+        values[2 * i] = (*f.metadata_corners)[static_cast<size_t>(i)].x();
+        values[2 * i + 1] = (*f.metadata_corners)[static_cast<size_t>(i)].y();
       }
       sqlite::EncodeDoubles(values, kCornerValues, corners);
       b.Blob(5, corners, sizeof(corners));
@@ -445,7 +448,7 @@ Status WriteGraph(const sqlite::Database& db, const Mission& m) {
       sqlite::EncodeRowMajor(k.map_from_frame, matrix);
       sqlite::EncodeRowMajor(k.covariance, covariance);
       sqlite::Binder b(stmt.get());
-      b.Int64(1, int64_t(i));
+      b.Int64(1, static_cast<int64_t>(i));
       b.Int64(2, k.id);
       b.Int64(3, k.frame_index);
       b.Int64(4, k.segment);
@@ -465,7 +468,7 @@ Status WriteGraph(const sqlite::Database& db, const Mission& m) {
     sqlite::EncodeRowMajor(l.to_from_from, matrix);
     sqlite::EncodeRowMajor(l.covariance, covariance);
     sqlite::Binder b(stmt.get());
-    b.Int64(1, int64_t(i));
+    b.Int64(1, static_cast<int64_t>(i));
     b.Int64(2, l.from);
     b.Int64(3, l.to);
     b.Text(4, LinkKindName(l.kind));
@@ -497,7 +500,7 @@ Status WriteTracks(const sqlite::Database& db, const std::vector<ActivityTrack>&
   for (size_t i = 0; i < tracks.size(); ++i) {
     const ActivityTrack& t = tracks[i];
     sqlite::Binder b(track_stmt.get());
-    b.Int64(1, int64_t(i));
+    b.Int64(1, static_cast<int64_t>(i));
     b.Int64(2, t.id);
     b.Double(3, t.start_s);
     b.Double(4, t.end_s);
@@ -506,13 +509,13 @@ Status WriteTracks(const sqlite::Database& db, const std::vector<ActivityTrack>&
     b.OptionalDouble(7, t.speed_mps);
     b.Double(8, t.heading_deg);
     b.Int64(9, t.visit);
-    b.Int64(10, int64_t(t.points.size()));
+    b.Int64(10, static_cast<int64_t>(t.points.size()));
     SAKER_RETURN_IF_ERROR(db.Run(track_stmt.get(), b, "saving table tracks"));
     for (size_t j = 0; j < t.points.size(); ++j) {
       const TrackPoint& p = t.points[j];
       sqlite::Binder pb(point_stmt.get());
-      pb.Int64(1, int64_t(i));
-      pb.Int64(2, int64_t(j));
+      pb.Int64(1, static_cast<int64_t>(i));
+      pb.Int64(2, static_cast<int64_t>(j));
       pb.Int64(3, p.frame);
       pb.Double(4, p.time_s);
       pb.Double(5, p.image.x());
@@ -535,7 +538,7 @@ Status WriteTracks(const sqlite::Database& db, const std::vector<ActivityTrack>&
 
 // An `ordinal` column that must count the rows read so far: a gap means a row is missing.
 void CheckOrdinal(sqlite::RowReader& row, int col, int64_t ordinal, size_t expected) {
-  if (ordinal != int64_t(expected)) {
+  if (ordinal != static_cast<int64_t>(expected)) {
     row.Fail(col, "ordinal " + std::to_string(ordinal) + " where " + std::to_string(expected) +
                       " was expected (a row is missing)");
   }
@@ -582,7 +585,7 @@ Status LoadMeta(const sqlite::Database& db, Mission* m) {
                             std::to_string(version) + ", this version reads up to " +
                             std::to_string(kSchemaVersion));
   }
-  m->schema_version = int(version);
+  m->schema_version = static_cast<int>(version);
   m->saker_version = meta.Text(kKeySakerVersion);
   m->options_json = meta.Text(kKeyOptionsJson);
   m->map.geo_referenced = meta.Bool(kKeyGeoReferenced);
@@ -660,7 +663,7 @@ Status LoadFrames(const sqlite::Database& db, int schema, std::vector<FrameRecor
       row.Doubles(4, kCornerValues, values);
       std::array<Eigen::Vector2d, 4> corners;
       for (int i = 0; i < 4; ++i) {
-        corners[size_t(i)] = Eigen::Vector2d(values[2 * i], values[2 * i + 1]);
+        corners[static_cast<size_t>(i)] = Eigen::Vector2d(values[2 * i], values[2 * i + 1]);
       }
       f->metadata_corners = corners;
     }
@@ -735,15 +738,15 @@ Status LoadTracks(const sqlite::Database& db, std::vector<ActivityTrack>* tracks
     const int64_t track = row.Int64(0);
     const int64_t ordinal = row.Int64(1);
     SAKER_RETURN_IF_ERROR(row.status());
-    if (track < 0 || track >= int64_t(tracks->size())) {
+    if (track < 0 || track >= static_cast<int64_t>(tracks->size())) {
       row.Fail(0, "track_ordinal " + std::to_string(track) + " names no track");
       return row.status();
     }
-    std::vector<TrackPoint>& points = (*tracks)[size_t(track)].points;
+    std::vector<TrackPoint>& points = (*tracks)[static_cast<size_t>(track)].points;
     CheckOrdinal(row, 1, ordinal, points.size());
-    if (int64_t(points.size()) >= point_counts[size_t(track)]) {
+    if (static_cast<int64_t>(points.size()) >= point_counts[static_cast<size_t>(track)]) {
       row.FailRow("more points than the track's point_count " +
-                  std::to_string(point_counts[size_t(track)]));
+                  std::to_string(point_counts[static_cast<size_t>(track)]));
     }
     TrackPoint p;
     p.frame = row.Int64(2);
@@ -761,7 +764,7 @@ Status LoadTracks(const sqlite::Database& db, std::vector<ActivityTrack>* tracks
       "box_max_x, box_max_y, map_x, map_y FROM track_points ORDER BY track_ordinal, ordinal",
       "loading table track_points", "track_points", read_point));
   for (size_t i = 0; i < tracks->size(); ++i) {
-    if (int64_t((*tracks)[i].points.size()) != point_counts[i]) {
+    if (static_cast<int64_t>((*tracks)[i].points.size()) != point_counts[i]) {
       return InvalidDataError(db.path() + ": table track_points: track " + std::to_string(i) +
                               " has " + std::to_string((*tracks)[i].points.size()) +
                               " points, table tracks says " + std::to_string(point_counts[i]));
@@ -812,7 +815,7 @@ std::string PartsProblem(const Mission& mission, unsigned parts) {
     for (size_t i = 0; i < mission.links.size(); ++i) {
       if (!ValidLinkKind(mission.links[i].kind)) {
         return "link " + std::to_string(i) + " has an unknown kind " +
-               std::to_string(int(mission.links[i].kind));
+               std::to_string(static_cast<int>(mission.links[i].kind));
       }
     }
   }
@@ -836,7 +839,7 @@ Status CheckFileHeader(const std::string& path) {
     return InvalidDataError(path + ": not a Saker mission (not an SQLite database)");
   }
   const uint32_t application_id = BigEndian32(header, 68);
-  if (application_id != uint32_t(kMissionApplicationId)) {
+  if (application_id != static_cast<uint32_t>(kMissionApplicationId)) {
     return InvalidDataError(path + ": an SQLite database but not a Saker mission (application_id " +
                             Hex32(application_id) + ")");
   }
@@ -849,7 +852,7 @@ StatusOr<int> CheckIdentity(const sqlite::Database& db) {
   if (application_id != kMissionApplicationId) {
     return InvalidDataError(db.path() +
                             ": an SQLite database but not a Saker mission (application_id " +
-                            Hex32(uint32_t(application_id)) + ")");
+                            Hex32(static_cast<uint32_t>(application_id)) + ")");
   }
   SAKER_ASSIGN_OR_RETURN(const int64_t user_version,
                          db.QueryInt("PRAGMA user_version", "not a readable Saker mission"));

@@ -36,22 +36,22 @@ std::string ColumnName(sqlite3_stmt* stmt, int col) {
 
 void EncodeDoubles(const double* values, int n, uint8_t* out) {
   if constexpr (std::endian::native == std::endian::little) {
-    std::memcpy(out, values, size_t(n) * 8);
+    std::memcpy(out, values, static_cast<size_t>(n) * 8);
   } else {
     for (int i = 0; i < n; ++i) {
       const uint64_t bits = std::bit_cast<uint64_t>(values[i]);
-      for (int b = 0; b < 8; ++b) out[i * 8 + b] = uint8_t(bits >> (8 * b));
+      for (int b = 0; b < 8; ++b) out[i * 8 + b] = static_cast<uint8_t>(bits >> (8 * b));
     }
   }
 }
 
 void DecodeDoubles(const uint8_t* in, int n, double* values) {
   if constexpr (std::endian::native == std::endian::little) {
-    std::memcpy(values, in, size_t(n) * 8);
+    std::memcpy(values, in, static_cast<size_t>(n) * 8);
   } else {
     for (int i = 0; i < n; ++i) {
       uint64_t bits = 0;
-      for (int b = 0; b < 8; ++b) bits |= uint64_t(in[i * 8 + b]) << (8 * b);
+      for (int b = 0; b < 8; ++b) bits |= static_cast<uint64_t>(in[i * 8 + b]) << (8 * b);
       values[i] = std::bit_cast<double>(bits);
     }
   }
@@ -114,7 +114,7 @@ int64_t RowReader::Int(int col, int64_t lo, int64_t hi) {
 }
 
 int32_t RowReader::Int32(int col) {
-  return int32_t(
+  return static_cast<int32_t>(
       Int(col, std::numeric_limits<int32_t>::min(), std::numeric_limits<int32_t>::max()));
 }
 
@@ -150,7 +150,7 @@ std::string RowReader::Text(int col) {
     Fail(col, "out of memory reading text");
     return {};
   }
-  return std::string(text, size_t(size));
+  return std::string(text, static_cast<size_t>(size));
 }
 
 void RowReader::Doubles(int col, int n, double* out) {
@@ -239,7 +239,7 @@ StatusOr<int64_t> Database::QueryInt(const char* sql, const std::string& what) c
   if (sqlite3_column_type(stmt.get(), 0) != SQLITE_INTEGER) {
     return InvalidDataError(path_ + ": " + what + ": not an integer");
   }
-  return int64_t(sqlite3_column_int64(stmt.get(), 0));
+  return static_cast<int64_t>(sqlite3_column_int64(stmt.get(), 0));
 }
 
 StatusOr<std::string> Database::QueryText(const char* sql, const std::string& what) const {

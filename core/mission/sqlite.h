@@ -167,7 +167,7 @@ class RowReader {
   template <typename Matrix>
   Matrix RowMajor(int col) {
     double values[Matrix::RowsAtCompileTime * Matrix::ColsAtCompileTime];
-    Doubles(col, int(Matrix::RowsAtCompileTime * Matrix::ColsAtCompileTime), values);
+    Doubles(col, (Matrix::RowsAtCompileTime * Matrix::ColsAtCompileTime), values);
     Matrix m;
     DecodeRowMajor(values, &m);
     return m;

@@ -49,10 +49,10 @@ struct MetadataResidual {
   bool operator()(const T* map_from_frame, T* residual) const {
     const Matrix3<T> m = HomographyFrom(map_from_frame);
     for (int i = 0; i < 4; ++i) {
-      if (!Project(m, corners[size_t(i)], residual + 2 * i)) return false;
+      if (!Project(m, corners[static_cast<size_t>(i)], residual + 2 * i)) return false;
     }
     for (int i = 0; i < kResiduals; ++i) {
-      residual[i] = (residual[i] - T(metadata(i))) * T(inverse_sigma);
+      residual[i] = (residual[i] - static_cast<T>(metadata(i))) * static_cast<T>(inverse_sigma);
     }
     return true;
   }
@@ -72,10 +72,10 @@ ceres::SparseLinearAlgebraLibraryType SparseLibrary() {
 Eigen::Matrix3d Conditioner(const std::vector<Eigen::Vector2d>& points) {
   Eigen::Vector2d mean = Eigen::Vector2d::Zero();
   for (const Eigen::Vector2d& p : points) mean += p;
-  mean /= double(points.size());
+  mean /= static_cast<double>(points.size());
   double distance = 0;
   for (const Eigen::Vector2d& p : points) distance += (p - mean).norm();
-  distance /= double(points.size());
+  distance /= static_cast<double>(points.size());
   const double s = distance > 0 ? std::sqrt(2.0) / distance : 1.0;
   Eigen::Matrix3d t;
   t << s, 0, -s * mean.x(), 0, s, -s * mean.y(), 0, 0, 1;
@@ -249,27 +249,27 @@ class AdjustmentProblem {
     const std::vector<int>& component = component_;
     const int components =
         component.empty() ? 0 : *std::max_element(component.begin(), component.end()) + 1;
-    has_metadata_.assign(size_t(components), false);
+    has_metadata_.assign(static_cast<size_t>(components), false);
     std::vector<bool>& has_metadata = has_metadata_;
     if (graph.geo_referenced && options.use_metadata) {
       for (const Node& node : graph.nodes) {
         if (!node.metadata_corners) continue;
         auto* residual = new MetadataResidual{corners, {}, 1.0 / options.metadata_sigma_m};
         for (int i = 0; i < 4; ++i) {
-          residual->metadata.segment<2>(2 * i) = (*node.metadata_corners)[size_t(i)];
+          residual->metadata.segment<2>(2 * i) = (*node.metadata_corners)[static_cast<size_t>(i)];
         }
         problem_->AddResidualBlock(
             new ceres::AutoDiffCostFunction<MetadataResidual, kResiduals, kParameters>(residual),
             loss_.get(), Block(node.id));
         ++residual_blocks_;
-        has_metadata[size_t(component[size_t(node.id)])] = true;
+        has_metadata[static_cast<size_t>(component[static_cast<size_t>(node.id)])] = true;
       }
     }
 
     // Gauge: the first node (in node order) of each component without metadata stays fixed.
-    std::vector<bool> seen(size_t(components), false);
+    std::vector<bool> seen(static_cast<size_t>(components), false);
     for (size_t i = 0; i < n; ++i) {
-      const size_t c = size_t(component[i]);
+      const size_t c = static_cast<size_t>(component[i]);
       if (seen[c]) continue;
       seen[c] = true;
       if (has_metadata[c]) continue;
@@ -285,9 +285,9 @@ class AdjustmentProblem {
   bool fixed(size_t node) const { return fixed_[node]; }
   int residual_blocks() const { return residual_blocks_; }
   int fixed_nodes() const { return fixed_nodes_; }
-  int components() const { return int(has_metadata_.size()); }
+  int components() const { return static_cast<int>(has_metadata_.size()); }
   int component(size_t node) const { return component_[node]; }
-  bool has_metadata(int component) const { return has_metadata_[size_t(component)]; }
+  bool has_metadata(int component) const { return has_metadata_[static_cast<size_t>(component)]; }
   // The cost (Ceres's: half the sum of the robustified squares) at the current parameters.
   double Cost() {
     double cost = 0;
@@ -297,7 +297,7 @@ class AdjustmentProblem {
 
  private:
   double* Block(KeyFrameId id) {
-    const size_t i = size_t(id);
+    const size_t i = static_cast<size_t>(id);
     if (!in_problem_[i]) {
       problem_->AddParameterBlock(parameters_[i].data(), kParameters, manifold_.get());
       in_problem_[i] = true;
@@ -350,8 +350,8 @@ bool AlignGaugesToMetadata(const LinkGraph& graph, AdjustmentProblem* adjustment
       if (!graph.nodes[i].metadata_corners) continue;
       const Eigen::Matrix3d m = HomographyFrom(adjustment->parameters(i));
       for (int k = 0; k < 4; ++k) {
-        from.push_back(m * corners[size_t(k)].homogeneous());
-        to.push_back((*graph.nodes[i].metadata_corners)[size_t(k)]);
+        from.push_back(m * corners[static_cast<size_t>(k)].homogeneous());
+        to.push_back((*graph.nodes[i].metadata_corners)[static_cast<size_t>(k)]);
       }
     }
     const std::optional<Eigen::Matrix3d> g = FitHomography(from, to);
@@ -365,7 +365,8 @@ bool AlignGaugesToMetadata(const LinkGraph& graph, AdjustmentProblem* adjustment
            (OneSideOfHorizon(m, corners) || !OneSideOfHorizon(current, corners));
       if (!ok) break;
       moved.emplace_back();
-      for (int j = 0; j < kParameters; ++j) moved.back()[size_t(j)] = m(j / 3, j % 3) / m(2, 2);
+      for (int j = 0; j < kParameters; ++j)
+        moved.back()[static_cast<size_t>(j)] = m(j / 3, j % 3) / m(2, 2);
     }
     if (!ok) continue;
     const double before = adjustment->Cost();
@@ -400,8 +401,8 @@ class JobCallback : public ceres::IterationCallback {
       // Ceres keeps the best state: the parameters hold the last successful step.
       return ceres::SOLVER_TERMINATE_SUCCESSFULLY;
     }
-    job_->ReportProgress("adjustment",
-                         std::min(1.0, double(summary.iteration) / std::max(1, max_iterations_)));
+    job_->ReportProgress("adjustment", std::min(1.0, static_cast<double>(summary.iteration) /
+                                                         std::max(1, max_iterations_)));
     return ceres::SOLVER_CONTINUE;
   }
 
@@ -524,7 +525,7 @@ StatusOr<AdjustmentSummary> Adjust(LinkGraph* graph, const AdjustmentOptions& op
   ceres::Solver::Summary ceres_summary;
   ceres::Solve(solver, &adjustment.problem(), &ceres_summary);
 
-  summary.iterations = std::max(0, int(ceres_summary.iterations.size()) - 1);
+  summary.iterations = std::max(0, static_cast<int>(ceres_summary.iterations.size()) - 1);
   summary.initial_cost = aligned ? start_cost : ceres_summary.initial_cost;
   summary.final_cost = ceres_summary.final_cost;
   summary.cancelled = callback.cancelled();
@@ -557,11 +558,11 @@ StatusOr<std::vector<track::HomographyCovariance>> NodeCovariances(
     for (size_t i = 0; i < graph.nodes.size(); ++i) wanted.push_back(i);
   } else {
     for (KeyFrameId id : nodes) {
-      if (int(id) < 0 || size_t(id) >= graph.nodes.size()) {
-        return InvalidArgumentError("node covariances: key frame " + std::to_string(int(id)) +
-                                    " is not in the graph");
+      if (static_cast<int>(id) < 0 || static_cast<size_t>(id) >= graph.nodes.size()) {
+        return InvalidArgumentError("node covariances: key frame " +
+                                    std::to_string(static_cast<int>(id)) + " is not in the graph");
       }
-      wanted.push_back(size_t(id));
+      wanted.push_back(static_cast<size_t>(id));
     }
   }
 

@@ -56,7 +56,7 @@ std::string StepName(size_t i) {
 
 Parameters ParametersOf(const Eigen::Matrix3d& h) {
   Parameters p;
-  for (int i = 0; i < kParameters; ++i) p[size_t(i)] = h(i / 3, i % 3) / h(2, 2);
+  for (int i = 0; i < kParameters; ++i) p[static_cast<size_t>(i)] = h(i / 3, i % 3) / h(2, 2);
   return p;
 }
 
@@ -408,9 +408,9 @@ void SpreadClosure(const Eigen::Matrix3d& chained_end, size_t begin, size_t end,
                    std::vector<Parameters>* frames) {
   const Eigen::Matrix3d c = HomographyFrom((*frames)[end].data()) * chained_end.inverse();
   if (!c.allFinite()) return;
-  const double length = double(end - begin);
+  const double length = static_cast<double>(end - begin);
   for (size_t k = begin + 1; k < end; ++k) {
-    const double t = double(k - begin) / length;
+    const double t = static_cast<double>(k - begin) / length;
     const Eigen::Matrix3d blend = (1 - t) * Eigen::Matrix3d::Identity() + t * c;
     const Parameters spread = ParametersOf(blend * HomographyFrom((*frames)[k].data()));
     if (Finite(spread)) (*frames)[k] = spread;
@@ -464,7 +464,7 @@ void Start(const std::vector<ChainStep>& steps, const std::vector<LinkResidual>&
       coarse[j].next_from_previous = composed.target_from_source;
       coarse[j].covariance = composed.covariance;
       // The floor of each fine step, summed as variances.
-      const double coarse_floor = floor_px * std::sqrt(double(end - begin));
+      const double coarse_floor = floor_px * std::sqrt(static_cast<double>(end - begin));
       coarse_links.push_back(MakeLinkResidual(composed.target_from_source, composed.covariance,
                                               corners, coarse_floor));
       ok = coarse_links.back().whitening.allFinite();

@@ -24,7 +24,7 @@ Eigen::Matrix3d Normalised(const Eigen::Matrix3d& h) { return h / h(2, 2); }
 // frames of b's, either way round.
 bool SameClosure(const Link& a, const Link& b, int spacing) {
   const auto near = [spacing](KeyFrameId x, KeyFrameId y) {
-    return std::abs(int(x) - int(y)) <= spacing;
+    return std::abs(static_cast<int>(x) - static_cast<int>(y)) <= spacing;
   };
   return (near(a.from, b.from) && near(a.to, b.to)) || (near(a.from, b.to) && near(a.to, b.from));
 }
@@ -39,10 +39,10 @@ StatusOr<track::HomographyWithCovariance> ChainArc(const LinkGraph& graph, const
     StatusOr<track::HomographyWithCovariance> next = track::Compose(
         link.to_from_from, link.covariance, chained.target_from_source, chained.covariance);
     if (!next.ok()) {
-      return InvalidDataError("decomposition: the arc from key frame " +
-                              std::to_string(int(arc.from)) + " to " + std::to_string(int(arc.to)) +
-                              " cannot be chained at key frame " + std::to_string(int(link.to)) +
-                              ": " + next.status().message());
+      return InvalidDataError(
+          "decomposition: the arc from key frame " + std::to_string(static_cast<int>(arc.from)) +
+          " to " + std::to_string(static_cast<int>(arc.to)) + " cannot be chained at key frame " +
+          std::to_string(static_cast<int>(link.to)) + ": " + next.status().message());
     }
     chained = std::move(next).value();
   }
@@ -53,12 +53,13 @@ StatusOr<track::HomographyWithCovariance> ChainArc(const LinkGraph& graph, const
 // relation its adjusted ends imply: the Mahalanobis length of the corner residual over 8.
 double Flex(const LinkGraph& reduced, const Link& link, double floor_px) {
   const auto corners = track::ImageCorners(reduced.image_width, reduced.image_height);
-  const Eigen::Matrix3d predicted = reduced.nodes[size_t(link.to)].map_from_frame.inverse() *
-                                    reduced.nodes[size_t(link.from)].map_from_frame;
+  const Eigen::Matrix3d predicted =
+      reduced.nodes[static_cast<size_t>(link.to)].map_from_frame.inverse() *
+      reduced.nodes[static_cast<size_t>(link.from)].map_from_frame;
   Eigen::Matrix<double, internal::kResiduals, 1> error;
   for (int c = 0; c < 4; ++c) {
-    error.segment<2>(2 * c) = track::Transfer(predicted, corners[size_t(c)]) -
-                              track::Transfer(link.to_from_from, corners[size_t(c)]);
+    error.segment<2>(2 * c) = track::Transfer(predicted, corners[static_cast<size_t>(c)]) -
+                              track::Transfer(link.to_from_from, corners[static_cast<size_t>(c)]);
   }
   const Eigen::Matrix<double, internal::kResiduals, 1> whitened =
       internal::LinkWhitening(link.to_from_from, link.covariance, corners, floor_px) * error;
@@ -88,10 +89,10 @@ std::vector<KeyFrameId> ArcKeyFrames(const LinkGraph& graph, const Arc& arc) {
 bool PlaceArc(LinkGraph* graph, const Arc& arc, const ChainOptions& options) {
   if (arc.links.size() < 2) return true;
   const std::vector<ChainStep> steps = ArcSteps(*graph, arc);
-  const Eigen::Matrix3d& first = graph->nodes[size_t(arc.from)].map_from_frame;
+  const Eigen::Matrix3d& first = graph->nodes[static_cast<size_t>(arc.from)].map_from_frame;
   StatusOr<ChainSolution> solution =
-      SolveChain(first, graph->nodes[size_t(arc.to)].map_from_frame, steps, graph->image_width,
-                 graph->image_height, options);
+      SolveChain(first, graph->nodes[static_cast<size_t>(arc.to)].map_from_frame, steps,
+                 graph->image_width, graph->image_height, options);
   const bool solved = solution.ok();
   if (!solved) {
     solution =
@@ -100,7 +101,7 @@ bool PlaceArc(LinkGraph* graph, const Arc& arc, const ChainOptions& options) {
   }
   const std::vector<KeyFrameId> ids = ArcKeyFrames(*graph, arc);
   for (size_t j = 1; j + 1 < ids.size(); ++j) {
-    graph->nodes[size_t(ids[j])].map_from_frame = solution->map_from_frame[j];
+    graph->nodes[static_cast<size_t>(ids[j])].map_from_frame = solution->map_from_frame[j];
   }
   return solved;
 }
@@ -141,8 +142,9 @@ Decomposition Decompose(const LinkGraph& graph, const DecompositionOptions& opti
   Decomposition d;
   d.is_node.assign(n, false);
   for (KeyFrameId id : extra_nodes) {
-    SAKER_CHECK(int(id) >= 0 && size_t(id) < n) << "extra node " << int(id) << " out of range";
-    d.is_node[size_t(id)] = true;
+    SAKER_CHECK(static_cast<int>(id) >= 0 && static_cast<size_t>(id) < n)
+        << "extra node " << static_cast<int>(id) << " out of range";
+    d.is_node[static_cast<size_t>(id)] = true;
   }
 
   // The chains: at most one sequential link out of and into each key frame; any other link
@@ -151,10 +153,10 @@ Decomposition Decompose(const LinkGraph& graph, const DecompositionOptions& opti
   std::vector<size_t> others;
   for (size_t i = 0; i < graph.links.size(); ++i) {
     const Link& link = graph.links[i];
-    if (link.kind == LinkKind::kSequential && next_link[size_t(link.from)] < 0 &&
-        previous_link[size_t(link.to)] < 0) {
-      next_link[size_t(link.from)] = int(i);
-      previous_link[size_t(link.to)] = int(i);
+    if (link.kind == LinkKind::kSequential && next_link[static_cast<size_t>(link.from)] < 0 &&
+        previous_link[static_cast<size_t>(link.to)] < 0) {
+      next_link[static_cast<size_t>(link.from)] = static_cast<int>(i);
+      previous_link[static_cast<size_t>(link.to)] = static_cast<int>(i);
     } else {
       others.push_back(i);
     }
@@ -180,8 +182,8 @@ Decomposition Decompose(const LinkGraph& graph, const DecompositionOptions& opti
       d.left_out_links.push_back(i);
     } else {
       d.cross_links.push_back(i);
-      d.is_node[size_t(graph.links[i].from)] = true;
-      d.is_node[size_t(graph.links[i].to)] = true;
+      d.is_node[static_cast<size_t>(graph.links[i].from)] = true;
+      d.is_node[static_cast<size_t>(graph.links[i].to)] = true;
     }
   }
   std::sort(d.cross_links.begin(), d.cross_links.end());
@@ -197,20 +199,20 @@ Decomposition Decompose(const LinkGraph& graph, const DecompositionOptions& opti
   std::vector<bool> walked(n, false);
   const auto walk = [&](size_t start) {
     Arc arc;
-    arc.from = KeyFrameId(start);
+    arc.from = static_cast<KeyFrameId>(start);
     size_t k = start;
     walked[k] = true;
     while (next_link[k] >= 0) {
-      const size_t link = size_t(next_link[k]);
+      const size_t link = static_cast<size_t>(next_link[k]);
       arc.links.push_back(link);
-      k = size_t(graph.links[link].to);
+      k = static_cast<size_t>(graph.links[link].to);
       const bool closed = walked[k];
       walked[k] = true;
       if (d.is_node[k] || closed) {
-        arc.to = KeyFrameId(k);
+        arc.to = static_cast<KeyFrameId>(k);
         d.arcs.push_back(std::move(arc));
         arc = Arc{};
-        arc.from = KeyFrameId(k);
+        arc.from = static_cast<KeyFrameId>(k);
         if (closed) break;
       }
     }
@@ -228,7 +230,7 @@ Decomposition Decompose(const LinkGraph& graph, const DecompositionOptions& opti
   // Long arcs, and an arc from a node back to itself, are split evenly.
   std::vector<Arc> arcs;
   for (Arc& arc : d.arcs) {
-    const int links = int(arc.links.size());
+    const int links = static_cast<int>(arc.links.size());
     int parts = (links + options.max_arc_links - 1) / options.max_arc_links;
     if (arc.from == arc.to) parts = std::max(parts, 2);
     parts = std::min(parts, links);
@@ -238,19 +240,20 @@ Decomposition Decompose(const LinkGraph& graph, const DecompositionOptions& opti
     }
     int begin = 0;
     for (int p = 1; p <= parts; ++p) {
-      const int end = int(std::lround(double(p) * links / parts));
+      const int end = static_cast<int>(std::lround(static_cast<double>(p) * links / parts));
       Arc piece;
-      piece.from = begin == 0 ? arc.from : graph.links[arc.links[size_t(begin - 1)]].to;
-      piece.to = graph.links[arc.links[size_t(end - 1)]].to;
+      piece.from =
+          begin == 0 ? arc.from : graph.links[arc.links[static_cast<size_t>(begin - 1)]].to;
+      piece.to = graph.links[arc.links[static_cast<size_t>(end - 1)]].to;
       piece.links.assign(arc.links.begin() + begin, arc.links.begin() + end);
-      d.is_node[size_t(piece.to)] = true;
+      d.is_node[static_cast<size_t>(piece.to)] = true;
       arcs.push_back(std::move(piece));
       begin = end;
     }
   }
   d.arcs = std::move(arcs);
   for (size_t k = 0; k < n; ++k) {
-    if (d.is_node[k]) d.nodes.push_back(KeyFrameId(k));
+    if (d.is_node[k]) d.nodes.push_back(static_cast<KeyFrameId>(k));
   }
   return d;
 }
@@ -263,14 +266,15 @@ StatusOr<LinkGraph> ReducedGraph(const LinkGraph& graph, const Decomposition& de
   reduced.geo_referenced = graph.geo_referenced;
   reduced.nodes.reserve(decomposition.nodes.size());
   for (KeyFrameId id : decomposition.nodes) {
-    Node node = graph.nodes[size_t(id)];
-    reduced_id[size_t(id)] = int(reduced.nodes.size());
-    node.id = KeyFrameId(reduced.nodes.size());
+    Node node = graph.nodes[static_cast<size_t>(id)];
+    reduced_id[static_cast<size_t>(id)] = static_cast<int>(reduced.nodes.size());
+    node.id = static_cast<KeyFrameId>(reduced.nodes.size());
     reduced.nodes.push_back(std::move(node));
   }
   const auto remap = [&](KeyFrameId id) {
-    SAKER_CHECK(reduced_id[size_t(id)] >= 0) << "key frame " << int(id) << " is not a node";
-    return KeyFrameId(reduced_id[size_t(id)]);
+    SAKER_CHECK(reduced_id[static_cast<size_t>(id)] >= 0)
+        << "key frame " << static_cast<int>(id) << " is not a node";
+    return static_cast<KeyFrameId>(reduced_id[static_cast<size_t>(id)]);
   };
   reduced.links.reserve(decomposition.arcs.size() + decomposition.cross_links.size());
   for (const Arc& arc : decomposition.arcs) {
@@ -317,7 +321,7 @@ StatusOr<DecomposedSummary> AdjustDecomposed(LinkGraph* graph, const AdjustmentO
   const bool metadata_nodes = graph->geo_referenced && options.use_metadata;
 
   DecomposedSummary summary;
-  summary.key_frames = int(graph->nodes.size());
+  summary.key_frames = static_cast<int>(graph->nodes.size());
   std::vector<KeyFrameId> inserted;
   Decomposition d;
   for (int round = 0;; ++round) {
@@ -331,7 +335,8 @@ StatusOr<DecomposedSummary> AdjustDecomposed(LinkGraph* graph, const AdjustmentO
     summary.adjust_s += start.ElapsedSeconds();
     ++summary.rounds;
     for (size_t i = 0; i < d.nodes.size(); ++i) {
-      graph->nodes[size_t(d.nodes[i])].map_from_frame = reduced.nodes[i].map_from_frame;
+      graph->nodes[static_cast<size_t>(d.nodes[i])].map_from_frame =
+          reduced.nodes[i].map_from_frame;
     }
 
     // The linearity check on the arcs (the reduced graph's first links, in the same order).
@@ -350,12 +355,12 @@ StatusOr<DecomposedSummary> AdjustDecomposed(LinkGraph* graph, const AdjustmentO
       break;
     }
     inserted.insert(inserted.end(), flexed.begin(), flexed.end());
-    summary.inserted_nodes += int(flexed.size());
+    summary.inserted_nodes += static_cast<int>(flexed.size());
   }
   summary.nodes = d.NodeCount();
-  summary.arcs = int(d.arcs.size());
-  summary.cross_links = int(d.cross_links.size());
-  summary.left_out_cross_links = int(d.left_out_links.size());
+  summary.arcs = static_cast<int>(d.arcs.size());
+  summary.cross_links = static_cast<int>(d.cross_links.size());
+  summary.left_out_cross_links = static_cast<int>(d.left_out_links.size());
 
   const Stopwatch start;
   for (const Arc& arc : d.arcs) {
@@ -375,35 +380,36 @@ StatusOr<std::vector<track::HomographyCovariance>> DecomposedCovariances(
   std::vector<track::HomographyCovariance> result(graph.nodes.size(),
                                                   track::HomographyCovariance::Zero());
   for (size_t i = 0; i < decomposition.nodes.size(); ++i) {
-    result[size_t(decomposition.nodes[i])] = at_nodes[i];
+    result[static_cast<size_t>(decomposition.nodes[i])] = at_nodes[i];
   }
   ChainOptions chain = placement;
   chain.covariances = true;
   for (const Arc& arc : decomposition.arcs) {
     if (arc.links.size() < 2) continue;
-    const Eigen::Matrix3d& map_from_first = graph.nodes[size_t(arc.from)].map_from_frame;
-    const Eigen::Matrix3d& map_from_last = graph.nodes[size_t(arc.to)].map_from_frame;
+    const Eigen::Matrix3d& map_from_first =
+        graph.nodes[static_cast<size_t>(arc.from)].map_from_frame;
+    const Eigen::Matrix3d& map_from_last = graph.nodes[static_cast<size_t>(arc.to)].map_from_frame;
     SAKER_ASSIGN_OR_RETURN(ChainSolution solution,
                            SolveChain(map_from_first, map_from_last, ArcSteps(graph, arc),
                                       graph.image_width, graph.image_height, chain));
-    const track::HomographyCovariance& first = result[size_t(arc.from)];
-    const track::HomographyCovariance& last = result[size_t(arc.to)];
+    const track::HomographyCovariance& first = result[static_cast<size_t>(arc.from)];
+    const track::HomographyCovariance& last = result[static_cast<size_t>(arc.to)];
     const std::vector<KeyFrameId> ids = ArcKeyFrames(graph, arc);
-    const double length = double(ids.size() - 1);
+    const double length = static_cast<double>(ids.size() - 1);
     for (size_t j = 1; j + 1 < ids.size(); ++j) {
       // map_from_j = map_from_end * (end_from_j): the end's uncertainty carried to j.
-      const Eigen::Matrix3d& map_from_j = graph.nodes[size_t(ids[j])].map_from_frame;
+      const Eigen::Matrix3d& map_from_j = graph.nodes[static_cast<size_t>(ids[j])].map_from_frame;
       const Eigen::Matrix<double, 8, 8> j_first =
           track::ComposeJacobian(map_from_first, Normalised(map_from_first.inverse() * map_from_j))
               .leftCols<8>();
       const Eigen::Matrix<double, 8, 8> j_last =
           track::ComposeJacobian(map_from_last, Normalised(map_from_last.inverse() * map_from_j))
               .leftCols<8>();
-      const double t = double(j) / length;
+      const double t = static_cast<double>(j) / length;
       track::HomographyCovariance c = solution.covariances[j] +
                                       (1 - t) * j_first * first * j_first.transpose() +
                                       t * j_last * last * j_last.transpose();
-      result[size_t(ids[j])] = 0.5 * (c + c.transpose());
+      result[static_cast<size_t>(ids[j])] = 0.5 * (c + c.transpose());
     }
   }
   return result;

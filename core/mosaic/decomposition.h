@@ -78,7 +78,7 @@ struct Decomposition {
   std::vector<Arc> arcs;               // in chain order
   std::vector<size_t> cross_links;     // kept non-sequential links (indices into links)
   std::vector<size_t> left_out_links;  // cross-links left out by cross_link_spacing
-  int NodeCount() const { return int(nodes.size()); }
+  int NodeCount() const { return static_cast<int>(nodes.size()); }
 };
 
 // Chooses the nodes and arcs. `extra_nodes` are made nodes as well (the linearity check's).

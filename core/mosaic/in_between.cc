@@ -33,18 +33,19 @@ StatusOr<InBetweenFrames> PlaceInBetweenFrames(const std::vector<MosaicFrame>& f
 
   std::vector<int> key_at(n, -1);
   for (const Node& node : graph.nodes) {
-    if (node.frame_index < 0 || size_t(node.frame_index) >= n) {
-      return InvalidArgumentError("in-between frames: key frame " + std::to_string(int(node.id)) +
-                                  " is frame " + std::to_string(node.frame_index) +
-                                  " but the video has " + std::to_string(n) + " frames");
+    if (node.frame_index < 0 || static_cast<size_t>(node.frame_index) >= n) {
+      return InvalidArgumentError("in-between frames: key frame " +
+                                  std::to_string(static_cast<int>(node.id)) + " is frame " +
+                                  std::to_string(node.frame_index) + " but the video has " +
+                                  std::to_string(n) + " frames");
     }
-    int& at = key_at[size_t(node.frame_index)];
+    int& at = key_at[static_cast<size_t>(node.frame_index)];
     if (at >= 0) {
       return InvalidArgumentError("in-between frames: key frames " + std::to_string(at) + " and " +
-                                  std::to_string(int(node.id)) + " are both frame " +
+                                  std::to_string(static_cast<int>(node.id)) + " are both frame " +
                                   std::to_string(node.frame_index));
     }
-    at = int(node.id);
+    at = static_cast<int>(node.id);
   }
 
   std::vector<ChainStep> steps;
@@ -58,12 +59,12 @@ StatusOr<InBetweenFrames> PlaceInBetweenFrames(const std::vector<MosaicFrame>& f
       if (key_at[f] >= 0) keys.push_back(f);
     }
     if (keys.empty()) {
-      result.unplaced += int(run_end - run_start);
+      result.unplaced += static_cast<int>(run_end - run_start);
       run_start = run_end;
       continue;
     }
     for (size_t f : keys) {
-      result.map_from_frame[f] = graph.nodes[size_t(key_at[f])].map_from_frame;
+      result.map_from_frame[f] = graph.nodes[static_cast<size_t>(key_at[f])].map_from_frame;
       ++result.key_frames;
     }
     // Before the first key frame: map_from_f = map_from_(f+1) * (f+1)_from_f.
@@ -99,7 +100,9 @@ StatusOr<InBetweenFrames> PlaceInBetweenFrames(const std::vector<MosaicFrame>& f
         result.map_from_frame[f] = solution->map_from_frame[f - a];
         ++result.solved;
       }
-      if (job != nullptr) job->ReportProgress("in-between frames", double(b + 1) / double(n));
+      if (job != nullptr)
+        job->ReportProgress("in-between frames",
+                            static_cast<double>(b + 1) / static_cast<double>(n));
     }
     run_start = run_end;
   }

@@ -20,7 +20,8 @@ Status LinkGraph::Validate() const {
   for (size_t i = 0; i < nodes.size(); ++i) {
     const Node& n = nodes[i];
     const std::string name = "link graph: key frame " + std::to_string(i);
-    if (size_t(n.id) != i) return InvalidDataError(name + " has id " + std::to_string(int(n.id)));
+    if (static_cast<size_t>(n.id) != i)
+      return InvalidDataError(name + " has id " + std::to_string(static_cast<int>(n.id)));
     if (!FiniteHomography(n.map_from_frame)) {
       return InvalidDataError(name + " has a non-finite or unnormalised map_from_frame");
     }
@@ -33,8 +34,9 @@ Status LinkGraph::Validate() const {
   for (size_t k = 0; k < links.size(); ++k) {
     const Link& l = links[k];
     const std::string name = "link graph: link " + std::to_string(k);
-    const int from = int(l.from), to = int(l.to);
-    if (from < 0 || to < 0 || size_t(from) >= nodes.size() || size_t(to) >= nodes.size()) {
+    const int from = static_cast<int>(l.from), to = static_cast<int>(l.to);
+    if (from < 0 || to < 0 || static_cast<size_t>(from) >= nodes.size() ||
+        static_cast<size_t>(to) >= nodes.size()) {
       return InvalidDataError(name + " names a key frame that does not exist");
     }
     if (from == to) return InvalidDataError(name + " joins a key frame to itself");
@@ -54,19 +56,21 @@ std::vector<int> LinkGraph::Components() const {
   std::vector<int> parent(nodes.size());
   std::iota(parent.begin(), parent.end(), 0);
   const auto find = [&](int x) {
-    while (parent[size_t(x)] != x) x = parent[size_t(x)] = parent[size_t(parent[size_t(x)])];
+    while (parent[static_cast<size_t>(x)] != x)
+      x = parent[static_cast<size_t>(x)] =
+          parent[static_cast<size_t>(parent[static_cast<size_t>(x)])];
     return x;
   };
   for (const Link& l : links) {
-    const int a = find(int(l.from)), b = find(int(l.to));
-    if (a != b) parent[size_t(std::max(a, b))] = std::min(a, b);
+    const int a = find(static_cast<int>(l.from)), b = find(static_cast<int>(l.to));
+    if (a != b) parent[static_cast<size_t>(std::max(a, b))] = std::min(a, b);
   }
   std::vector<int> component(nodes.size(), -1), label(nodes.size(), -1);
   int next = 0;
   for (size_t i = 0; i < nodes.size(); ++i) {
-    const int root = find(int(i));
-    if (label[size_t(root)] < 0) label[size_t(root)] = next++;
-    component[i] = label[size_t(root)];
+    const int root = find(static_cast<int>(i));
+    if (label[static_cast<size_t>(root)] < 0) label[static_cast<size_t>(root)] = next++;
+    component[i] = label[static_cast<size_t>(root)];
   }
   return component;
 }

@@ -47,7 +47,7 @@ struct Orientation {
 class OrientationEstimator {
  public:
   OrientationEstimator(const cv::Mat& grey, double blur_sigma, double window_sigma)
-      : radius_(std::max(1, int(std::lround(3 * window_sigma)))) {
+      : radius_(std::max(1, static_cast<int>(std::lround(3 * window_sigma)))) {
     cv::Mat blurred;
     grey.convertTo(blurred, CV_32F);
     if (blur_sigma > 0) cv::GaussianBlur(blurred, blurred, cv::Size(), blur_sigma);
@@ -66,18 +66,19 @@ class OrientationEstimator {
       const float* a = angle.ptr<float>(v);
       uint8_t* b = bin_.ptr<uint8_t>(v);
       for (int u = 0; u < angle.cols; ++u) {
-        const int k = int(std::floor(a[u] * float(kOrientationBins / (2 * M_PI)) + 0.5f));
-        b[u] = uint8_t(((k % kOrientationBins) + kOrientationBins) % kOrientationBins);
+        const int k = static_cast<int>(
+            std::floor(a[u] * static_cast<float>(kOrientationBins / (2 * M_PI)) + 0.5f));
+        b[u] = static_cast<uint8_t>(((k % kOrientationBins) + kOrientationBins) % kOrientationBins);
       }
     }
     const int side = 2 * radius_ + 1;
-    weight_.assign(size_t(side) * side, 0.0f);
+    weight_.assign(static_cast<size_t>(side) * side, 0.0f);
     for (int dv = -radius_; dv <= radius_; ++dv) {
       for (int du = -radius_; du <= radius_; ++du) {
         const double r2 = du * du + dv * dv;
-        if (r2 > double(radius_) * radius_) continue;
-        weight_[size_t(dv + radius_) * side + size_t(du + radius_)] =
-            float(std::exp(-r2 / (2 * window_sigma * window_sigma)));
+        if (r2 > static_cast<double>(radius_) * radius_) continue;
+        weight_[static_cast<size_t>(dv + radius_) * side + static_cast<size_t>(du + radius_)] =
+            static_cast<float>(std::exp(-r2 / (2 * window_sigma * window_sigma)));
       }
     }
   }
@@ -91,21 +92,26 @@ class OrientationEstimator {
       const float* m = magnitude_.ptr<float>(v);
       const uint8_t* b = bin_.ptr<uint8_t>(v);
       // The window's entry for (x0, v).
-      const float* w = weight_.data() + ptrdiff_t(v - y + radius_) * side + (x0 - x + radius_);
-      for (int u = x0; u <= x1; ++u) hist[b[u]] += double(m[u] * w[u - x0]);
+      const float* w =
+          weight_.data() + static_cast<ptrdiff_t>(v - y + radius_) * side + (x0 - x + radius_);
+      for (int u = x0; u <= x1; ++u) hist[b[u]] += static_cast<double>(m[u] * w[u - x0]);
     }
     std::array<double, kOrientationBins> smooth{};
     double total = 0;
-    auto at = [&](int k) { return hist[size_t((k + kOrientationBins) % kOrientationBins)]; };
+    auto at = [&](int k) {
+      return hist[static_cast<size_t>((k + kOrientationBins) % kOrientationBins)];
+    };
     for (int i = 0; i < kOrientationBins; ++i) {
-      smooth[size_t(i)] = (at(i - 2) + at(i + 2)) * (1.0 / 16) +
-                          (at(i - 1) + at(i + 1)) * (4.0 / 16) + at(i) * (6.0 / 16);
+      smooth[static_cast<size_t>(i)] = (at(i - 2) + at(i + 2)) * (1.0 / 16) +
+                                       (at(i - 1) + at(i + 1)) * (4.0 / 16) + at(i) * (6.0 / 16);
       total += at(i);
     }
-    const int peak = int(std::max_element(smooth.begin(), smooth.end()) - smooth.begin());
-    const double left = smooth[size_t((peak + kOrientationBins - 1) % kOrientationBins)];
-    const double right = smooth[size_t((peak + 1) % kOrientationBins)];
-    const double denominator = left - 2 * smooth[size_t(peak)] + right;
+    const int peak =
+        static_cast<int>(std::max_element(smooth.begin(), smooth.end()) - smooth.begin());
+    const double left =
+        smooth[static_cast<size_t>((peak + kOrientationBins - 1) % kOrientationBins)];
+    const double right = smooth[static_cast<size_t>((peak + 1) % kOrientationBins)];
+    const double denominator = left - 2 * smooth[static_cast<size_t>(peak)] + right;
     const double offset = denominator < 0 ? 0.5 * (left - right) / denominator : 0.0;
     const double direction_deg =
         std::fmod((peak + offset) * (360.0 / kOrientationBins) + 360.0, 360.0);
@@ -128,7 +134,8 @@ float SquaredDistance(const float* a, const float* b, int n) {
 
 bool UsableFeatures(const KeyFrameFeatures& f) {
   return !f.points.empty() && f.descriptors.type() == CV_32F &&
-         f.descriptors.rows == int(f.points.size()) && f.track_ids.size() == f.points.size();
+         f.descriptors.rows == static_cast<int>(f.points.size()) &&
+         f.track_ids.size() == f.points.size();
 }
 
 track::HomographyOptions EstimateOptions(const MatchOptions& options) {
@@ -145,11 +152,11 @@ track::HomographyOptions EstimateOptions(const MatchOptions& options) {
 std::optional<Link> Verify(const KeyFrameFeatures& a, const KeyFrameFeatures& b,
                            const std::vector<track::Correspondence>& matches, LinkKind kind,
                            int width, int height, const MatchOptions& options) {
-  if (int(matches.size()) < options.min_inliers) return std::nullopt;
+  if (static_cast<int>(matches.size()) < options.min_inliers) return std::nullopt;
   StatusOr<track::HomographyEstimate> estimate =
       track::EstimateHomography(matches, EstimateOptions(options));
   if (!estimate.ok()) return std::nullopt;
-  if (int(estimate->inliers.size()) < options.min_inliers) return std::nullopt;
+  if (static_cast<int>(estimate->inliers.size()) < options.min_inliers) return std::nullopt;
   if (!PlausibleHomography(estimate->target_from_source, width, height, options)) {
     return std::nullopt;
   }
@@ -312,19 +319,20 @@ KeyFrameFeatures DescribeKeyFrame(KeyFrameId id, const cv::Mat& grey_in, double 
     if (x < margin || y < margin || x > grey.cols - 1 - margin || y > grey.rows - 1 - margin) {
       continue;
     }
-    const Orientation o = orientation.At(int(std::lround(x)), int(std::lround(y)));
-    candidates.push_back({i, cv::Point2f(float(x), float(y)), o});
+    const Orientation o =
+        orientation.At(static_cast<int>(std::lround(x)), static_cast<int>(std::lround(y)));
+    candidates.push_back({i, cv::Point2f(static_cast<float>(x), static_cast<float>(y)), o});
   }
   if (candidates.empty()) return features;
 
-  if (int(candidates.size()) > options.max_features) {
+  if (static_cast<int>(candidates.size()) > options.max_features) {
     // Round robin over a grid: every cell's strongest first, then every cell's second...
     std::vector<std::vector<size_t>> cells(kSelectionGrid * kSelectionGrid);
     for (size_t k = 0; k < candidates.size(); ++k) {
-      const int cx =
-          std::clamp(int(candidates[k].at.x * kSelectionGrid / grey.cols), 0, kSelectionGrid - 1);
-      const int cy =
-          std::clamp(int(candidates[k].at.y * kSelectionGrid / grey.rows), 0, kSelectionGrid - 1);
+      const int cx = std::clamp(static_cast<int>(candidates[k].at.x * kSelectionGrid / grey.cols),
+                                0, kSelectionGrid - 1);
+      const int cy = std::clamp(static_cast<int>(candidates[k].at.y * kSelectionGrid / grey.rows),
+                                0, kSelectionGrid - 1);
       cells[cy * kSelectionGrid + cx].push_back(k);
     }
     std::vector<std::pair<size_t, double>> rank;  // (candidate, rank key)
@@ -332,7 +340,7 @@ KeyFrameFeatures DescribeKeyFrame(KeyFrameId id, const cv::Mat& grey_in, double 
       std::stable_sort(cell.begin(), cell.end(), [&](size_t l, size_t r) {
         return candidates[l].orientation.strength > candidates[r].orientation.strength;
       });
-      for (size_t r = 0; r < cell.size(); ++r) rank.emplace_back(cell[r], double(r));
+      for (size_t r = 0; r < cell.size(); ++r) rank.emplace_back(cell[r], static_cast<double>(r));
     }
     std::stable_sort(rank.begin(), rank.end(), [&](const auto& l, const auto& r) {
       if (l.second != r.second) return l.second < r.second;
@@ -350,27 +358,29 @@ KeyFrameFeatures DescribeKeyFrame(KeyFrameId id, const cv::Mat& grey_in, double 
   std::vector<cv::KeyPoint> keypoints;
   keypoints.reserve(candidates.size());
   for (size_t k = 0; k < candidates.size(); ++k) {
-    cv::KeyPoint kp(candidates[k].at, float(size), float(candidates[k].orientation.angle_deg));
+    cv::KeyPoint kp(candidates[k].at, static_cast<float>(size),
+                    static_cast<float>(candidates[k].orientation.angle_deg));
     kp.octave = 0;  // octave 0, layer 0: the image itself at SIFT's base blur
-    kp.class_id = int(k);
+    kp.class_id = static_cast<int>(k);
     keypoints.push_back(kp);
   }
   cv::Mat descriptors;
   cv::Ptr<cv::SIFT> sift = cv::SIFT::create();
   sift->compute(grey, keypoints, descriptors);
-  if (descriptors.empty() || descriptors.rows != int(keypoints.size())) return features;
+  if (descriptors.empty() || descriptors.rows != static_cast<int>(keypoints.size()))
+    return features;
   if (descriptors.type() != CV_32F) descriptors.convertTo(descriptors, CV_32F);
 
   features.points.reserve(keypoints.size());
   features.track_ids.reserve(keypoints.size());
-  features.descriptors = cv::Mat(int(keypoints.size()), descriptors.cols, CV_32F);
+  features.descriptors = cv::Mat(static_cast<int>(keypoints.size()), descriptors.cols, CV_32F);
   for (size_t r = 0; r < keypoints.size(); ++r) {
     const int k = keypoints[r].class_id;
-    SAKER_CHECK(k >= 0 && size_t(k) < candidates.size());
+    SAKER_CHECK(k >= 0 && static_cast<size_t>(k) < candidates.size());
     const track::StationaryPoint& p = points[candidates[k].input];
     features.points.push_back(p.second);
     features.track_ids.push_back(p.first);
-    descriptors.row(int(r)).copyTo(features.descriptors.row(int(r)));
+    descriptors.row(static_cast<int>(r)).copyTo(features.descriptors.row(static_cast<int>(r)));
   }
   return features;
 }
@@ -424,7 +434,8 @@ bool PlausibleHomography(const Eigen::Matrix3d& b_from_a_in, int width, int heig
     if (!(m.z() > 0)) return false;
     quad.push_back(m.head<2>() / m.z());
   }
-  const double overlap = ClippedArea(std::move(quad), x0, y0, x1, y1) / (double(width) * height);
+  const double overlap =
+      ClippedArea(std::move(quad), x0, y0, x1, y1) / (static_cast<double>(width) * height);
   return overlap >= options.min_overlap_fraction;
 }
 
@@ -437,25 +448,29 @@ std::optional<Link> MatchGeometric(
       width <= 0 || height <= 0 || !b_from_a_predicted.allFinite() || !covariance_in_b) {
     return std::nullopt;
   }
-  if (int(a.size()) < options.min_inliers || int(b.size()) < options.min_inliers) {
+  if (static_cast<int>(a.size()) < options.min_inliers ||
+      static_cast<int>(b.size()) < options.min_inliers) {
     return std::nullopt;
   }
   // b's points on a grid of cells, so an ellipse visits only the cells of its bounding box.
   constexpr double kCell = 32;
-  const int grid_cols = int(std::ceil(width / kCell)), grid_rows = int(std::ceil(height / kCell));
-  std::vector<std::vector<int>> grid(size_t(grid_cols) * grid_rows);
-  auto cell_of = [&](double v, int cells) { return std::clamp(int(v / kCell), 0, cells - 1); };
+  const int grid_cols = static_cast<int>(std::ceil(width / kCell)),
+            grid_rows = static_cast<int>(std::ceil(height / kCell));
+  std::vector<std::vector<int>> grid(static_cast<size_t>(grid_cols) * grid_rows);
+  auto cell_of = [&](double v, int cells) {
+    return std::clamp(static_cast<int>(v / kCell), 0, cells - 1);
+  };
   for (size_t j = 0; j < b.size(); ++j) {
     const Eigen::Vector2d& q = b.points[j];
     if (!q.allFinite()) continue;
-    grid[size_t(cell_of(q.y(), grid_rows)) * grid_cols + cell_of(q.x(), grid_cols)].push_back(
-        int(j));
+    grid[static_cast<size_t>(cell_of(q.y(), grid_rows)) * grid_cols + cell_of(q.x(), grid_cols)]
+        .push_back(static_cast<int>(j));
   }
   const double gate = -2.0 * std::log(1.0 - options.confidence);  // chi-square, 2 dof
   const double sigma2 = options.point_sigma_px * options.point_sigma_px;
   const float max_distance2 =
-      float(options.max_descriptor_distance * options.max_descriptor_distance);
-  const float ratio2 = float(options.ratio * options.ratio);
+      static_cast<float>(options.max_descriptor_distance * options.max_descriptor_distance);
+  const float ratio2 = static_cast<float>(options.ratio * options.ratio);
   const int dims = a.descriptors.cols;
 
   std::vector<int> best_of_b(b.size(), -1);  // a index claiming each b feature
@@ -482,12 +497,12 @@ std::optional<Link> MatchGeometric(
     const int c1 = cell_of(predicted.x() + half_x, grid_cols);
     const int r0 = cell_of(predicted.y() - half_y, grid_rows);
     const int r1 = cell_of(predicted.y() + half_y, grid_rows);
-    const float* da = a.descriptors.ptr<float>(int(i));
+    const float* da = a.descriptors.ptr<float>(static_cast<int>(i));
     float best = std::numeric_limits<float>::max(), second = best;
     int best_j = -1;
     for (int r = r0; r <= r1; ++r) {
       for (int c = c0; c <= c1; ++c) {
-        for (int jb : grid[size_t(r) * grid_cols + c]) {
+        for (int jb : grid[static_cast<size_t>(r) * grid_cols + c]) {
           const Eigen::Vector2d d = b.points[jb] - predicted;
           if (d.dot(info * d) > gate) continue;
           const float distance2 = SquaredDistance(da, b.descriptors.ptr<float>(jb), dims);
@@ -505,13 +520,13 @@ std::optional<Link> MatchGeometric(
     if (second < std::numeric_limits<float>::max() && best > ratio2 * second) continue;
     if (best < best_distance_of_b[best_j]) {
       best_distance_of_b[best_j] = best;
-      best_of_b[best_j] = int(i);
+      best_of_b[best_j] = static_cast<int>(i);
     }
   }
   std::vector<track::Correspondence> matches;
   for (size_t jb = 0; jb < b.size(); ++jb) {
     if (best_of_b[jb] < 0) continue;
-    const size_t i = size_t(best_of_b[jb]);
+    const size_t i = static_cast<size_t>(best_of_b[jb]);
     matches.push_back({a.track_ids[i], a.points[i], b.points[jb]});
   }
   return Verify(a, b, matches, LinkKind::kGeometric, width, height, options);
@@ -524,7 +539,8 @@ std::optional<Link> MatchAppearance(const KeyFrameFeatures& a, const KeyFrameFea
       width <= 0 || height <= 0) {
     return std::nullopt;
   }
-  if (int(a.size()) < options.min_inliers || int(b.size()) < options.min_inliers) {
+  if (static_cast<int>(a.size()) < options.min_inliers ||
+      static_cast<int>(b.size()) < options.min_inliers) {
     return std::nullopt;
   }
   cv::BFMatcher matcher(cv::NORM_L2);
@@ -533,7 +549,7 @@ std::optional<Link> MatchAppearance(const KeyFrameFeatures& a, const KeyFrameFea
   matcher.knnMatch(a.descriptors, b.descriptors, forward, 2);
   matcher.match(b.descriptors, a.descriptors, backward);
   std::vector<int> nearest_in_a(b.size(), -1);
-  for (const cv::DMatch& m : backward) nearest_in_a[size_t(m.queryIdx)] = m.trainIdx;
+  for (const cv::DMatch& m : backward) nearest_in_a[static_cast<size_t>(m.queryIdx)] = m.trainIdx;
 
   std::vector<track::Correspondence> matches;
   for (const std::vector<cv::DMatch>& knn : forward) {
@@ -541,8 +557,8 @@ std::optional<Link> MatchAppearance(const KeyFrameFeatures& a, const KeyFrameFea
     const cv::DMatch& best = knn[0];
     if (best.distance > options.max_descriptor_distance) continue;
     if (knn.size() > 1 && best.distance > options.ratio * knn[1].distance) continue;
-    if (nearest_in_a[size_t(best.trainIdx)] != best.queryIdx) continue;
-    const size_t i = size_t(best.queryIdx), j = size_t(best.trainIdx);
+    if (nearest_in_a[static_cast<size_t>(best.trainIdx)] != best.queryIdx) continue;
+    const size_t i = static_cast<size_t>(best.queryIdx), j = static_cast<size_t>(best.trainIdx);
     matches.push_back({a.track_ids[i], a.points[i], b.points[j]});
   }
   return Verify(a, b, matches, LinkKind::kAppearance, width, height, options);
@@ -556,7 +572,7 @@ AppearanceIndex::AppearanceIndex(const AppearanceIndexOptions& options) : option
 }
 
 void AppearanceIndex::Add(const KeyFrameFeatures& features) {
-  const uint32_t frame = uint32_t(ids_.size());
+  const uint32_t frame = static_cast<uint32_t>(ids_.size());
   ids_.push_back(features.id);
   cv::Mat descriptors = features.descriptors;
   if (!descriptors.empty() && descriptors.type() != CV_32F) {
@@ -569,7 +585,7 @@ void AppearanceIndex::Add(const KeyFrameFeatures& features) {
   pending_.push_back(descriptors.empty() ? cv::Mat() : descriptors.clone());
   int total = 0;
   for (const cv::Mat& d : pending_) total += d.rows;
-  if (int(ids_.size()) >= options_.training_key_frames && total >= options_.words) {
+  if (static_cast<int>(ids_.size()) >= options_.training_key_frames && total >= options_.words) {
     if (Train()) {
       for (uint32_t f = 0; f < pending_.size(); ++f) Index(f, pending_[f]);
       pending_.clear();
@@ -587,7 +603,7 @@ bool AppearanceIndex::Train() {
   const int step =
       (total + options_.max_training_descriptors - 1) / options_.max_training_descriptors;
   cv::Mat data(0, cols, CV_32F);
-  data.reserve(size_t(total / step + 1));
+  data.reserve(static_cast<size_t>(total / step + 1));
   int index = 0;
   for (const cv::Mat& d : pending_) {
     if (d.cols != cols) {
@@ -611,7 +627,7 @@ bool AppearanceIndex::Train() {
              1, cv::KMEANS_PP_CENTERS, centres);
   rng = saved;
   vocabulary_ = centres;
-  postings_.assign(size_t(vocabulary_.rows), {});
+  postings_.assign(static_cast<size_t>(vocabulary_.rows), {});
   return true;
 }
 
@@ -622,21 +638,22 @@ std::vector<std::pair<int, float>> AppearanceIndex::Histogram(const cv::Mat& des
   if (query.type() != CV_32F) query.convertTo(query, CV_32F);
   cv::Mat distances, nearest;
   cv::batchDistance(query, vocabulary_, distances, CV_32F, nearest, cv::NORM_L2SQR, 1);
-  std::vector<int> counts(size_t(vocabulary_.rows), 0);
+  std::vector<int> counts(static_cast<size_t>(vocabulary_.rows), 0);
   for (int r = 0; r < nearest.rows; ++r) {
     const int word = nearest.at<int>(r, 0);
-    if (word >= 0 && word < vocabulary_.rows) ++counts[size_t(word)];
+    if (word >= 0 && word < vocabulary_.rows) ++counts[static_cast<size_t>(word)];
   }
-  const float inv_total = 1.0f / float(std::max(1, query.rows));
+  const float inv_total = 1.0f / static_cast<float>(std::max(1, query.rows));
   for (size_t w = 0; w < counts.size(); ++w) {
-    if (counts[w] > 0) histogram.emplace_back(int(w), float(counts[w]) * inv_total);
+    if (counts[w] > 0)
+      histogram.emplace_back(static_cast<int>(w), static_cast<float>(counts[w]) * inv_total);
   }
   return histogram;
 }
 
 void AppearanceIndex::Index(uint32_t frame, const cv::Mat& descriptors) {
   for (const auto& [word, tf] : Histogram(descriptors)) {
-    postings_[size_t(word)].push_back({frame, tf});
+    postings_[static_cast<size_t>(word)].push_back({frame, tf});
   }
 }
 
@@ -647,18 +664,18 @@ std::vector<std::pair<KeyFrameId, double>> AppearanceIndex::Query(
   if (count <= 0) return result;
   auto skipped = [&](KeyFrameId id) { return id == features.id || (skip && skip(id)); };
   if (!trained()) {
-    for (size_t f = ids_.size(); f-- > 0 && int(result.size()) < count;) {
+    for (size_t f = ids_.size(); f-- > 0 && static_cast<int>(result.size()) < count;) {
       if (!skipped(ids_[f])) result.emplace_back(ids_[f], 0.0);
     }
     return result;
   }
-  const double frames = double(ids_.size());
+  const double frames = static_cast<double>(ids_.size());
   std::vector<double> scores(ids_.size(), 0.0);
   std::vector<uint32_t> touched;
   for (const auto& [word, tf] : Histogram(features.descriptors)) {
-    const std::vector<Posting>& postings = postings_[size_t(word)];
+    const std::vector<Posting>& postings = postings_[static_cast<size_t>(word)];
     if (postings.empty()) continue;
-    const double idf = std::log(1.0 + frames / double(postings.size()));
+    const double idf = std::log(1.0 + frames / static_cast<double>(postings.size()));
     for (const Posting& p : postings) {
       if (scores[p.frame] == 0) touched.push_back(p.frame);
       scores[p.frame] += idf * std::min(tf, p.tf);
@@ -671,11 +688,11 @@ std::vector<std::pair<KeyFrameId, double>> AppearanceIndex::Query(
   }
   const auto better = [](const auto& l, const auto& r) {
     if (l.second != r.second) return l.second > r.second;
-    return int(l.first) < int(r.first);
+    return static_cast<int>(l.first) < static_cast<int>(r.first);
   };
-  const size_t keep = std::min(candidates.size(), size_t(count));
-  std::partial_sort(candidates.begin(), candidates.begin() + ptrdiff_t(keep), candidates.end(),
-                    better);
+  const size_t keep = std::min(candidates.size(), static_cast<size_t>(count));
+  std::partial_sort(candidates.begin(), candidates.begin() + static_cast<ptrdiff_t>(keep),
+                    candidates.end(), better);
   candidates.resize(keep);
   return candidates;
 }

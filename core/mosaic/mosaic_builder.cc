@@ -27,12 +27,13 @@ double PredictedOverlap(const Eigen::Matrix3d& b_from_a, int width, int height) 
   for (const Eigen::Vector2d& c : track::ImageCorners(width, height)) {
     const Eigen::Vector3d q = b_from_a * c.homogeneous();
     if (!(q.z() > 1e-9)) return 0;
-    quad.emplace_back(float(q.x() / q.z()), float(q.y() / q.z()));
-    rect.emplace_back(float(c.x()), float(c.y()));
+    quad.emplace_back(static_cast<float>(q.x() / q.z()), static_cast<float>(q.y() / q.z()));
+    rect.emplace_back(static_cast<float>(c.x()), static_cast<float>(c.y()));
   }
   if (!cv::isContourConvex(quad)) return 0;
   const float area = cv::intersectConvexConvex(quad, rect, overlap, true);
-  return double(area) / (double(width - 1) * double(height - 1));
+  return static_cast<double>(area) /
+         (static_cast<double>(width - 1) * static_cast<double>(height - 1));
 }
 
 // A covariance that says "we know nothing useful": a standard deviation of the frame size on
@@ -84,16 +85,17 @@ struct Builder {
 
   // The metadata corners of a frame on the map, when the map is geo-referenced.
   std::optional<MapCorners> MetadataCorners(int64_t frame_index) const {
-    if (!result.graph.geo_referenced || size_t(frame_index) >= input.metadata_corners.size()) {
+    if (!result.graph.geo_referenced ||
+        static_cast<size_t>(frame_index) >= input.metadata_corners.size()) {
       return std::nullopt;
     }
-    return input.metadata_corners[size_t(frame_index)];
+    return input.metadata_corners[static_cast<size_t>(frame_index)];
   }
 
   // The sequential link of the front end that ends at key frame `k`, if any.
   const track::SequentialLink* LinkInto(int k) const {
     for (const track::SequentialLink& l : input.links) {
-      if (int(l.to) == k) return &l;
+      if (static_cast<int>(l.to) == k) return &l;
     }
     return nullptr;
   }
@@ -133,11 +135,12 @@ struct Builder {
   // (chained map_from_k)^-1). Later key frames chain from the moved ones.
   void AnchorSegment(int k) {
     LinkGraph& graph = result.graph;
-    const Node& node = graph.nodes[size_t(k)];
+    const Node& node = graph.nodes[static_cast<size_t>(k)];
     int first = k;
-    while (first > 0 && graph.nodes[size_t(first - 1)].segment == node.segment) --first;
+    while (first > 0 && graph.nodes[static_cast<size_t>(first - 1)].segment == node.segment)
+      --first;
     for (int i = first; i < k; ++i) {
-      if (graph.nodes[size_t(i)].metadata_corners) return;  // already anchored
+      if (graph.nodes[static_cast<size_t>(i)].metadata_corners) return;  // already anchored
     }
     if (first == k) return;  // a segment start: Initial used the metadata directly
     StatusOr<HomographyWithCovariance> anchored =
@@ -146,16 +149,17 @@ struct Builder {
     if (!anchored.ok()) return;
     const Eigen::Matrix3d g = anchored->target_from_source * node.map_from_frame.inverse();
     for (int i = first; i <= k; ++i) {
-      Node& n = graph.nodes[size_t(i)];
+      Node& n = graph.nodes[static_cast<size_t>(i)];
       n.map_from_frame = Normalised(g * n.map_from_frame);
       // Known to about the metadata's accuracy, like the anchor.
       std::array<Eigen::Vector2d, 4> corners;
       const auto image = track::ImageCorners(width(), height());
       for (int c = 0; c < 4; ++c)
-        corners[size_t(c)] = track::Transfer(n.map_from_frame, image[size_t(c)]);
+        corners[static_cast<size_t>(c)] =
+            track::Transfer(n.map_from_frame, image[static_cast<size_t>(c)]);
       StatusOr<HomographyWithCovariance> h =
           track::HomographyFromCorners(image, corners, options.adjustment.metadata_sigma_m);
-      if (h.ok()) result.covariances[size_t(i)] = h->covariance;
+      if (h.ok()) result.covariances[static_cast<size_t>(i)] = h->covariance;
     }
   }
 
@@ -189,9 +193,9 @@ struct Builder {
 
   // Loop closure for the newest key frame k. Returns the number of cross-links added.
   int CloseLoops(int k) {
-    const KeyFrameFeatures& fk = features[size_t(k)];
+    const KeyFrameFeatures& fk = features[static_cast<size_t>(k)];
     if (fk.points.empty()) return 0;
-    const Node& node_k = result.graph.nodes[size_t(k)];
+    const Node& node_k = result.graph.nodes[static_cast<size_t>(k)];
     const double limit = options.lost_fraction * std::min(width(), height());
     struct Candidate {
       int j;
@@ -202,16 +206,17 @@ struct Builder {
     bool lost = false;
     const Eigen::Vector2d centre((width() - 1) / 2.0, (height() - 1) / 2.0);
     for (int j = 0; j + options.skip_recent < k; ++j) {
-      if (features[size_t(j)].points.empty()) continue;
-      if (result.graph.Linked(KeyFrameId(j), KeyFrameId(k))) continue;
-      const Node& node_j = result.graph.nodes[size_t(j)];
+      if (features[static_cast<size_t>(j)].points.empty()) continue;
+      if (result.graph.Linked(static_cast<KeyFrameId>(j), static_cast<KeyFrameId>(k))) continue;
+      const Node& node_j = result.graph.nodes[static_cast<size_t>(j)];
       const Eigen::FullPivLU<Eigen::Matrix3d> lu(node_j.map_from_frame);
       if (!lu.isInvertible()) continue;
       const Eigen::Matrix3d j_from_map = lu.inverse();
       const Eigen::Matrix3d j_from_k = Normalised(j_from_map * node_k.map_from_frame);
-      const Eigen::Matrix2d cov = PredictionCovariance(
-          node_k.map_from_frame, result.covariances[size_t(k)], node_j.map_from_frame,
-          result.covariances[size_t(j)], j_from_map, centre, options.prediction_floor_px);
+      const Eigen::Matrix2d cov =
+          PredictionCovariance(node_k.map_from_frame, result.covariances[static_cast<size_t>(k)],
+                               node_j.map_from_frame, result.covariances[static_cast<size_t>(j)],
+                               j_from_map, centre, options.prediction_floor_px);
       // A covariance that is not finite (a degenerate solve) says nothing: lost.
       if (!cov.allFinite() ||
           !(track::ConfidenceEllipse(centre, cov, options.match.confidence).semi_major < limit)) {
@@ -226,32 +231,35 @@ struct Builder {
 
     int added = 0;
     const auto add = [&](Link link) {
-      result.closures.push_back({link.from, link.to, link.kind, int(link.correspondences.size())});
+      result.closures.push_back(
+          {link.from, link.to, link.kind, static_cast<int>(link.correspondences.size())});
       result.graph.links.push_back(std::move(link));
       ++added;
       dirty = true;
     };
     for (const Candidate& c : geometric) {
       if (added >= options.max_cross_links) break;
-      const Node& node_j = result.graph.nodes[size_t(c.j)];
+      const Node& node_j = result.graph.nodes[static_cast<size_t>(c.j)];
       const Eigen::Matrix3d j_from_map = node_j.map_from_frame.inverse();
       const auto covariance_in_j = [&](const Eigen::Vector2d& p) {
-        return PredictionCovariance(node_k.map_from_frame, result.covariances[size_t(k)],
-                                    node_j.map_from_frame, result.covariances[size_t(c.j)],
-                                    j_from_map, p, options.prediction_floor_px);
+        return PredictionCovariance(
+            node_k.map_from_frame, result.covariances[static_cast<size_t>(k)],
+            node_j.map_from_frame, result.covariances[static_cast<size_t>(c.j)], j_from_map, p,
+            options.prediction_floor_px);
       };
-      std::optional<Link> link = MatchGeometric(fk, features[size_t(c.j)], c.j_from_k,
+      std::optional<Link> link = MatchGeometric(fk, features[static_cast<size_t>(c.j)], c.j_from_k,
                                                 covariance_in_j, width(), height(), options.match);
       if (link) add(std::move(*link));
     }
     if (added == 0 && (lost || !geometric.empty())) {
       const auto skip = [&](KeyFrameId id) {
-        return int(id) + options.skip_recent >= k || result.graph.Linked(id, KeyFrameId(k));
+        return static_cast<int>(id) + options.skip_recent >= k ||
+               result.graph.Linked(id, static_cast<KeyFrameId>(k));
       };
       for (const auto& [id, score] : index.Query(fk, options.appearance_candidates, skip)) {
         if (added >= options.max_cross_links) break;
-        std::optional<Link> link =
-            MatchAppearance(fk, features[size_t(id)], width(), height(), options.match);
+        std::optional<Link> link = MatchAppearance(fk, features[static_cast<size_t>(id)], width(),
+                                                   height(), options.match);
         if (link) add(std::move(*link));
       }
     }
@@ -280,17 +288,17 @@ struct Builder {
     for (size_t k = 0; k < count; ++k) {
       if (job != nullptr && job->IsCancelled()) return CancelledError("mosaic: cancelled");
       const track::KeyFrame& kf = input.key_frames[k];
-      SAKER_CHECK(size_t(kf.id) == k) << "key frame ids must be their indices";
+      SAKER_CHECK(static_cast<size_t>(kf.id) == k) << "key frame ids must be their indices";
       Node node;
       node.id = kf.id;
       node.frame_index = kf.frame_index;
       node.segment = kf.segment;
-      if (size_t(kf.frame_index) < input.frames.size())
-        node.time_s = input.frames[size_t(kf.frame_index)].time_s;
+      if (static_cast<size_t>(kf.frame_index) < input.frames.size())
+        node.time_s = input.frames[static_cast<size_t>(kf.frame_index)].time_s;
       node.metadata_corners = MetadataCorners(kf.frame_index);
       result.key_frames_with_metadata += node.metadata_corners.has_value();
 
-      const HomographyWithCovariance chained = Initial(int(k), previous_chained, node);
+      const HomographyWithCovariance chained = Initial(static_cast<int>(k), previous_chained, node);
       result.chained.push_back(chained.target_from_source);
       previous_chained = chained;
 
@@ -300,12 +308,12 @@ struct Builder {
         running_previous =
             HomographyWithCovariance{graph.nodes.back().map_from_frame, result.covariances.back()};
       }
-      HomographyWithCovariance initial = Initial(int(k), running_previous, node);
+      HomographyWithCovariance initial = Initial(static_cast<int>(k), running_previous, node);
       node.map_from_frame = initial.target_from_source;
       graph.nodes.push_back(node);
       result.covariances.push_back(initial.covariance);
-      if (node.metadata_corners) AnchorSegment(int(k));
-      if (const track::SequentialLink* l = LinkInto(int(k))) {
+      if (node.metadata_corners) AnchorSegment(static_cast<int>(k));
+      if (const track::SequentialLink* l = LinkInto(static_cast<int>(k))) {
         Link link;
         link.from = l->from;
         link.to = l->to;
@@ -330,14 +338,15 @@ struct Builder {
       result.timing.describe_s += describe_start.ElapsedSeconds();
 
       const Stopwatch match_start;
-      const int added = CloseLoops(int(k));
+      const int added = CloseLoops(static_cast<int>(k));
       index.Add(features[k]);
       result.timing.match_s += match_start.ElapsedSeconds();
 
       const bool metadata_due = options.adjust_every_metadata > 0 &&
                                 metadata_since_adjustment >= options.adjust_every_metadata;
       if (added > 0 || metadata_due) SAKER_RETURN_IF_ERROR(Adjust());
-      if (job != nullptr) job->ReportProgress("mosaic", double(k + 1) / double(count));
+      if (job != nullptr)
+        job->ReportProgress("mosaic", static_cast<double>(k + 1) / static_cast<double>(count));
     }
     // A last adjustment for what arrived since (metadata residuals; cross-links always adjust at
     // once), and so that the covariances describe the final graph.

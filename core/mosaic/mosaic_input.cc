@@ -11,21 +11,23 @@ Status MosaicInput::Validate() const {
   }
   for (size_t k = 0; k < key_frames.size(); ++k) {
     const track::KeyFrame& kf = key_frames[k];
-    if (size_t(kf.id) != k) {
+    if (static_cast<size_t>(kf.id) != k) {
       return InvalidArgumentError("mosaic input: key frame " + std::to_string(k) + " has id " +
-                                  std::to_string(int(kf.id)));
+                                  std::to_string(static_cast<int>(kf.id)));
     }
-    if (kf.frame_index < 0 || size_t(kf.frame_index) >= frames.size()) {
+    if (kf.frame_index < 0 || static_cast<size_t>(kf.frame_index) >= frames.size()) {
       return InvalidArgumentError("mosaic input: key frame " + std::to_string(k) + " is frame " +
                                   std::to_string(kf.frame_index) + " of " +
                                   std::to_string(frames.size()));
     }
   }
   for (const track::SequentialLink& l : links) {
-    if (size_t(l.from) >= key_frames.size() || size_t(l.to) >= key_frames.size()) {
-      return InvalidArgumentError(
-          "mosaic input: a link joins key frames " + std::to_string(int(l.from)) + " and " +
-          std::to_string(int(l.to)) + " of " + std::to_string(key_frames.size()));
+    if (static_cast<size_t>(l.from) >= key_frames.size() ||
+        static_cast<size_t>(l.to) >= key_frames.size()) {
+      return InvalidArgumentError("mosaic input: a link joins key frames " +
+                                  std::to_string(static_cast<int>(l.from)) + " and " +
+                                  std::to_string(static_cast<int>(l.to)) + " of " +
+                                  std::to_string(key_frames.size()));
     }
   }
   if (!metadata_corners.empty() && metadata_corners.size() != frames.size()) {

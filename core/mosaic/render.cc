@@ -19,13 +19,13 @@ namespace {
 
 cv::Point ToPoint(const Eigen::Matrix3d& h, const Eigen::Vector2d& p) {
   const Eigen::Vector2d q = (h * p.homogeneous()).hnormalized();
-  return {int(std::lround(q.x())), int(std::lround(q.y()))};
+  return {static_cast<int>(std::lround(q.x())), static_cast<int>(std::lround(q.y()))};
 }
 
 cv::Scalar SegmentColour(int segment) {
   static const cv::Scalar kColours[] = {{0, 200, 255}, {255, 160, 0}, {0, 220, 0},
                                         {255, 0, 200}, {0, 120, 255}, {200, 200, 0}};
-  return kColours[size_t(segment) % 6];
+  return kColours[static_cast<size_t>(segment) % 6];
 }
 
 }  // namespace
@@ -51,7 +51,7 @@ StatusOr<MosaicImage> RenderMosaic(const LinkGraph& graph,
   SAKER_RETURN_IF_ERROR(graph.Validate());
   std::map<int, const track::KeyFrameImage*> by_id;
   for (const track::KeyFrameImage& image : images) {
-    if (!image.grey.empty()) by_id[int(image.id)] = &image;
+    if (!image.grey.empty()) by_id[static_cast<int>(image.id)] = &image;
   }
   // Extent and resolution from the key frames' footprints.
   const auto corners = track::ImageCorners(graph.image_width, graph.image_height);
@@ -76,8 +76,8 @@ StatusOr<MosaicImage> RenderMosaic(const LinkGraph& graph,
       options.map_units_per_px > 0 ? options.map_units_per_px : Median(std::move(resolutions));
   if (!(units > 0)) return InvalidDataError("mosaic picture: degenerate key frame homographies");
   units = std::max(units, std::max(x1 - x0, y1 - y0) / options.max_side_px);
-  const int width = std::max(1, int(std::ceil((x1 - x0) / units)) + 1);
-  const int height = std::max(1, int(std::ceil((y1 - y0) / units)) + 1);
+  const int width = std::max(1, static_cast<int>(std::ceil((x1 - x0) / units)) + 1);
+  const int height = std::max(1, static_cast<int>(std::ceil((y1 - y0) / units)) + 1);
 
   MosaicImage out;
   out.map_units_per_px = units;
@@ -93,7 +93,7 @@ StatusOr<MosaicImage> RenderMosaic(const LinkGraph& graph,
   cv::Size feather_size;
   int drawn = 0;
   for (const Node& node : graph.nodes) {
-    const auto it = by_id.find(int(node.id));
+    const auto it = by_id.find(static_cast<int>(node.id));
     if (it == by_id.end()) continue;
     const track::KeyFrameImage& image = *it->second;
     if (image.grey.size() != feather_size) {
@@ -134,8 +134,8 @@ StatusOr<MosaicImage> RenderMosaic(const LinkGraph& graph,
   const Eigen::Vector2d centre((graph.image_width - 1) / 2.0, (graph.image_height - 1) / 2.0);
   if (options.links) {
     for (const Link& link : graph.links) {
-      const Node& a = graph.nodes[size_t(link.from)];
-      const Node& b = graph.nodes[size_t(link.to)];
+      const Node& a = graph.nodes[static_cast<size_t>(link.from)];
+      const Node& b = graph.nodes[static_cast<size_t>(link.to)];
       const cv::Scalar colour =
           link.kind == LinkKind::kSequential ? cv::Scalar(255, 255, 255) : cv::Scalar(0, 0, 255);
       cv::line(out.bgr, ToPoint(out.image_from_map * a.map_from_frame, centre),

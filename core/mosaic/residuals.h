@@ -26,7 +26,7 @@ using Matrix3 = Eigen::Matrix<T, 3, 3>;
 template <typename T>
 Matrix3<T> HomographyFrom(const T* p) {
   Matrix3<T> h;
-  h << p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], T(1);
+  h << p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], static_cast<T>(1);
   return h;
 }
 
@@ -51,7 +51,7 @@ Matrix3<T> Adjugate(const Matrix3<T>& m) {
 template <typename T>
 bool Project(const Matrix3<T>& h, const Eigen::Vector2d& c, T* out) {
   const T w = h(2, 0) * c.x() + h(2, 1) * c.y() + h(2, 2);
-  if (w == T(0)) return false;
+  if (w == static_cast<T>(0)) return false;
   out[0] = (h(0, 0) * c.x() + h(0, 1) * c.y() + h(0, 2)) / w;
   out[1] = (h(1, 0) * c.x() + h(1, 1) * c.y() + h(1, 2)) / w;
   return true;
@@ -73,24 +73,28 @@ struct HomographyStep {
   template <typename T>
   Matrix3<T> NormalisedFromPixel() const {
     Matrix3<T> n;
-    n << T(1 / f), T(0), T(-cx / f), T(0), T(1 / f), T(-cy / f), T(0), T(0), T(1);
+    n << static_cast<T>(1 / f), static_cast<T>(0), static_cast<T>(-cx / f), static_cast<T>(0),
+        static_cast<T>(1 / f), static_cast<T>(-cy / f), static_cast<T>(0), static_cast<T>(0),
+        static_cast<T>(1);
     return n;
   }
   template <typename T>
   Matrix3<T> PixelFromNormalised() const {
     Matrix3<T> n;
-    n << T(f), T(0), T(cx), T(0), T(f), T(cy), T(0), T(0), T(1);
+    n << static_cast<T>(f), static_cast<T>(0), static_cast<T>(cx), static_cast<T>(0),
+        static_cast<T>(f), static_cast<T>(cy), static_cast<T>(0), static_cast<T>(0),
+        static_cast<T>(1);
     return n;
   }
 
   template <typename T>
   bool Plus(const T* x, const T* delta, T* x_plus_delta) const {
     Matrix3<T> d;
-    d << T(1) + delta[0], delta[1], delta[2], delta[3], T(1) + delta[4], delta[5], delta[6],
-        delta[7], T(1);
+    d << static_cast<T>(1) + delta[0], delta[1], delta[2], delta[3], static_cast<T>(1) + delta[4],
+        delta[5], delta[6], delta[7], static_cast<T>(1);
     const Matrix3<T> m =
         HomographyFrom(x) * PixelFromNormalised<T>() * d * NormalisedFromPixel<T>();
-    if (m(2, 2) == T(0)) return false;
+    if (m(2, 2) == static_cast<T>(0)) return false;
     for (int i = 0; i < kParameters; ++i) x_plus_delta[i] = m(i / 3, i % 3) / m(2, 2);
     return true;
   }
@@ -99,10 +103,10 @@ struct HomographyStep {
   bool Minus(const T* y, const T* x, T* y_minus_x) const {
     const Matrix3<T> k = NormalisedFromPixel<T>() * Adjugate(HomographyFrom(x)) *
                          HomographyFrom(y) * PixelFromNormalised<T>();
-    if (k(2, 2) == T(0)) return false;
+    if (k(2, 2) == static_cast<T>(0)) return false;
     for (int i = 0; i < kParameters; ++i) y_minus_x[i] = k(i / 3, i % 3) / k(2, 2);
-    y_minus_x[0] -= T(1);
-    y_minus_x[4] -= T(1);
+    y_minus_x[0] -= static_cast<T>(1);
+    y_minus_x[4] -= static_cast<T>(1);
     return true;
   }
 
@@ -135,7 +139,8 @@ struct LinkResidual {
     const Matrix3<T> to_from_from = Adjugate(HomographyFrom(to)) * HomographyFrom(from);
     Eigen::Matrix<T, kResiduals, 1> error;
     for (int i = 0; i < 4; ++i) {
-      if (!Project(to_from_from, corners[size_t(i)], error.data() + 2 * i)) return false;
+      if (!Project(to_from_from, corners[static_cast<size_t>(i)], error.data() + 2 * i))
+        return false;
     }
     for (int i = 0; i < kResiduals; ++i) error(i) -= measured(i);
     // Double times Jet (cheaper than a Jet matrix product).
@@ -157,7 +162,7 @@ inline Eigen::Matrix<double, kResiduals, kResiduals> LinkWhitening(
   using Matrix8 = Eigen::Matrix<double, kResiduals, kResiduals>;
   Eigen::Matrix<double, kResiduals, kParameters> j;
   for (int i = 0; i < 4; ++i) {
-    j.middleRows<2>(2 * i) = track::TransferJacobian(to_from_from, corners[size_t(i)]);
+    j.middleRows<2>(2 * i) = track::TransferJacobian(to_from_from, corners[static_cast<size_t>(i)]);
   }
   Matrix8 cov = j * covariance * j.transpose();
   cov = 0.5 * (cov + cov.transpose()).eval();
@@ -180,7 +185,8 @@ inline LinkResidual MakeLinkResidual(const Eigen::Matrix3d& to_from_from,
                                      double floor_px) {
   LinkResidual residual{corners, {}, LinkWhitening(to_from_from, covariance, corners, floor_px)};
   for (int i = 0; i < 4; ++i) {
-    residual.measured.segment<2>(2 * i) = track::Transfer(to_from_from, corners[size_t(i)]);
+    residual.measured.segment<2>(2 * i) =
+        track::Transfer(to_from_from, corners[static_cast<size_t>(i)]);
   }
   return residual;
 }
@@ -204,7 +210,7 @@ inline bool LinkResidualJacobians(const LinkResidual& link, const HomographyStep
   Eigen::Matrix<double, kResiduals, 1> error;
   Eigen::Matrix<double, kResiduals, kParameters> jf, jt;
   for (int i = 0; i < 4; ++i) {
-    const Eigen::Vector2d& c = link.corners[size_t(i)];
+    const Eigen::Vector2d& c = link.corners[static_cast<size_t>(i)];
     const Eigen::Vector3d p = g * c.homogeneous();
     if (p.z() == 0) return false;
     const double u = p.x() / p.z(), v = p.y() / p.z(), iw = 1 / p.z();

@@ -79,13 +79,14 @@ class Reader {
   bool GetCount(size_t item_bytes, size_t* count) {
     uint64_t n = 0;
     if (!Get(&n) || n > (bytes_.size() - at_) / item_bytes) return false;
-    *count = size_t(n);
+    *count = static_cast<size_t>(n);
     return true;
   }
   bool GetBytes(std::vector<uint8_t>* out) {
     size_t n = 0;
     if (!GetCount(1, &n)) return false;
-    out->assign(bytes_.begin() + std::ptrdiff_t(at_), bytes_.begin() + std::ptrdiff_t(at_ + n));
+    out->assign(bytes_.begin() + static_cast<std::ptrdiff_t>(at_),
+                bytes_.begin() + static_cast<std::ptrdiff_t>(at_ + n));
     at_ += n;
     return true;
   }
@@ -107,7 +108,7 @@ std::vector<uint8_t> EncodeFrame(const frontend::FrameResult& f) {
   w.Put<int64_t>(f.index);
   w.Put<double>(f.time_s);
   w.Put<int64_t>(f.pts);
-  w.Put<uint8_t>(uint8_t(f.key_frame) | uint8_t(f.homography_ok) << 1);
+  w.Put<uint8_t>(static_cast<uint8_t>(f.key_frame) | static_cast<uint8_t>(f.homography_ok) << 1);
   w.PutMatrix(f.current_from_previous);
   w.PutMatrix(f.covariance);
   w.Put<int32_t>(f.tracked);
@@ -130,12 +131,12 @@ bool DecodeFrame(Reader& r, frontend::FrameResult* f) {
 
 std::vector<uint8_t> EncodeKeyFrame(const track::KeyFrame& k) {
   Writer w;
-  w.Put<int32_t>(int32_t(k.id));
+  w.Put<int32_t>(static_cast<int32_t>(k.id));
   w.Put<int64_t>(k.frame_index);
   w.Put<int32_t>(k.segment);
   w.Put<uint64_t>(k.points.size());
   for (const track::StationaryPoint& p : k.points) {
-    w.Put<int64_t>(int64_t(p.first));
+    w.Put<int64_t>(static_cast<int64_t>(p.first));
     w.PutMatrix(p.second);
   }
   return w.Take();
@@ -147,19 +148,19 @@ bool DecodeKeyFrame(Reader& r, track::KeyFrame* k) {
   if (!r.Get(&id) || !r.Get(&k->frame_index) || !r.Get(&k->segment) || !r.GetCount(24, &n)) {
     return false;
   }
-  k->id = track::KeyFrameId(id);
+  k->id = static_cast<track::KeyFrameId>(id);
   k->points.resize(n);
   for (track::StationaryPoint& p : k->points) {
     int64_t point_id = 0;
     if (!r.Get(&point_id) || !r.GetVector2(&p.second)) return false;
-    p.first = track::FeatureTrackId(point_id);
+    p.first = static_cast<track::FeatureTrackId>(point_id);
   }
   return true;
 }
 
 StatusOr<std::vector<uint8_t>> EncodeImage(const frontend::KeyFramePreview& p) {
   Writer w;
-  w.Put<int32_t>(int32_t(p.image.id));
+  w.Put<int32_t>(static_cast<int32_t>(p.image.id));
   w.Put<int64_t>(p.image.frame_index);
   w.Put<double>(p.image.scale);
   w.PutMatrix(p.preview_from_frame);
@@ -168,7 +169,7 @@ StatusOr<std::vector<uint8_t>> EncodeImage(const frontend::KeyFramePreview& p) {
   if (!p.image.grey.empty() &&
       !cv::imencode(".png", p.image.grey, png, {cv::IMWRITE_PNG_COMPRESSION, 1})) {
     return InvalidArgumentError("cannot encode the image of key frame " +
-                                std::to_string(int(p.image.id)));
+                                std::to_string(static_cast<int>(p.image.id)));
   }
   w.PutBytes(png.data(), png.size());
   return w.Take();
@@ -181,7 +182,7 @@ bool DecodeImage(Reader& r, frontend::KeyFramePreview* p) {
       !r.GetMatrix(&p->preview_from_frame) || !r.GetBytes(&png)) {
     return false;
   }
-  p->image.id = track::KeyFrameId(id);
+  p->image.id = static_cast<track::KeyFrameId>(id);
   if (!(p->image.scale >= 1 && p->image.scale < 1e4)) return false;
   if (!png.empty()) {
     p->image.grey = cv::imdecode(png, cv::IMREAD_GRAYSCALE);
@@ -192,14 +193,14 @@ bool DecodeImage(Reader& r, frontend::KeyFramePreview* p) {
 
 std::vector<uint8_t> EncodeLink(const track::SequentialLink& l) {
   Writer w;
-  w.Put<int32_t>(int32_t(l.from));
-  w.Put<int32_t>(int32_t(l.to));
+  w.Put<int32_t>(static_cast<int32_t>(l.from));
+  w.Put<int32_t>(static_cast<int32_t>(l.to));
   w.Put<uint8_t>(l.chained);
   w.PutMatrix(l.to_from_from);
   w.PutMatrix(l.covariance);
   w.Put<uint64_t>(l.correspondences.size());
   for (const track::Correspondence& c : l.correspondences) {
-    w.Put<int64_t>(int64_t(c.id));
+    w.Put<int64_t>(static_cast<int64_t>(c.id));
     w.PutMatrix(c.source);
     w.PutMatrix(c.target);
   }
@@ -214,14 +215,14 @@ bool DecodeLink(Reader& r, track::SequentialLink* l) {
       !r.GetMatrix(&l->covariance) || !r.GetCount(40, &n)) {
     return false;
   }
-  l->from = track::KeyFrameId(from);
-  l->to = track::KeyFrameId(to);
+  l->from = static_cast<track::KeyFrameId>(from);
+  l->to = static_cast<track::KeyFrameId>(to);
   l->chained = chained != 0;
   l->correspondences.resize(n);
   for (track::Correspondence& c : l->correspondences) {
     int64_t id = 0;
     if (!r.Get(&id) || !r.GetVector2(&c.source) || !r.GetVector2(&c.target)) return false;
-    c.id = track::FeatureTrackId(id);
+    c.id = static_cast<track::FeatureTrackId>(id);
   }
   return true;
 }
@@ -239,7 +240,7 @@ bool DecodeBreak(Reader& r, track::ChainBreak* b) {
 
 std::vector<uint8_t> EncodeTarget(const track::TargetTrack& t) {
   Writer w;
-  w.Put<int64_t>(int64_t(t.id));
+  w.Put<int64_t>(static_cast<int64_t>(t.id));
   w.Put<uint8_t>(t.confirmed);
   w.Put<uint64_t>(t.max_features);
   w.PutMatrix(t.image_velocity);
@@ -250,9 +251,9 @@ std::vector<uint8_t> EncodeTarget(const track::TargetTrack& t) {
     w.PutMatrix(o.box_min);
     w.PutMatrix(o.box_max);
     w.PutMatrix(o.velocity);
-    w.Put<uint8_t>(uint8_t(o.change));
+    w.Put<uint8_t>(static_cast<uint8_t>(o.change));
     w.Put<uint64_t>(o.features.size());
-    for (const track::FeatureTrackId id : o.features) w.Put<int64_t>(int64_t(id));
+    for (const track::FeatureTrackId id : o.features) w.Put<int64_t>(static_cast<int64_t>(id));
   }
   return w.Take();
 }
@@ -266,24 +267,25 @@ bool DecodeTarget(Reader& r, track::TargetTrack* t) {
       !r.GetVector2(&t->image_velocity) || !r.GetCount(81, &n)) {
     return false;
   }
-  t->id = track::TargetTrackId(id);
+  t->id = static_cast<track::TargetTrackId>(id);
   t->confirmed = confirmed != 0;
-  t->max_features = size_t(max_features);
+  t->max_features = static_cast<size_t>(max_features);
   t->observations.resize(n);
   for (track::TargetObservation& o : t->observations) {
     uint8_t change = 0;
     size_t features = 0;
     if (!r.Get(&o.frame) || !r.GetVector2(&o.position) || !r.GetVector2(&o.box_min) ||
         !r.GetVector2(&o.box_max) || !r.GetVector2(&o.velocity) || !r.Get(&change) ||
-        change > uint8_t(track::ChangeEvidence::kChanged) || !r.GetCount(8, &features)) {
+        change > static_cast<uint8_t>(track::ChangeEvidence::kChanged) ||
+        !r.GetCount(8, &features)) {
       return false;
     }
-    o.change = track::ChangeEvidence(change);
+    o.change = static_cast<track::ChangeEvidence>(change);
     o.features.resize(features);
     for (track::FeatureTrackId& f : o.features) {
       int64_t feature = 0;
       if (!r.Get(&feature)) return false;
-      f = track::FeatureTrackId(feature);
+      f = static_cast<track::FeatureTrackId>(feature);
     }
   }
   return true;
@@ -308,10 +310,10 @@ CheckpointWriter::CheckpointWriter(mission::MissionStore* store,
                                    const frontend::FrontEndCheckpoint* resumed)
     : store_(store) {
   if (resumed != nullptr) {
-    links_ = int64_t(resumed->links.size());
-    breaks_ = int64_t(resumed->breaks.size());
-    targets_ = int64_t(resumed->targets.size());
-    change_targets_ = int64_t(resumed->change_targets.size());
+    links_ = static_cast<int64_t>(resumed->links.size());
+    breaks_ = static_cast<int64_t>(resumed->breaks.size());
+    targets_ = static_cast<int64_t>(resumed->targets.size());
+    change_targets_ = static_cast<int64_t>(resumed->change_targets.size());
   }
 }
 
@@ -329,11 +331,11 @@ Status CheckpointWriter::Write(const frontend::FrontEndCheckpoint& c) {
   for (const frontend::FrameResult& f : c.frames)
     records.push_back({kFrame, f.index, EncodeFrame(f)});
   for (const track::KeyFrame& k : c.key_frames) {
-    records.push_back({kKeyFrame, int64_t(k.id), EncodeKeyFrame(k)});
+    records.push_back({kKeyFrame, static_cast<int64_t>(k.id), EncodeKeyFrame(k)});
   }
   for (const frontend::KeyFramePreview& p : c.key_frame_images) {
     SAKER_ASSIGN_OR_RETURN(std::vector<uint8_t> bytes, EncodeImage(p));
-    records.push_back({kImage, int64_t(p.image.id), std::move(bytes)});
+    records.push_back({kImage, static_cast<int64_t>(p.image.id), std::move(bytes)});
   }
   for (const track::SequentialLink& l : c.links)
     records.push_back({kLink, links_++, EncodeLink(l)});

@@ -129,7 +129,7 @@ Status CopyMission(const std::string& from, const std::string& to, bool replace,
             batch.clear();
           }
         }
-        if (job != nullptr) job->ReportProgress("copy", double(level + 1) / p.levels);
+        if (job != nullptr) job->ReportProgress("copy", static_cast<double>(level + 1) / p.levels);
       }
       SAKER_RETURN_IF_ERROR(target->WriteTiles(batch));
     }

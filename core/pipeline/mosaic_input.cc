@@ -6,7 +6,7 @@ namespace saker::pipeline {
 
 std::optional<geo::Wgs84> MapOrigin(const frontend::FrontEndResult& front) {
   for (const track::KeyFrame& kf : front.key_frames) {
-    const klv::FrameMetadata* m = front.scan.MetadataOf(size_t(kf.frame_index));
+    const klv::FrameMetadata* m = front.scan.MetadataOf(static_cast<size_t>(kf.frame_index));
     if (m == nullptr || !m->corners) continue;
     geo::Wgs84 origin;
     for (const klv::LatLon& c : *m->corners) {

@@ -55,7 +55,7 @@ StatusOr<mission::SourceVideo> SourceOf(const std::string& video) {
   source.duration_s = info.duration_s;
   source.frame_count = info.declared_frame_count;
   if (std::filesystem::is_regular_file(video, error)) {
-    source.size_bytes = int64_t(std::filesystem::file_size(video, error));
+    source.size_bytes = static_cast<int64_t>(std::filesystem::file_size(video, error));
     SAKER_ASSIGN_OR_RETURN(source.fingerprint, mission::FingerprintFile(video));
   }
   return source;
@@ -82,9 +82,9 @@ StatusOr<std::unique_ptr<mission::MissionStore>> OpenToResume(
       (p.tiles || !options.render_tiles)) {
     summary->already_complete = true;
     summary->progress = p;
-    summary->frames = int64_t(previous.frames.size());
-    summary->key_frames = int64_t(previous.key_frames.size());
-    summary->tracks = int64_t(previous.tracks.size());
+    summary->frames = static_cast<int64_t>(previous.frames.size());
+    summary->key_frames = static_cast<int64_t>(previous.key_frames.size());
+    summary->tracks = static_cast<int64_t>(previous.tracks.size());
     summary->geo_referenced = previous.map.geo_referenced;
     return store;
   }
@@ -110,8 +110,9 @@ std::string ProcessSummary::ToText() const {
   std::snprintf(line, sizeof(line),
                 "%lld frames (%lld placed on the map), %lld key frames, %lld cross-links, %lld "
                 "moving-target tracks, %lld tiles; %s\n",
-                (long long)frames, (long long)frames_placed, (long long)key_frames,
-                (long long)cross_links, (long long)tracks, (long long)tiles,
+                static_cast<long long>(frames), static_cast<long long>(frames_placed),
+                static_cast<long long>(key_frames), static_cast<long long>(cross_links),
+                static_cast<long long>(tracks), static_cast<long long>(tiles),
                 geo_referenced ? "geo-referenced (metadata)" : "not geo-referenced (no metadata)");
   out << line;
   std::snprintf(line, sizeof(line),
@@ -194,7 +195,7 @@ StatusOr<ProcessSummary> ProcessVideo(const std::string& video, const std::strin
     }
     static constexpr unsigned kParts[] = {
         mission::kSaveFrames, mission::kSaveFrames | mission::kSaveGraph, mission::kSaveTracks, 0};
-    return commit(done->mission, kParts[int(stage)], StageName(stage));
+    return commit(done->mission, kParts[static_cast<int>(stage)], StageName(stage));
   };
   if (options.render_tiles) {
     hooks.clear_tiles = [&] { return store->ClearTiles(); };
@@ -204,10 +205,10 @@ StatusOr<ProcessSummary> ProcessVideo(const std::string& video, const std::strin
   }
   summary.video_duration_s = run.mission.source.duration_s;
   const Status ran = RunStages(video, stage_options, hooks, job, &run);
-  summary.front_end_s = run.seconds[int(Stage::kFrontEnd)];
-  summary.mosaic_s = run.seconds[int(Stage::kMosaic)];
-  summary.activity_s = run.seconds[int(Stage::kActivity)];
-  summary.tiles_s = run.seconds[int(Stage::kTiles)];
+  summary.front_end_s = run.seconds[static_cast<int>(Stage::kFrontEnd)];
+  summary.mosaic_s = run.seconds[static_cast<int>(Stage::kMosaic)];
+  summary.activity_s = run.seconds[static_cast<int>(Stage::kActivity)];
+  summary.tiles_s = run.seconds[static_cast<int>(Stage::kTiles)];
   summary.warnings.insert(summary.warnings.end(), run.warnings.begin(), run.warnings.end());
   if (!ran.ok()) {
     if (ran.code() == StatusCode::kCancelled) return cancelled(ran);
@@ -215,16 +216,16 @@ StatusOr<ProcessSummary> ProcessVideo(const std::string& video, const std::strin
     return ran;
   }
   const mission::Mission& m = run.mission;
-  summary.frames = int64_t(m.frames.size());
+  summary.frames = static_cast<int64_t>(m.frames.size());
   summary.geo_referenced = m.map.geo_referenced;
-  summary.key_frames = int64_t(m.key_frames.size());
+  summary.key_frames = static_cast<int64_t>(m.key_frames.size());
   for (const mission::LinkRecord& l : m.links) {
     summary.cross_links += l.kind != mission::LinkKind::kSequential;
   }
   for (const mission::FrameRecord& f : m.frames) {
     summary.frames_placed += f.map_from_frame.has_value();
   }
-  summary.tracks = int64_t(m.tracks.size());
+  summary.tracks = static_cast<int64_t>(m.tracks.size());
   summary.tiles = run.tiles_written;
   // The job is complete: its checkpoint is no longer needed.
   SAKER_RETURN_IF_ERROR(store->ClearCheckpoint());

@@ -14,7 +14,7 @@ void GraphRecords(const mosaic::MosaicResult& result, mission::Mission* m) {
   std::vector<bool> node(result.graph.nodes.size(), false);
   if (result.decomposition) {
     for (const mosaic::KeyFrameId id : result.decomposition->decomposition.nodes) {
-      if (size_t(id) < node.size()) node[size_t(id)] = true;
+      if (static_cast<size_t>(id) < node.size()) node[static_cast<size_t>(id)] = true;
     }
   } else {
     node.assign(node.size(), true);  // the full adjustment: every key frame a node
@@ -22,23 +22,24 @@ void GraphRecords(const mosaic::MosaicResult& result, mission::Mission* m) {
   m->key_frames.clear();
   for (const mosaic::Node& n : result.graph.nodes) {
     mission::KeyFrameRecord k;
-    k.id = int32_t(n.id);
+    k.id = static_cast<int32_t>(n.id);
     k.frame_index = n.frame_index;
     k.segment = n.segment;
     k.map_from_frame = n.map_from_frame;
-    if (size_t(n.id) < result.covariances.size()) k.covariance = result.covariances[size_t(n.id)];
-    k.node = node[size_t(n.id)];
+    if (static_cast<size_t>(n.id) < result.covariances.size())
+      k.covariance = result.covariances[static_cast<size_t>(n.id)];
+    k.node = node[static_cast<size_t>(n.id)];
     m->key_frames.push_back(k);
   }
   m->links.clear();
   for (const mosaic::Link& l : result.graph.links) {
     mission::LinkRecord r;
-    r.from = int32_t(l.from);
-    r.to = int32_t(l.to);
+    r.from = static_cast<int32_t>(l.from);
+    r.to = static_cast<int32_t>(l.to);
     r.kind = l.kind;
     r.to_from_from = l.to_from_from;
     r.covariance = l.covariance;
-    r.correspondences = int32_t(l.correspondences.size());
+    r.correspondences = static_cast<int32_t>(l.correspondences.size());
     m->links.push_back(r);
   }
 }
@@ -56,7 +57,7 @@ StatusOr<bool> FrontEndStage(const std::string& video, const StageOptions& optio
     m.source.height = run->front.video.height;
     m.source.frame_rate = run->front.video.fps;
   }
-  m.source.frame_count = int64_t(run->front.frames.size());
+  m.source.frame_count = static_cast<int64_t>(run->front.frames.size());
   m.frames = FrameRecords(run->front, nullptr, nullptr);
   m.progress.front_end = true;
   return true;
@@ -109,11 +110,11 @@ StatusOr<bool> TilesStage(const StageOptions& options, const StageHooks& hooks, 
   mission::Mission& m = run->mission;
   std::map<int, const track::KeyFrameImage*> images;
   for (const track::KeyFrameImage& image : run->front.key_frame_images) {
-    images[int(image.id)] = &image;
+    images[static_cast<int>(image.id)] = &image;
   }
   std::vector<tiles::KeyFrameView> views;
   for (const mosaic::Node& node : run->mosaic->graph.nodes) {
-    const auto it = images.find(int(node.id));
+    const auto it = images.find(static_cast<int>(node.id));
     if (it == images.end() || it->second->grey.empty()) continue;
     views.push_back({&it->second->grey, it->second->scale, node.map_from_frame});
   }
@@ -160,7 +161,7 @@ Status RunStages(const std::string& video, const StageOptions& options, const St
                  JobContext* job, MissionRun* run) {
   SAKER_RETURN_IF_ERROR(options.Validate());
   for (const Stage stage : {Stage::kFrontEnd, Stage::kMosaic, Stage::kActivity, Stage::kTiles}) {
-    if (int(stage) > int(hooks.last)) break;
+    if (static_cast<int>(stage) > static_cast<int>(hooks.last)) break;
     if (stage == Stage::kTiles && !hooks.write_tiles) break;
     const Stopwatch begin;
     StatusOr<bool> go_on = false;
@@ -178,7 +179,7 @@ Status RunStages(const std::string& video, const StageOptions& options, const St
         go_on = TilesStage(options, hooks, job, run);
         break;
     }
-    run->seconds[int(stage)] = begin.ElapsedSeconds();
+    run->seconds[static_cast<int>(stage)] = begin.ElapsedSeconds();
     if (!go_on.ok()) {
       run->failed = stage;
       return go_on.status();
@@ -208,7 +209,7 @@ std::vector<mission::FrameRecord> FrameRecords(const frontend::FrontEndResult& f
     }
     if (corners) f.metadata_corners = input->metadata_corners[i];
     if (const klv::FrameMetadata* metadata = front.scan.MetadataOf(i)) {
-      if (metadata->unix_time_us) f.utc_us = int64_t(*metadata->unix_time_us);
+      if (metadata->unix_time_us) f.utc_us = static_cast<int64_t>(*metadata->unix_time_us);
       if (metadata->sensor_latitude_deg && metadata->sensor_longitude_deg) {
         f.sensor = geo::Wgs84{*metadata->sensor_latitude_deg, *metadata->sensor_longitude_deg,
                               metadata->sensor_altitude_m.value_or(0)};
@@ -224,7 +225,7 @@ std::vector<mission::ActivityTrack> TrackRecords(const frontend::FrontEndResult&
   tracks.reserve(front.targets.size());
   for (const track::TargetTrack& target : front.targets) {
     mission::ActivityTrack t;
-    t.id = int64_t(target.id);
+    t.id = static_cast<int64_t>(target.id);
     for (const track::TargetObservation& o : target.observations) {
       mission::TrackPoint p;
       p.frame = o.frame;

@@ -18,10 +18,12 @@ const cv::Scalar kBackground(48, 40, 36);  // no-data: dark blue-grey, not black
 constexpr int kShift = 4;                  // sub-pixel bits for drawing
 constexpr double kOne = 1 << kShift;
 
-cv::Scalar Bgr(const activity::Rgb& c) { return {double(c.b), double(c.g), double(c.r)}; }
+cv::Scalar Bgr(const activity::Rgb& c) {
+  return {static_cast<double>(c.b), static_cast<double>(c.g), static_cast<double>(c.r)};
+}
 
 cv::Point Fixed(const Eigen::Vector2d& p) {
-  return {int(std::lround(p.x() * kOne)), int(std::lround(p.y() * kOne))};
+  return {static_cast<int>(std::lround(p.x() * kOne)), static_cast<int>(std::lround(p.y() * kOne))};
 }
 
 // Alpha-blends a BGRA tile onto the canvas at (x, y), clipped.
@@ -34,7 +36,8 @@ void Blend(const cv::Mat& tile, cv::Mat* canvas, int x, int y) {
     for (int c = target.x; c < target.x + target.width; ++c) {
       const cv::Vec4b& s = source[c - x];
       const int a = s[3];
-      for (int k = 0; k < 3; ++k) out[c][k] = uint8_t((s[k] * a + out[c][k] * (255 - a)) / 255);
+      for (int k = 0; k < 3; ++k)
+        out[c][k] = static_cast<uint8_t>((s[k] * a + out[c][k] * (255 - a)) / 255);
     }
   }
 }
@@ -70,19 +73,21 @@ void Panel(cv::Mat* image, cv::Rect box) {
 
 void DrawLegend(const activity::Legend& legend, double ui, cv::Mat* image) {
   const double text_scale = 0.5 * ui;
-  const int pad = int(10 * ui), line = int(22 * ui);
-  const int width = std::max(int(190 * ui), TextSize(legend.title, text_scale).width + 2 * pad);
-  const int rows = legend.continuous ? 3 : int(legend.entries.size()) + 1;
+  const int pad = static_cast<int>(10 * ui), line = static_cast<int>(22 * ui);
+  const int width =
+      std::max(static_cast<int>(190 * ui), TextSize(legend.title, text_scale).width + 2 * pad);
+  const int rows = legend.continuous ? 3 : static_cast<int>(legend.entries.size()) + 1;
   const cv::Rect box(image->cols - width - pad, pad, width, rows * line + 2 * pad);
   Panel(image, box);
   const cv::Scalar ink(30, 30, 30);
-  Text(image, legend.title, {box.x + pad, box.y + pad + int(14 * ui)}, text_scale, ink);
+  Text(image, legend.title, {box.x + pad, box.y + pad + static_cast<int>(14 * ui)}, text_scale,
+       ink);
   if (legend.continuous) {
     // A ramp through the entries' colours, labels under their positions.
     const int x0 = box.x + pad, x1 = box.x + width - pad;
-    const int y0 = box.y + pad + line, y1 = y0 + int(14 * ui);
+    const int y0 = box.y + pad + line, y1 = y0 + static_cast<int>(14 * ui);
     for (int x = x0; x <= x1; ++x) {
-      const double p = double(x - x0) / std::max(1, x1 - x0);
+      const double p = static_cast<double>(x - x0) / std::max(1, x1 - x0);
       size_t i = 0;
       while (i + 2 < legend.entries.size() && legend.entries[i + 1].position < p) ++i;
       const auto& a = legend.entries[i];
@@ -95,53 +100,56 @@ void DrawLegend(const activity::Legend& legend, double ui, cv::Mat* image) {
     }
     cv::rectangle(*image, {x0, y0}, {x1, y1}, cv::Scalar(90, 90, 90), 1);
     for (const auto& entry : legend.entries) {
-      const int x = x0 + int(entry.position * (x1 - x0));
+      const int x = x0 + static_cast<int>(entry.position * (x1 - x0));
       const cv::Size size = TextSize(entry.label, 0.42 * ui);
       const int left = std::clamp(x - size.width / 2, box.x + 2, box.x + width - size.width - 2);
-      cv::line(*image, {x, y1}, {x, y1 + int(4 * ui)}, ink, 1);
-      Text(image, entry.label, {left, y1 + int(18 * ui)}, 0.42 * ui, ink);
+      cv::line(*image, {x, y1}, {x, y1 + static_cast<int>(4 * ui)}, ink, 1);
+      Text(image, entry.label, {left, y1 + static_cast<int>(18 * ui)}, 0.42 * ui, ink);
     }
   } else {
     for (size_t i = 0; i < legend.entries.size(); ++i) {
-      const int y = box.y + pad + line * int(i + 1);
-      cv::line(*image, {box.x + pad, y + int(8 * ui)},
-               {box.x + pad + int(28 * ui), y + int(8 * ui)}, Bgr(legend.entries[i].colour),
-               std::max(2, int(4 * ui)), cv::LINE_AA);
-      Text(image, legend.entries[i].label, {box.x + pad + int(38 * ui), y + int(13 * ui)},
-           0.45 * ui, ink);
+      const int y = box.y + pad + line * static_cast<int>(i + 1);
+      cv::line(*image, {box.x + pad, y + static_cast<int>(8 * ui)},
+               {box.x + pad + static_cast<int>(28 * ui), y + static_cast<int>(8 * ui)},
+               Bgr(legend.entries[i].colour), std::max(2, static_cast<int>(4 * ui)), cv::LINE_AA);
+      Text(image, legend.entries[i].label,
+           {box.x + pad + static_cast<int>(38 * ui), y + static_cast<int>(13 * ui)}, 0.45 * ui,
+           ink);
     }
   }
 }
 
 void DrawScaleBar(double metres_per_px, double ui, cv::Mat* image) {
   const double metres = NiceLength(0.2 * image->cols * metres_per_px);
-  const int length = int(std::lround(metres / metres_per_px));
-  const std::string label = metres >= 1000 ? std::to_string(int(metres / 1000)) + " km"
-                                           : std::to_string(int(metres)) + " m";
-  const int pad = int(10 * ui);
-  const cv::Rect box(pad, image->rows - int(46 * ui) - pad, length + 2 * pad, int(46 * ui));
+  const int length = static_cast<int>(std::lround(metres / metres_per_px));
+  const std::string label = metres >= 1000 ? std::to_string(static_cast<int>(metres / 1000)) + " km"
+                                           : std::to_string(static_cast<int>(metres)) + " m";
+  const int pad = static_cast<int>(10 * ui);
+  const cv::Rect box(pad, image->rows - static_cast<int>(46 * ui) - pad, length + 2 * pad,
+                     static_cast<int>(46 * ui));
   Panel(image, box);
-  const int y = box.y + int(32 * ui), x0 = box.x + pad;
+  const int y = box.y + static_cast<int>(32 * ui), x0 = box.x + pad;
   const cv::Scalar ink(30, 30, 30);
-  cv::rectangle(*image, {x0, y}, {x0 + length / 2, y + int(6 * ui)}, ink, cv::FILLED);
-  cv::rectangle(*image, {x0, y}, {x0 + length, y + int(6 * ui)}, ink, 1);
-  Text(image, label, {x0, y - int(8 * ui)}, 0.5 * ui, ink);
+  cv::rectangle(*image, {x0, y}, {x0 + length / 2, y + static_cast<int>(6 * ui)}, ink, cv::FILLED);
+  cv::rectangle(*image, {x0, y}, {x0 + length, y + static_cast<int>(6 * ui)}, ink, 1);
+  Text(image, label, {x0, y - static_cast<int>(8 * ui)}, 0.5 * ui, ink);
 }
 
 void DrawNorthArrow(double ui, cv::Mat* image) {
-  const int pad = int(10 * ui), size = int(52 * ui);
-  const cv::Rect box(pad, pad, int(40 * ui), size + int(20 * ui));
+  const int pad = static_cast<int>(10 * ui), size = static_cast<int>(52 * ui);
+  const cv::Rect box(pad, pad, static_cast<int>(40 * ui), size + static_cast<int>(20 * ui));
   Panel(image, box);
-  const int cx = box.x + box.width / 2, top = box.y + int(24 * ui),
-            bottom = box.y + box.height - int(6 * ui);
+  const int cx = box.x + box.width / 2, top = box.y + static_cast<int>(24 * ui),
+            bottom = box.y + box.height - static_cast<int>(6 * ui);
   const std::vector<cv::Point> left = {
-      {cx, top}, {cx - int(9 * ui), bottom}, {cx, bottom - int(10 * ui)}};
+      {cx, top}, {cx - static_cast<int>(9 * ui), bottom}, {cx, bottom - static_cast<int>(10 * ui)}};
   const std::vector<cv::Point> right = {
-      {cx, top}, {cx + int(9 * ui), bottom}, {cx, bottom - int(10 * ui)}};
+      {cx, top}, {cx + static_cast<int>(9 * ui), bottom}, {cx, bottom - static_cast<int>(10 * ui)}};
   cv::fillConvexPoly(*image, left, cv::Scalar(30, 30, 30), cv::LINE_AA);
   cv::polylines(*image, right, true, cv::Scalar(30, 30, 30), 1, cv::LINE_AA);
   const cv::Size n = TextSize("N", 0.55 * ui, 2);
-  Text(image, "N", {cx - n.width / 2, box.y + int(19 * ui)}, 0.55 * ui, cv::Scalar(30, 30, 30), 2);
+  Text(image, "N", {cx - n.width / 2, box.y + static_cast<int>(19 * ui)}, 0.55 * ui,
+       cv::Scalar(30, 30, 30), 2);
 }
 
 }  // namespace
@@ -177,8 +185,9 @@ StatusOr<ActivityMap> RenderActivityMap(const mission::Mission& mission, const T
            (std::max(info.width, info.height) >> level) > options.max_side_px) {
       ++level;
     }
-    const double f = double(int64_t(1) << level);
-    const int width = int(std::ceil(info.width / f)), height = int(std::ceil(info.height / f));
+    const double f = static_cast<double>(static_cast<int64_t>(1) << level);
+    const int width = static_cast<int>(std::ceil(info.width / f)),
+              height = static_cast<int>(std::ceil(info.height / f));
     out.bgr = cv::Mat(height, width, CV_8UC3, kBackground);
     const int t = info.tile_size;
     for (int ty = 0; ty * t < height; ++ty) {
@@ -210,8 +219,8 @@ StatusOr<ActivityMap> RenderActivityMap(const mission::Mission& mission, const T
     const double extent = std::max((hi - lo).maxCoeff(), 1.0);
     const double side = std::min(options.max_side_px, 2048);
     const double scale = 0.9 * side / extent;
-    const int width = int(std::ceil((hi.x() - lo.x()) * scale + 0.1 * side));
-    const int height = int(std::ceil((hi.y() - lo.y()) * scale + 0.1 * side));
+    const int width = static_cast<int>(std::ceil((hi.x() - lo.x()) * scale + 0.1 * side));
+    const int height = static_cast<int>(std::ceil((hi.y() - lo.y()) * scale + 0.1 * side));
     out.bgr = cv::Mat(std::max(height, 64), std::max(width, 64), CV_8UC3, kBackground);
     const double flip = mission.map.geo_referenced ? -1 : 1;
     out.image_from_map << scale, 0, 0.05 * side - lo.x() * scale,  //
@@ -224,7 +233,7 @@ StatusOr<ActivityMap> RenderActivityMap(const mission::Mission& mission, const T
 
   const activity::TrackColouring colouring(options.colour_by, shown_copy,
                                            mission.map.geo_referenced);
-  const int width_px = std::max(1, int(std::lround(options.line_width * ui)));
+  const int width_px = std::max(1, static_cast<int>(std::lround(options.line_width * ui)));
   for (const mission::ActivityTrack& track : shown_copy) {
     std::vector<cv::Point> line;
     for (const mission::TrackPoint& p : track.points) {

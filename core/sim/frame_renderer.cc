@@ -81,7 +81,7 @@ struct LensFrame {
 
 LensFrame LensFrameOf(int width, int height) {
   return {Eigen::Vector2d(0.5 * (width - 1), 0.5 * (height - 1)),
-          0.5 * std::hypot(double(width), double(height))};
+          0.5 * std::hypot(static_cast<double>(width), static_cast<double>(height))};
 }
 
 }  // namespace
@@ -109,8 +109,8 @@ FrameRenderer::FrameRenderer(const GroundSource& ground, const CameraIntrinsics&
         Eigen::Vector2d u = d;
         for (int k = 0; k < 20; ++k) u = d / (1 + imaging_.lens_k1 * u.squaredNorm());
         const Eigen::Vector2d ideal = lens.centre + u * lens.half_diagonal;
-        distortion_x_.at<float>(y, x) = float(ideal.x());
-        distortion_y_.at<float>(y, x) = float(ideal.y());
+        distortion_x_.at<float>(y, x) = static_cast<float>(ideal.x());
+        distortion_y_.at<float>(y, x) = static_cast<float>(ideal.y());
       }
     }
   }
@@ -124,15 +124,15 @@ int FrameRenderer::LevelFor(double ratio) {
   // Above ~1.5 raster pixels per frame pixel, sample a reduced level of the raster to avoid
   // aliasing (the warp's bilinear kernel only filters one pixel).
   int level = 0;
-  while (level < 6 && ratio / double(1 << level) > 1.5) ++level;
+  while (level < 6 && ratio / static_cast<double>(1 << level) > 1.5) ++level;
   return level;
 }
 
 void FrameRenderer::RenderRows(const Eigen::Matrix3d& frame_from_ground, int row0, int row1,
                                int level, cv::Mat* bgr_out, cv::Mat* valid) const {
   // A coarser source when there is one for this level; else the full-detail raster, reduced.
-  const bool direct = level > 0 && size_t(level) <= coarser_levels_.size();
-  const GroundSource& source = direct ? *coarser_levels_[size_t(level) - 1] : ground_;
+  const bool direct = level > 0 && static_cast<size_t>(level) <= coarser_levels_.size();
+  const GroundSource& source = direct ? *coarser_levels_[static_cast<size_t>(level) - 1] : ground_;
   const int levels = direct ? 0 : level;
   const Eigen::Matrix3d raster_from_frame =
       RasterFromGround(source.gsd_m()) * frame_from_ground.inverse();
@@ -150,12 +150,13 @@ void FrameRenderer::RenderRows(const Eigen::Matrix3d& frame_from_ground, int row
   }
   const int step = 1 << levels;
   const int margin = 3 * step;
-  cv::Rect region(int(std::floor(x0)) - margin, int(std::floor(y0)) - margin, 0, 0);
-  region.width = int(std::ceil(x1)) + margin - region.x;
-  region.height = int(std::ceil(y1)) + margin - region.y;
+  cv::Rect region(static_cast<int>(std::floor(x0)) - margin,
+                  static_cast<int>(std::floor(y0)) - margin, 0, 0);
+  region.width = static_cast<int>(std::ceil(x1)) + margin - region.x;
+  region.height = static_cast<int>(std::ceil(y1)) + margin - region.y;
   region.width += (step - region.width % step) % step;
   region.height += (step - region.height % step) % step;
-  SAKER_CHECK(double(region.width) * region.height < 400e6);
+  SAKER_CHECK(static_cast<double>(region.width) * region.height < 400e6);
   cv::Mat bgr, mask;
   source.Render(region, &bgr, &mask);
   for (int k = 0; k < levels; ++k) {
@@ -211,9 +212,10 @@ cv::Mat FrameRenderer::RenderGround(const Eigen::Matrix3d& frame_from_ground,
     std::vector<cv::Point2f> raster_quad;
     for (const Eigen::Vector2d& p : quad) {
       const Eigen::Vector2d q = (raster_from_frame * p.homogeneous()).hnormalized();
-      raster_quad.emplace_back(float(q.x()), float(q.y()));
+      raster_quad.emplace_back(static_cast<float>(q.x()), static_cast<float>(q.y()));
     }
-    const double ratio = std::sqrt(cv::contourArea(raster_quad) / (double(width) * double(height)));
+    const double ratio = std::sqrt(cv::contourArea(raster_quad) /
+                                   (static_cast<double>(width) * static_cast<double>(height)));
     RenderRows(frame_from_ground, 0, height, LevelFor(ratio), &frame, valid);
     if (valid != nullptr) cv::threshold(*valid, *valid, 254, 255, cv::THRESH_BINARY);
     return frame;
@@ -230,7 +232,7 @@ cv::Mat FrameRenderer::RenderGround(const Eigen::Matrix3d& frame_from_ground,
     const int end = i + 1 < bands.size() ? bands[i + 1].first : height;
     if (bands[i].first - bands[i - 1].first < 2 * kBlendRows ||
         end - bands[i].first < 2 * kBlendRows) {
-      bands.erase(bands.begin() + ptrdiff_t(i));  // the band above takes its rows
+      bands.erase(bands.begin() + static_cast<ptrdiff_t>(i));  // the band above takes its rows
     } else {
       ++i;
     }
@@ -300,14 +302,14 @@ cv::Mat FrameRenderer::Render(const Eigen::Matrix3d& frame_from_ground,
                               const Eigen::Vector2d& shadow_per_m, int64_t frame_index,
                               double time_s, cv::Mat* valid) const {
   cv::Mat frame;
-  Random random(HashCombine(seed_, uint64_t(frame_index) * 0x9E37u + 17));
+  Random random(HashCombine(seed_, static_cast<uint64_t>(frame_index) * 0x9E37u + 17));
   if (imaging_.IsBlank(time_s)) {
     // Cloud: bright, almost featureless, slowly varying.
     cv::Mat small(9, 16, CV_8UC3);
     for (int r = 0; r < small.rows; ++r) {
       for (int c = 0; c < small.cols; ++c) {
-        const uint8_t v = uint8_t(random.Uniform(215, 240));
-        small.at<cv::Vec3b>(r, c) = cv::Vec3b(v, v, uint8_t(v - 3));
+        const uint8_t v = static_cast<uint8_t>(random.Uniform(215, 240));
+        small.at<cv::Vec3b>(r, c) = cv::Vec3b(v, v, static_cast<uint8_t>(v - 3));
       }
     }
     cv::resize(small, frame, cv::Size(camera_.width, camera_.height), 0, 0, cv::INTER_CUBIC);
@@ -335,7 +337,7 @@ cv::Mat FrameRenderer::Render(const Eigen::Matrix3d& frame_from_ground,
   }
   if (imaging_.motion_blur_px > 0) {
     // A box smear along the image's vertical axis: the ground's motion in a forward flight.
-    const int length = std::max(1, int(std::lround(imaging_.motion_blur_px)));
+    const int length = std::max(1, static_cast<int>(std::lround(imaging_.motion_blur_px)));
     cv::blur(frame, frame, cv::Size(1, length));
   }
   if (imaging_.haze > 0) {

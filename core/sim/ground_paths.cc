@@ -24,8 +24,8 @@ Polyline Densify(const Polyline& line, double step_m) {
   Polyline out;
   for (size_t i = 0; i + 1 < line.size(); ++i) {
     const Vector2d a = line[i], b = line[i + 1];
-    const int n = std::max(1, int(std::ceil((b - a).norm() / step_m)));
-    for (int k = 0; k < n; ++k) out.push_back(a + (b - a) * (double(k) / n));
+    const int n = std::max(1, static_cast<int>(std::ceil((b - a).norm() / step_m)));
+    for (int k = 0; k < n; ++k) out.push_back(a + (b - a) * (static_cast<double>(k) / n));
   }
   out.push_back(line.back());
   return out;
@@ -52,10 +52,10 @@ Polyline ClipLine(const Vector2d& p, const Vector2d& d, const cv::Rect2d& box) {
 void AddRoad(const Polyline& line, World* world) {
   const auto node_at = [&](const Vector2d& p) {
     for (size_t i = 0; i < world->nodes.size(); ++i) {
-      if ((world->nodes[i].position - p).norm() < kJunctionToleranceM) return int(i);
+      if ((world->nodes[i].position - p).norm() < kJunctionToleranceM) return static_cast<int>(i);
     }
     world->nodes.push_back({p, 0, {}});
-    return int(world->nodes.size()) - 1;
+    return static_cast<int>(world->nodes.size()) - 1;
   };
   Road road;
   road.centreline = Densify(line, 5.0);
@@ -63,9 +63,9 @@ void AddRoad(const Polyline& line, World* world) {
   road.road_class = RoadClass::kStreet;
   road.from = node_at(line.front());
   road.to = node_at(line.back());
-  const int index = int(world->roads.size());
-  world->nodes[size_t(road.from)].roads.push_back(index);
-  if (road.to != road.from) world->nodes[size_t(road.to)].roads.push_back(index);
+  const int index = static_cast<int>(world->roads.size());
+  world->nodes[static_cast<size_t>(road.from)].roads.push_back(index);
+  if (road.to != road.from) world->nodes[static_cast<size_t>(road.to)].roads.push_back(index);
   world->roads.push_back(std::move(road));
 }
 

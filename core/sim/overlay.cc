@@ -84,12 +84,12 @@ OverlayPainter::OverlayPainter(const OverlayOptions& options, int width, int hei
   const cv::Size text = cv::getTextSize("0", kFont, font_scale_, font_thickness_, &baseline);
   top_line_ = cv::Point(margin, margin + text.height);
   bottom_line_ = cv::Point(margin, height - margin - baseline);
-  logo_radius_ = std::max(8, int(std::lround(0.045 * height)));
+  logo_radius_ = std::max(8, static_cast<int>(std::lround(0.045 * height)));
   logo_centre_ = cv::Point(width - margin - logo_radius_ - 2,
                            top_line_.y + baseline + margin + logo_radius_ + 2);
   reticle_centre_ = cv::Point(width / 2, height / 2);
-  reticle_arm_ = std::max(6, int(std::lround(0.05 * height)));
-  reticle_gap_ = std::max(2, int(std::lround(0.015 * height)));
+  reticle_arm_ = std::max(6, static_cast<int>(std::lround(0.05 * height)));
+  reticle_gap_ = std::max(2, static_cast<int>(std::lround(0.015 * height)));
 
   if (options_.hud_text) {
     // The widest the lines get: every number at its widest (the font's digits share one width).
@@ -121,14 +121,14 @@ OverlayPainter::OverlayPainter(const OverlayOptions& options, int width, int hei
 }
 
 std::pair<std::string, std::string> OverlayPainter::HudLines(const HudTelemetry& t) const {
-  const std::time_t seconds = std::time_t(t.utc_us / 1000000);
+  const std::time_t seconds = static_cast<std::time_t>(t.utc_us / 1000000);
   std::tm utc{};
   gmtime_r(&seconds, &utc);
   char top[160], bottom[160];
   std::snprintf(top, sizeof(top), "%04d-%02d-%02d %02d:%02d:%02d.%03dZ  FRM %06lld  HFOV %4.1f",
                 utc.tm_year + 1900, utc.tm_mon + 1, utc.tm_mday, utc.tm_hour, utc.tm_min,
-                utc.tm_sec, int(t.utc_us / 1000 % 1000), static_cast<long long>(t.frame_index),
-                t.hfov_deg);
+                utc.tm_sec, static_cast<int>(t.utc_us / 1000 % 1000),
+                static_cast<long long>(t.frame_index), t.hfov_deg);
   std::snprintf(bottom, sizeof(bottom), "LAT %9.5f  LON %10.5f  ALT %5.0fm  HDG %5.1f",
                 t.latitude_deg, t.longitude_deg, t.height_m, t.heading_deg);
   return {top, bottom};
@@ -149,13 +149,13 @@ void OverlayPainter::PaintLogo(double time_s, cv::Mat* layer, cv::Mat* alpha) co
   for (int k = 0; k < 10; ++k) {
     const double a = angle + k * kPi / 5;
     const double radius = (k % 2 == 0 ? 0.75 : 0.32) * r;
-    star.emplace_back(c.x + int(std::lround(radius * std::sin(a))),
-                      c.y - int(std::lround(radius * std::cos(a))));
+    star.emplace_back(c.x + static_cast<int>(std::lround(radius * std::sin(a))),
+                      c.y - static_cast<int>(std::lround(radius * std::cos(a))));
   }
   cv::fillPoly(*layer, std::vector<std::vector<cv::Point>>{star}, cv::Scalar(40, 200, 255),
                cv::LINE_AA);
-  const cv::Point bar(int(std::lround(0.8 * r * std::cos(angle))),
-                      int(std::lround(0.8 * r * std::sin(angle))));
+  const cv::Point bar(static_cast<int>(std::lround(0.8 * r * std::cos(angle))),
+                      static_cast<int>(std::lround(0.8 * r * std::sin(angle))));
   cv::line(*layer, c - bar, c + bar, cv::Scalar(255, 255, 255), std::max(1, r / 8), cv::LINE_AA);
 }
 

@@ -24,8 +24,8 @@ using Eigen::Vector2d;
 
 // The frame rate as a fraction: integer rates exactly, others over 1001 (29.97 = 30000/1001).
 std::pair<int, int> FrameRateFraction(double fps) {
-  if (std::abs(fps - std::round(fps)) < 1e-6) return {int(std::lround(fps)), 1};
-  return {int(std::lround(fps * 1001)), 1001};
+  if (std::abs(fps - std::round(fps)) < 1e-6) return {static_cast<int>(std::lround(fps)), 1};
+  return {static_cast<int>(std::lround(fps * 1001)), 1001};
 }
 
 // Coarser renderings of the procedural ground for oblique views: up to 16 times the detail
@@ -60,21 +60,23 @@ class FrameClock {
   // nominal one).
   int slots_per_frame() const { return slots_per_frame_; }
   double step_s() const { return step_s_; }
-  double fraction_done() const { return std::min(1.0, double(next_slot_) / double(end_slot_)); }
+  double fraction_done() const {
+    return std::min(1.0, static_cast<double>(next_slot_) / static_cast<double>(end_slot_));
+  }
 
   // The next camera frame, or false at the end of the video.
   bool Next(FrameSlot* slot) {
     if (next_slot_ >= end_slot_) return false;
     *slot = FrameSlot();
     slot->slot = next_slot_;
-    slot->video_s = double(next_slot_) * step_s_;
+    slot->video_s = static_cast<double>(next_slot_) * step_s_;
     slot->target_steps = next_slot_ - last_slot_;
     last_slot_ = next_slot_;
     const bool sampled = sampling_.drop_probability > 0 || sampling_.repeat_probability > 0;
     if (cut_.enabled() && !cut_done_ && slot->video_s >= cut_.at_s) {
       cut_done_ = true;
       slot->cut = true;
-      slot->target_steps += int64_t(std::llround(cut_.jump_s / step_s_));
+      slot->target_steps += static_cast<int64_t>(std::llround(cut_.jump_s / step_s_));
     } else if (sampled && slot->slot > 0) {
       const double u = random_.Uniform();
       slot->dropped = u < sampling_.drop_probability;
@@ -348,7 +350,8 @@ Status OptionFromJson(const nlohmann::json& j, std::optional<cv::Vec3b>* bgr) {
   for (int c : v) {
     if (c < 0 || c > 255) return InvalidArgumentError("colour components must be 0..255");
   }
-  *bgr = cv::Vec3b(uint8_t(v[0]), uint8_t(v[1]), uint8_t(v[2]));
+  *bgr =
+      cv::Vec3b(static_cast<uint8_t>(v[0]), static_cast<uint8_t>(v[1]), static_cast<uint8_t>(v[2]));
   return Status::Ok();
 }
 Status OptionFromJson(const nlohmann::json& j, bool* value) {
@@ -548,18 +551,19 @@ StatusOr<SimulationSetup> SimulationSetup::Create(const SimulationOptions& optio
         ScenarioName(options.scenario) + " flight lasts " +
         std::to_string(setup.flight_->duration_s()) + " s: shorten --duration or the jump");
   }
-  setup.frame_count_ = std::max<int64_t>(1, int64_t(std::floor(duration / frame_interval + 1e-9)));
+  setup.frame_count_ =
+      std::max<int64_t>(1, static_cast<int64_t>(std::floor(duration / frame_interval + 1e-9)));
 
   // Everything the camera sees, to size the world; every frame, so that a pose looking above the
   // horizon is an error here rather than a failed check in the renderer.
   double x0 = 1e300, y0 = 1e300, x1 = -1e300, y1 = -1e300;
   for (int64_t i = 0; i < setup.frame_count_; ++i) {
-    const double t = setup.CameraTimeAt(double(i) * frame_interval);
+    const double t = setup.CameraTimeAt(static_cast<double>(i) * frame_interval);
     const auto footprint = GroundFootprint(setup.CameraAt(t), setup.flight_->PoseAt(t));
     if (!footprint) {
       return InvalidArgumentError("simulate: at " + std::to_string(t) +
                                   " s the camera sees above the horizon (or within " +
-                                  std::to_string(int(kMinRayDepressionDeg)) +
+                                  std::to_string(static_cast<int>(kMinRayDepressionDeg)) +
                                   " degrees of it); reduce the angle off nadir (in an orbit: the "
                                   "radius against the altitude), "
                                   "the field of view or the attitude jitter");
@@ -586,7 +590,7 @@ StatusOr<SimulationSetup> SimulationSetup::Create(const SimulationOptions& optio
                          options.flight.gimbal_off_nadir_deg > 0 || options.zoom.enabled();
     for (int level = 1; oblique && level <= kCoarserGroundLevels; ++level) {
       setup.coarser_ground_.push_back(std::make_shared<ProceduralGround>(
-          setup.world_, gsd_m * double(1 << level), kCoarserGroundCacheMegabytes));
+          setup.world_, gsd_m * static_cast<double>(1 << level), kCoarserGroundCacheMegabytes));
     }
   } else {
     GroundImageOptions image_options;
@@ -628,7 +632,7 @@ StatusOr<SimulationSummary> Simulate(const SimulationOptions& options_in, JobCon
   writer_options.height = camera.height;
   writer_options.fps_num = setup.fps_num() * clock.slots_per_frame();
   writer_options.fps_den = setup.fps_den();
-  writer_options.gop_size = std::max(1, int(std::lround(options.fps)));
+  writer_options.gop_size = std::max(1, static_cast<int>(std::lround(options.fps)));
   writer_options.crf = options.crf;
   writer_options.x264_preset = options.x264_preset;
   // libx264's output depends on its thread count: fix it so a seed gives the same file on any
@@ -653,14 +657,14 @@ StatusOr<SimulationSummary> Simulate(const SimulationOptions& options_in, JobCon
   truth.origin_height_m = options.origin.height_m;
   truth.width = camera.width, truth.height = camera.height;
   truth.fx = camera.fx(), truth.fy = camera.fy(), truth.cx = camera.cx(), truth.cy = camera.cy();
-  truth.fps = double(setup.fps_num()) / setup.fps_den();
+  truth.fps = static_cast<double>(setup.fps_num()) / setup.fps_den();
   truth.start_utc_us = options.start_utc_us;
   truth.overlays = overlay.regions();
   if (targets) {
     for (const Target& t : targets->targets()) {
       truth.targets.push_back(
-          {int(t.id), TargetClassName(t.target_class), t.length_m(), t.width_m(), {}});
-      truth.targets.back().samples.reserve(size_t(frame_count));
+          {static_cast<int>(t.id), TargetClassName(t.target_class), t.length_m(), t.width_m(), {}});
+      truth.targets.back().samples.reserve(static_cast<size_t>(frame_count));
     }
   }
 
@@ -690,13 +694,14 @@ StatusOr<SimulationSummary> Simulate(const SimulationOptions& options_in, JobCon
       ++summary.dropped_frames;
       continue;
     }
-    const int64_t i = int64_t(truth.frames.size());  // the frame's index in the video
+    const int64_t i = static_cast<int64_t>(truth.frames.size());  // the frame's index in the video
     const double t = slot.video_s;
     const CameraPose pose = flight.PoseAt(slot.camera_s);
     const CameraIntrinsics lens = setup.CameraAt(slot.camera_s);
     const Eigen::Matrix3d frame_from_ground = FrameFromGround(lens, pose);
     // UTC of the moment shown (after a cut, later than the video time says).
-    const uint64_t utc_us = options.start_utc_us + uint64_t(std::llround(slot.camera_s * 1e6));
+    const uint64_t utc_us =
+        options.start_utc_us + static_cast<uint64_t>(std::llround(slot.camera_s * 1e6));
 
     if (slot.repeated) {
       // The previous picture again, with this frame's time: its truth is the previous frame's.
@@ -799,11 +804,11 @@ StatusOr<SimulationSummary> Simulate(const SimulationOptions& options_in, JobCon
   if (!status.ok()) return fail(status);
   status = video.Commit();
   if (!status.ok()) return status;
-  summary.frames = int64_t(truth.frames.size());
-  summary.duration_s = double(frame_count) * frame_interval;
+  summary.frames = static_cast<int64_t>(truth.frames.size());
+  summary.duration_s = static_cast<double>(frame_count) * frame_interval;
   summary.track_length_m = flight.track().length_m();
   summary.nominal_gsd_m = nominal_gsd;
-  summary.targets = int(truth.targets.size());
+  summary.targets = static_cast<int>(truth.targets.size());
   summary.video = options.output;
   summary.truth = truth_path;
   return summary;

@@ -131,7 +131,7 @@ class SimulationSetup {
   std::vector<const GroundSource*> coarser_ground() const;
   int fps_num() const { return fps_num_; }
   int fps_den() const { return fps_den_; }
-  double frame_interval_s() const { return double(fps_den_) / fps_num_; }
+  double frame_interval_s() const { return static_cast<double>(fps_den_) / fps_num_; }
   int64_t frame_count() const { return frame_count_; }
   double nominal_gsd_m() const;
   // The moment of the flight that video time `video_s` shows (later than it after a cut).

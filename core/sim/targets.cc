@@ -40,7 +40,8 @@ class Path {
   // The segment index containing arc length s (s clamped to the path).
   size_t SegmentAt(double s) const {
     const auto it = std::upper_bound(cumulative_.begin(), cumulative_.end(), s);
-    const size_t i = it == cumulative_.begin() ? 0 : size_t(it - cumulative_.begin()) - 1;
+    const size_t i =
+        it == cumulative_.begin() ? 0 : static_cast<size_t>(it - cumulative_.begin()) - 1;
     return std::min(i, points_.size() - 2);
   }
   Vector2d PointAt(double s) const {
@@ -67,8 +68,8 @@ class Path {
     while (drop + 2 < points_.size() && cumulative_[drop + 1] < s - keep) ++drop;
     if (drop == 0) return 0;
     const double removed = cumulative_[drop];
-    points_.erase(points_.begin(), points_.begin() + long(drop));
-    cumulative_.erase(cumulative_.begin(), cumulative_.begin() + long(drop));
+    points_.erase(points_.begin(), points_.begin() + static_cast<long>(drop));
+    cumulative_.erase(cumulative_.begin(), cumulative_.begin() + static_cast<long>(drop));
     for (double& c : cumulative_) c -= removed;
     return removed;
   }
@@ -239,7 +240,7 @@ struct TargetSimulation::Impl {
       double sweep = a_in - a_out;
       while (sweep <= 0.2) sweep += 2 * M_PI;
       while (sweep > 2 * M_PI + 0.2) sweep -= 2 * M_PI;
-      const int steps = std::max(4, int(sweep * ring / 2.0));
+      const int steps = std::max(4, static_cast<int>(sweep * ring / 2.0));
       for (int k = 0; k <= steps; ++k) {
         const double a = a_in - sweep * k / steps;
         m.path.Append(n.position + ring * Vector2d(std::cos(a), std::sin(a)));
@@ -261,7 +262,7 @@ struct TargetSimulation::Impl {
     for (size_t r = 0; r < world->roads.size(); ++r) {
       if (world->roads[r].road_class == RoadClass::kCountry) continue;
       total += PolylineLength(world->roads[r].centreline);
-      town_roads.push_back(int(r));
+      town_roads.push_back(static_cast<int>(r));
       cumulative.push_back(total);
     }
     const int vehicles = options.cars + options.vans;
@@ -270,7 +271,7 @@ struct TargetSimulation::Impl {
       t.id = TargetId{next_id++};
       t.target_class = k < options.cars ? TargetClass::kCar : TargetClass::kVan;
       Mover m;
-      m.random = Random(HashCombine(seed, uint64_t(k) + 1000));
+      m.random = Random(HashCombine(seed, static_cast<uint64_t>(k) + 1000));
       t.look = RandomVehicleLook(m.random, t.target_class == TargetClass::kVan);
       m.cruise = t.look.van ? m.random.Uniform(8, 12) : m.random.Uniform(9, 14);
       m.follows_loop = k % 4 == 0 && !world->road_loop.empty();
@@ -285,7 +286,7 @@ struct TargetSimulation::Impl {
             loop_roads.push_back(r);
         }
         if (!loop_roads.empty())
-          road = loop_roads[m.random.UniformInt(0, int(loop_roads.size()) - 1)];
+          road = loop_roads[m.random.UniformInt(0, static_cast<int>(loop_roads.size()) - 1)];
       } else {
         const double pick = random.Uniform(0, total);
         road = town_roads[std::lower_bound(cumulative.begin(), cumulative.end(), pick) -
@@ -324,11 +325,11 @@ struct TargetSimulation::Impl {
       t.id = TargetId{next_id++};
       t.target_class = TargetClass::kPerson;
       Mover m;
-      m.random = Random(HashCombine(seed, uint64_t(k) + 500000));
+      m.random = Random(HashCombine(seed, static_cast<uint64_t>(k) + 500000));
       static const cv::Scalar kClothes[] = {{40, 40, 160},   {150, 60, 30},  {30, 30, 30},
                                             {200, 200, 200}, {40, 140, 200}, {120, 40, 120}};
       t.clothes_bgr = kClothes[m.random.UniformInt(0, 5)];
-      m.footpath = m.random.UniformInt(0, int(world->footpaths.size()) - 1);
+      m.footpath = m.random.UniformInt(0, static_cast<int>(world->footpaths.size()) - 1);
       for (const Vector2d& p : world->footpaths[m.footpath]) m.path.Append(p);
       m.s = m.random.Uniform(0, m.path.length());
       m.direction = m.random.Bernoulli(0.5) ? 1 : -1;
@@ -340,7 +341,7 @@ struct TargetSimulation::Impl {
       if (place > 0) {
         // A member of the group of the person `place` before: the same path, pace and pauses
         // (the same random state), a little behind and beside.
-        const Mover& leader = movers[movers.size() - size_t(place)];
+        const Mover& leader = movers[movers.size() - static_cast<size_t>(place)];
         m.random = leader.random;
         m.footpath = leader.footpath;
         m.path = leader.path;
@@ -349,8 +350,9 @@ struct TargetSimulation::Impl {
         m.next_stop_s = leader.next_stop_s;
         m.s = std::clamp(leader.s - 0.8 * m.direction * place, 0.0, m.path.length());
         m.lateral = leader.lateral + (place % 2 == 1 ? 0.7 : -0.7) * ((place + 1) / 2);
-      } else if (options.slow_walker_fraction > 0 && Random(HashCombine(seed, uint64_t(k) + 900000))
-                                                         .Bernoulli(options.slow_walker_fraction)) {
+      } else if (options.slow_walker_fraction > 0 &&
+                 Random(HashCombine(seed, static_cast<uint64_t>(k) + 900000))
+                     .Bernoulli(options.slow_walker_fraction)) {
         m.cruise = m.speed = m.random.Uniform(0.4, 0.6);
       }
       targets.push_back(t);
@@ -437,8 +439,8 @@ struct TargetSimulation::Impl {
       // smoothly at path vertices instead of jumping.
       const double reach = t.target_class == TargetClass::kPerson ? 1.0 : 1.5;
       Vector2d direction = m.path.PointAt(m.s + reach) - m.path.PointAt(m.s - reach);
-      direction =
-          direction.norm() > 1e-6 ? Vector2d(direction.normalized()) : m.path.DirectionAt(m.s);
+      direction = direction.norm() > 1e-6 ? static_cast<Vector2d>(direction.normalized())
+                                          : m.path.DirectionAt(m.s);
       Vector2d position = m.path.PointAt(m.s);
       if (t.target_class == TargetClass::kPerson) {
         position += Vector2d(-direction.y(), direction.x()) * m.lateral;

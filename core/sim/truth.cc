@@ -16,16 +16,16 @@ json Vec(const Eigen::Vector3d& v) { return json::array({v.x(), v.y(), v.z()}); 
 // Reads a fixed-size array of numbers, or fails naming the field.
 template <int N>
 StatusOr<Eigen::Matrix<double, N, 1>> ReadVector(const json& j, const char* field) {
-  if (!j.is_array() || j.size() != size_t(N)) {
+  if (!j.is_array() || j.size() != static_cast<size_t>(N)) {
     return InvalidDataError(std::string("truth: '") + field + "' must be an array of " +
                             std::to_string(N) + " numbers");
   }
   Eigen::Matrix<double, N, 1> v;
   for (int i = 0; i < N; ++i) {
-    if (!j[size_t(i)].is_number()) {
+    if (!j[static_cast<size_t>(i)].is_number()) {
       return InvalidDataError(std::string("truth: '") + field + "' holds a non-number");
     }
-    v[i] = j[size_t(i)].get<double>();
+    v[i] = j[static_cast<size_t>(i)].get<double>();
   }
   return v;
 }
@@ -177,8 +177,8 @@ StatusOr<Truth> TruthFromJson(const json& j) {
       OverlayTruth overlay;
       overlay.kind = o.at("kind").get<std::string>();
       SAKER_ASSIGN_OR_RETURN(const auto box, ReadVector<4>(o.at("box_px"), "box_px"));
-      overlay.x = int(box[0]), overlay.y = int(box[1]);
-      overlay.width = int(box[2]), overlay.height = int(box[3]);
+      overlay.x = static_cast<int>(box[0]), overlay.y = static_cast<int>(box[1]);
+      overlay.width = static_cast<int>(box[2]), overlay.height = static_cast<int>(box[3]);
       if (overlay.width < 0 || overlay.height < 0) {
         return InvalidDataError("truth: overlay '" + overlay.kind + "' has a negative size");
       }

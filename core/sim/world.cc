@@ -46,7 +46,8 @@ Polyline Densify(const Polyline& line, double step) {
   Polyline out;
   for (size_t i = 0; i + 1 < line.size(); ++i) {
     const int n = std::max(1, static_cast<int>(std::ceil((line[i + 1] - line[i]).norm() / step)));
-    for (int k = 0; k < n; ++k) out.push_back(line[i] + (line[i + 1] - line[i]) * (double(k) / n));
+    for (int k = 0; k < n; ++k)
+      out.push_back(line[i] + (line[i + 1] - line[i]) * (static_cast<double>(k) / n));
   }
   out.push_back(line.back());
   return out;
@@ -84,12 +85,15 @@ bool PointInPolygon(const Vector2d& p, const Polyline& polygon) {
 class Occupancy {
  public:
   explicit Occupancy(const cv::Rect2d& area)
-      : area_(area), grid_(cv::Mat::zeros(int(area.height) + 1, int(area.width) + 1, CV_8U)) {}
+      : area_(area),
+        grid_(cv::Mat::zeros(static_cast<int>(area.height) + 1, static_cast<int>(area.width) + 1,
+                             CV_8U)) {}
 
   void MarkPolyline(const Polyline& line, double width_m) {
     std::vector<cv::Point> points;
     for (const Vector2d& p : line) points.push_back(ToGrid(p));
-    cv::polylines(grid_, points, false, cv::Scalar(255), std::max(1, int(std::ceil(width_m))));
+    cv::polylines(grid_, points, false, cv::Scalar(255),
+                  std::max(1, static_cast<int>(std::ceil(width_m))));
   }
   void MarkPolygon(const Polyline& polygon) {
     std::vector<cv::Point> points;
@@ -117,7 +121,8 @@ class Occupancy {
 
  private:
   cv::Point ToGrid(const Vector2d& p) const {
-    return {int(std::lround(p.x() - area_.x)), int(std::lround(area_.y + area_.height - p.y()))};
+    return {static_cast<int>(std::lround(p.x() - area_.x)),
+            static_cast<int>(std::lround(area_.y + area_.height - p.y()))};
   }
   cv::Rect2d area_;
   cv::Mat grid_;
@@ -192,10 +197,10 @@ class NetworkBuilder {
  private:
   int NodeAt(World* world, const Vector2d& p) {
     for (size_t i = 0; i < world->nodes.size(); ++i) {
-      if ((world->nodes[i].position - p).norm() < 1.5) return int(i);
+      if ((world->nodes[i].position - p).norm() < 1.5) return static_cast<int>(i);
     }
     world->nodes.push_back({p, 0.0, {}});
-    return int(world->nodes.size()) - 1;
+    return static_cast<int>(world->nodes.size()) - 1;
   }
 
   void AddRoad(World* world, const Polyline& piece, const RawRoad& raw) {
@@ -219,9 +224,9 @@ class NetworkBuilder {
     world->roads = std::move(kept);
     for (RoadNode& node : world->nodes) node.roads.clear();
     for (size_t i = 0; i < world->roads.size(); ++i) {
-      world->nodes[world->roads[i].from].roads.push_back(int(i));
+      world->nodes[world->roads[i].from].roads.push_back(static_cast<int>(i));
       if (world->roads[i].to != world->roads[i].from) {
-        world->nodes[world->roads[i].to].roads.push_back(int(i));
+        world->nodes[world->roads[i].to].roads.push_back(static_cast<int>(i));
       }
     }
   }
@@ -344,7 +349,7 @@ void FillCarPark(const OrientedBox& park, Random& random, World* world) {
   const Vector2d ax(std::cos(angle), std::sin(angle));  // along the rows
   const Vector2d ay(-ax.y(), ax.x());
   const double bay_width = 2.5, bay_depth = 5.0;
-  const int bays = int((park.size.x() - 2.0) / bay_width);
+  const int bays = static_cast<int>((park.size.x() - 2.0) / bay_width);
   for (int row : {-1, 1}) {
     for (int k = 0; k < bays; ++k) {
       if (!random.Bernoulli(0.7)) continue;
@@ -365,12 +370,13 @@ void FillCarPark(const OrientedBox& park, Random& random, World* world) {
 void MakeCountryside(const cv::Rect2d& extent, const Vector2d& town_centre, double town_a,
                      double town_b, uint64_t seed, World* world) {
   const double cell = 150.0;
-  const int i0 = int(std::floor(extent.x / cell)) - 1;
-  const int i1 = int(std::ceil((extent.x + extent.width) / cell)) + 1;
-  const int j0 = int(std::floor(extent.y / cell)) - 1;
-  const int j1 = int(std::ceil((extent.y + extent.height) / cell)) + 1;
+  const int i0 = static_cast<int>(std::floor(extent.x / cell)) - 1;
+  const int i1 = static_cast<int>(std::ceil((extent.x + extent.width) / cell)) + 1;
+  const int j0 = static_cast<int>(std::floor(extent.y / cell)) - 1;
+  const int j1 = static_cast<int>(std::ceil((extent.y + extent.height) / cell)) + 1;
   const auto corner = [&](int i, int j) {
-    Random r(HashCombine(seed, HashCombine(uint64_t(i) * 0x1000193u, uint64_t(j))));
+    Random r(HashCombine(
+        seed, HashCombine(static_cast<uint64_t>(i) * 0x1000193u, static_cast<uint64_t>(j))));
     return Vector2d(i * cell + r.Uniform(-35, 35), j * cell + r.Uniform(-35, 35));
   };
   const auto in_town = [&](const Vector2d& p) {
@@ -386,7 +392,8 @@ void MakeCountryside(const cv::Rect2d& extent, const Vector2d& town_centre, doub
       for (const Vector2d& p : quad) centre += p / 4.0;
       if (in_town(centre)) continue;
       is_field[i - i0][j - j0] = true;
-      Random r(HashCombine(seed ^ 0xF1E1Du, HashCombine(uint64_t(i), uint64_t(j) << 20)));
+      Random r(HashCombine(seed ^ 0xF1E1Du,
+                           HashCombine(static_cast<uint64_t>(i), static_cast<uint64_t>(j) << 20)));
       Field field;
       field.polygon = quad;
       const double pick = r.Uniform();
@@ -421,7 +428,8 @@ void MakeCountryside(const cv::Rect2d& extent, const Vector2d& town_centre, doub
         const bool beside_field =
             dir == 0 ? field_at(i, j) || field_at(i, j - 1) : field_at(i, j) || field_at(i - 1, j);
         if (!beside_field) continue;
-        Random r(HashCombine(seed ^ 0x4ED6Eu, HashCombine(uint64_t(i) * 3 + dir, uint64_t(j))));
+        Random r(HashCombine(seed ^ 0x4ED6Eu, HashCombine(static_cast<uint64_t>(i) * 3 + dir,
+                                                          static_cast<uint64_t>(j))));
         if (r.Bernoulli(0.15)) continue;  // some field edges are open
         const Polyline hedge{corner(i, j), corner(ni, nj)};
         world->hedges.push_back(hedge);
@@ -565,7 +573,7 @@ StatusOr<World> GenerateWorld(const WorldOptions& options, const cv::Rect2d& ext
   network.Build(&world);
   for (size_t i = 0; i < world.nodes.size(); ++i) {
     if (world.nodes[i].position.norm() < 1.0) {
-      world.roundabout_node = int(i);
+      world.roundabout_node = static_cast<int>(i);
       world.nodes[i].roundabout_radius_m = 16.0;
     }
   }

@@ -22,13 +22,14 @@ constexpr double kOne = 1 << kShift;
 // Value noise in ground coordinates: smooth, seeded, in [-1, 1], continuous across tiles.
 
 double LatticeValue(uint64_t seed, int64_t ix, int64_t iy) {
-  const uint64_t h = HashCombine(seed, HashCombine(uint64_t(ix), uint64_t(iy) * 0x9E3779B1u));
+  const uint64_t h = HashCombine(
+      seed, HashCombine(static_cast<uint64_t>(ix), static_cast<uint64_t>(iy) * 0x9E3779B1u));
   return static_cast<double>(h >> 11) * 0x1.0p-52 - 1.0;
 }
 
 double ValueNoise(uint64_t seed, double x, double y) {
   const double fx = std::floor(x), fy = std::floor(y);
-  const int64_t ix = int64_t(fx), iy = int64_t(fy);
+  const int64_t ix = static_cast<int64_t>(fx), iy = static_cast<int64_t>(fy);
   double tx = x - fx, ty = y - fy;
   tx = tx * tx * (3 - 2 * tx);
   ty = ty * ty * (3 - 2 * ty);
@@ -49,7 +50,8 @@ struct Material {
 
 Material MakeMaterial(const cv::Scalar& bgr, float fine, float mid, float coarse, float large) {
   Material m;
-  m.bgr = cv::Vec3f(float(bgr[0]), float(bgr[1]), float(bgr[2]));
+  m.bgr =
+      cv::Vec3f(static_cast<float>(bgr[0]), static_cast<float>(bgr[1]), static_cast<float>(bgr[2]));
   m.fine = fine, m.mid = mid, m.coarse = coarse, m.large = large;
   return m;
 }
@@ -85,8 +87,8 @@ class TilePainter {
   }
 
   cv::Point ToPixel(const Vector2d& p) const {
-    return {int(std::lround((p.x() / gsd_ - col0_) * kOne)),
-            int(std::lround((-p.y() / gsd_ - row0_) * kOne))};
+    return {static_cast<int>(std::lround((p.x() / gsd_ - col0_) * kOne)),
+            static_cast<int>(std::lround((-p.y() / gsd_ - row0_) * kOne))};
   }
   std::vector<cv::Point> ToPixels(const Polyline& line) const {
     std::vector<cv::Point> out;
@@ -94,17 +96,19 @@ class TilePainter {
     for (const Vector2d& p : line) out.push_back(ToPixel(p));
     return out;
   }
-  int Thickness(double metres) const { return std::max(1, int(std::lround(metres / gsd_))); }
+  int Thickness(double metres) const {
+    return std::max(1, static_cast<int>(std::lround(metres / gsd_)));
+  }
   Eigen::Matrix3d TileFromGround() const {
     Eigen::Matrix3d t = RasterFromGround(gsd_);
-    t(0, 2) -= double(col0_);
-    t(1, 2) -= double(row0_);
+    t(0, 2) -= static_cast<double>(col0_);
+    t(1, 2) -= static_cast<double>(row0_);
     return t;
   }
 
   uint16_t AddMaterial(const Material& m) {
     palette_.push_back(m);
-    return uint16_t(palette_.size() - 1);
+    return static_cast<uint16_t>(palette_.size() - 1);
   }
   void FillPolygon(cv::Mat& layer, const Polyline& polygon, uint16_t id) {
     if (!Touches(Bounds(polygon), 0)) return;
@@ -119,8 +123,8 @@ class TilePainter {
   void FillCircle(cv::Mat& layer, const Vector2d& centre, double radius_m, uint16_t id) {
     if (!Touches({centre.x() - radius_m, centre.y() - radius_m, 2 * radius_m, 2 * radius_m}, 0))
       return;
-    cv::circle(layer, ToPixel(centre), int(std::lround(radius_m / gsd_ * kOne)), cv::Scalar(id),
-               cv::FILLED, cv::LINE_8, kShift);
+    cv::circle(layer, ToPixel(centre), static_cast<int>(std::lround(radius_m / gsd_ * kOne)),
+               cv::Scalar(id), cv::FILLED, cv::LINE_8, kShift);
   }
 
   cv::Mat& ground() { return ground_; }
@@ -221,15 +225,16 @@ void BlendPolygon(const std::vector<Vector2d>& polygon, const cv::Scalar& bgr, d
     x0 = std::min(x0, p.x()), x1 = std::max(x1, p.x());
     y0 = std::min(y0, p.y()), y1 = std::max(y1, p.y());
   }
-  const cv::Rect box = cv::Rect(int(std::floor(x0)) - 1, int(std::floor(y0)) - 1,
-                                int(std::ceil(x1 - x0)) + 3, int(std::ceil(y1 - y0)) + 3) &
-                       cv::Rect(0, 0, image->cols, image->rows);
+  const cv::Rect box =
+      cv::Rect(static_cast<int>(std::floor(x0)) - 1, static_cast<int>(std::floor(y0)) - 1,
+               static_cast<int>(std::ceil(x1 - x0)) + 3, static_cast<int>(std::ceil(y1 - y0)) + 3) &
+      cv::Rect(0, 0, image->cols, image->rows);
   if (box.empty()) return;
   cv::Mat coverage = cv::Mat::zeros(box.size(), CV_8U);
   std::vector<cv::Point> points;
   for (const Vector2d& p : polygon) {
-    points.emplace_back(int(std::lround((p.x() - box.x) * kOne)),
-                        int(std::lround((p.y() - box.y) * kOne)));
+    points.emplace_back(static_cast<int>(std::lround((p.x() - box.x) * kOne)),
+                        static_cast<int>(std::lround((p.y() - box.y) * kOne)));
   }
   cv::fillPoly(coverage, std::vector<std::vector<cv::Point>>{points}, cv::Scalar(255), cv::LINE_AA,
                kShift);
@@ -267,7 +272,8 @@ void DrawVehicle(const Eigen::Matrix3d& image_from_ground, const Vector2d& posit
   std::vector<Vector2d> hull = body;
   hull.insert(hull.end(), shadow.begin(), shadow.end());
   std::vector<cv::Point2f> hull_points, hull_out;
-  for (const Vector2d& p : hull) hull_points.emplace_back(float(p.x()), float(p.y()));
+  for (const Vector2d& p : hull)
+    hull_points.emplace_back(static_cast<float>(p.x()), static_cast<float>(p.y()));
   cv::convexHull(hull_points, hull_out);
   Polyline shadow_hull;
   for (const cv::Point2f& p : hull_out) shadow_hull.emplace_back(p.x, p.y);
@@ -309,7 +315,7 @@ void DrawPerson(const Eigen::Matrix3d& image_from_ground, const Vector2d& positi
   };
   // The shadow of a 1.7 m standing figure: a long thin ellipse from the feet away from the sun.
   const Vector2d tip = shadow_per_m * 1.7;
-  const Vector2d dir = tip.norm() > 1e-6 ? Vector2d(tip.normalized()) : forward;
+  const Vector2d dir = tip.norm() > 1e-6 ? static_cast<Vector2d>(tip.normalized()) : forward;
   BlendPolygon(ProjectAll(image_from_ground,
                           ellipse(position + tip / 2, tip / 2, Vector2d(-dir.y(), dir.x()) * 0.22)),
                cv::Scalar(0, 0, 0), 0.45, image);
@@ -320,15 +326,17 @@ void DrawPerson(const Eigen::Matrix3d& image_from_ground, const Vector2d& positi
 }
 
 size_t ProceduralGround::TileKeyHash::operator()(const TileKey& key) const {
-  return size_t(HashCombine(uint64_t(key.col), uint64_t(key.row)));
+  return static_cast<size_t>(
+      HashCombine(static_cast<uint64_t>(key.col), static_cast<uint64_t>(key.row)));
 }
 
 ProceduralGround::ProceduralGround(std::shared_ptr<const World> world, double gsd_m,
                                    int cache_megabytes)
     : world_(std::move(world)), gsd_m_(gsd_m) {
   SAKER_CHECK(world_ != nullptr && gsd_m > 0);
-  const size_t tile_bytes = size_t(kTileSize) * kTileSize * 3;
-  max_tiles_ = std::max<size_t>(16, size_t(cache_megabytes) * 1024 * 1024 / tile_bytes);
+  const size_t tile_bytes = static_cast<size_t>(kTileSize) * kTileSize * 3;
+  max_tiles_ =
+      std::max<size_t>(16, static_cast<size_t>(cache_megabytes) * 1024 * 1024 / tile_bytes);
 }
 
 std::shared_ptr<const cv::Mat> ProceduralGround::Tile(const TileKey& key) const {
@@ -366,7 +374,8 @@ void ProceduralGround::Render(const cv::Rect& region, cv::Mat* bgr, cv::Mat* val
   for (int64_t tr = r0; tr <= r1; ++tr) {
     for (int64_t tc = c0; tc <= c1; ++tc) {
       const std::shared_ptr<const cv::Mat> tile = Tile({tc, tr});
-      const cv::Rect tile_rect(int(tc * kTileSize), int(tr * kTileSize), kTileSize, kTileSize);
+      const cv::Rect tile_rect(static_cast<int>(tc * kTileSize), static_cast<int>(tr * kTileSize),
+                               kTileSize, kTileSize);
       const cv::Rect overlap = tile_rect & region;
       if (overlap.empty()) continue;
       (*tile)(overlap - tile_rect.tl()).copyTo((*bgr)(overlap - region.tl()));
@@ -374,9 +383,10 @@ void ProceduralGround::Render(const cv::Rect& region, cv::Mat* bgr, cv::Mat* val
   }
   // Valid where the pixel centre lies inside the world's extent: a rectangle of raster pixels.
   const cv::Rect2d& e = world_->extent_m;
-  const int c_lo = int(std::ceil(e.x / gsd_m_)), c_hi = int(std::floor((e.x + e.width) / gsd_m_));
-  const int r_lo = int(std::ceil(-(e.y + e.height) / gsd_m_)),
-            r_hi = int(std::floor(-e.y / gsd_m_));
+  const int c_lo = static_cast<int>(std::ceil(e.x / gsd_m_)),
+            c_hi = static_cast<int>(std::floor((e.x + e.width) / gsd_m_));
+  const int r_lo = static_cast<int>(std::ceil(-(e.y + e.height) / gsd_m_)),
+            r_hi = static_cast<int>(std::floor(-e.y / gsd_m_));
   const cv::Rect inside = cv::Rect(c_lo, r_lo, c_hi - c_lo + 1, r_hi - r_lo + 1) & region;
   valid->setTo(0);
   if (!inside.empty()) (*valid)(inside - region.tl()).setTo(255);
@@ -404,15 +414,15 @@ cv::Mat ProceduralGround::PaintTile(const TileKey& key) const {
         m.fine = 0.09f, m.mid = 0.09f, m.coarse = 0.1f;
         break;
       case Crop::kStripes:
-        m.stripe_amplitude = 0.12f, m.stripe_spacing_m = float(std::max(1.6, 4 * g));
+        m.stripe_amplitude = 0.12f, m.stripe_spacing_m = static_cast<float>(std::max(1.6, 4 * g));
         break;
       case Crop::kPloughed:
         m.fine = 0.12f, m.stripe_amplitude = 0.16f,
-        m.stripe_spacing_m = float(std::max(1.0, 3.5 * g));
+        m.stripe_spacing_m = static_cast<float>(std::max(1.0, 3.5 * g));
         break;
       case Crop::kStubble:
         m.fine = 0.08f, m.stripe_amplitude = 0.06f,
-        m.stripe_spacing_m = float(std::max(3.0, 4 * g));
+        m.stripe_spacing_m = static_cast<float>(std::max(3.0, 4 * g));
         break;
     }
     if (p.Touches(TilePainter::Bounds(field.polygon), 0))
@@ -472,7 +482,7 @@ cv::Mat ProceduralGround::PaintTile(const TileKey& key) const {
     if (!p.Touches(TilePainter::Bounds(park.Corners()), 1)) continue;
     const double a = park.angle_deg * kDegToRad;
     const Vector2d ax(std::cos(a), std::sin(a)), ay(-std::sin(a), std::cos(a));
-    const int bays = int((park.size.x() - 2.0) / 2.5);
+    const int bays = static_cast<int>((park.size.x() - 2.0) / 2.5);
     for (int row : {-1, 1}) {
       for (int k = 0; k <= bays; ++k) {
         const Vector2d base = park.centre + ax * (-park.size.x() / 2 + 1.0 + k * 2.5) +
@@ -488,9 +498,9 @@ cv::Mat ProceduralGround::PaintTile(const TileKey& key) const {
   const auto cast = [&](const Polyline& outline, double height) {
     std::vector<cv::Point2f> all, hull;
     for (const Vector2d& q : outline) {
-      all.emplace_back(float(q.x()), float(q.y()));
-      all.emplace_back(float(q.x() + shadow_per_m.x() * height),
-                       float(q.y() + shadow_per_m.y() * height));
+      all.emplace_back(static_cast<float>(q.x()), static_cast<float>(q.y()));
+      all.emplace_back(static_cast<float>(q.x() + shadow_per_m.x() * height),
+                       static_cast<float>(q.y() + shadow_per_m.y() * height));
     }
     cv::convexHull(all, hull);
     Polyline polygon;
@@ -516,8 +526,9 @@ cv::Mat ProceduralGround::PaintTile(const TileKey& key) const {
     for (int c = 0; c < kTileSize; ++c) {
       if (s[c] == 0) continue;
       const double f = 1.0 - 0.5 * s[c] / 255.0;
-      px[c] = cv::Vec3b(uint8_t(px[c][0] * f), uint8_t(px[c][1] * f * 0.98),
-                        uint8_t(px[c][2] * f * 0.95));
+      px[c] =
+          cv::Vec3b(static_cast<uint8_t>(px[c][0] * f), static_cast<uint8_t>(px[c][1] * f * 0.98),
+                    static_cast<uint8_t>(px[c][2] * f * 0.95));
     }
   }
 
@@ -536,8 +547,8 @@ cv::Mat ProceduralGround::PaintTile(const TileKey& key) const {
       const Vector2d mid_a = (corners[0] + corners[3]) / 2, mid_b = (corners[1] + corners[2]) / 2;
       const double facing = roof.stripe_normal.dot(w.sun_direction);
       Material lit = roof, dark = roof;
-      lit.bgr *= float(1.0 + 0.18 * std::abs(facing));
-      dark.bgr *= float(1.0 - 0.22 * std::abs(facing));
+      lit.bgr *= static_cast<float>(1.0 + 0.18 * std::abs(facing));
+      dark.bgr *= static_cast<float>(1.0 - 0.22 * std::abs(facing));
       const Polyline half0{corners[0], corners[1], mid_b, mid_a};
       const Polyline half1{mid_a, mid_b, corners[2], corners[3]};
       const bool half1_lit = facing > 0;
@@ -549,8 +560,8 @@ cv::Mat ProceduralGround::PaintTile(const TileKey& key) const {
     }
   }
   for (const Tree& t : w.trees) {
-    Random r(HashCombine(w.seed, uint64_t(std::llround(t.centre.x() * 10)) * 31 +
-                                     uint64_t(std::llround(t.centre.y() * 10))));
+    Random r(HashCombine(w.seed, static_cast<uint64_t>(std::llround(t.centre.x() * 10)) * 31 +
+                                     static_cast<uint64_t>(std::llround(t.centre.y() * 10))));
     Material canopy =
         MakeMaterial(cv::Scalar(35, 95, 55) * r.Uniform(0.8, 1.2), 0.18f, 0.22f, 0.0f, 0.0f);
     p.FillCircle(top, t.centre, t.radius_m, p.AddMaterial(canopy));
@@ -569,7 +580,8 @@ cv::Mat ProceduralGround::PaintTile(const TileKey& key) const {
       cv::line(image, p.ToPixel(mid_a), p.ToPixel(mid_b), b.roof_bgr * 0.7, 1, cv::LINE_AA, kShift);
     } else if (b.footprint.size.x() * b.footprint.size.y() > 200) {
       // Air-conditioning plant on the roofs of shops.
-      Random r(HashCombine(w.seed, uint64_t(std::llround(b.footprint.centre.x() * 7))));
+      Random r(
+          HashCombine(w.seed, static_cast<uint64_t>(std::llround(b.footprint.centre.x() * 7))));
       const double a = b.footprint.angle_deg * kDegToRad;
       const Vector2d ax(std::cos(a), std::sin(a)), ay(-std::sin(a), std::cos(a));
       for (int k = 0; k < 4; ++k) {

@@ -121,7 +121,7 @@ class Renderer {
  private:
   // Map box of a tile (pixel centres of its first and last pixels, widened by half a pixel).
   Box Region(int level, int x, int y) const {
-    const double f = double(int64_t(1) << level);
+    const double f = static_cast<double>(static_cast<int64_t>(1) << level);
     const double t = info_.tile_size;
     const double u0 = (x * t - 0.5) * f, u1 = ((x + 1) * t - 0.5) * f;
     const double v0 = (y * t - 0.5) * f, v1 = ((y + 1) * t - 0.5) * f;
@@ -194,15 +194,16 @@ class Renderer {
     quad.convertTo(f, CV_32F, 1.0 / 255);
     std::vector<cv::Mat> channels;
     cv::split(f, channels);
-    for (int c = 0; c < 3; ++c) channels[size_t(c)] = channels[size_t(c)].mul(channels[3]);
+    for (int c = 0; c < 3; ++c)
+      channels[static_cast<size_t>(c)] = channels[static_cast<size_t>(c)].mul(channels[3]);
     cv::Mat premultiplied, small;
     cv::merge(channels, premultiplied);
     cv::resize(premultiplied, small, cv::Size(info_.tile_size, info_.tile_size), 0, 0,
                cv::INTER_AREA);
     cv::split(small, channels);
     for (int c = 0; c < 3; ++c) {
-      cv::divide(channels[size_t(c)], channels[3], channels[size_t(c)]);
-      channels[size_t(c)].setTo(0, channels[3] <= 0);
+      cv::divide(channels[static_cast<size_t>(c)], channels[3], channels[static_cast<size_t>(c)]);
+      channels[static_cast<size_t>(c)].setTo(0, channels[3] <= 0);
     }
     cv::merge(channels, small);
     cv::Mat out;
@@ -217,7 +218,8 @@ class Renderer {
       const int64_t rows = (info_.height + info_.tile_size - 1) / info_.tile_size;
       job_->ReportProgress(
           "Mosaic tiles",
-          std::min(1.0, double(level0_done_) / double(std::max<int64_t>(1, columns * rows))));
+          std::min(1.0, static_cast<double>(level0_done_) /
+                            static_cast<double>(std::max<int64_t>(1, columns * rows))));
     }
   }
 
@@ -285,8 +287,8 @@ StatusOr<mission::PyramidInfo> PlanPyramid(const std::vector<KeyFrameView>& fram
   units = std::max(units, size.maxCoeff() / (options.max_side_px - 1));
   mission::PyramidInfo info;
   info.tile_size = options.tile_size;
-  info.width = int(std::ceil(size.x() / units)) + 1;
-  info.height = int(std::ceil(size.y() / units)) + 1;
+  info.width = static_cast<int>(std::ceil(size.x() / units)) + 1;
+  info.height = static_cast<int>(std::ceil(size.y() / units)) + 1;
   info.step_x = units;
   if (geo_referenced) {  // north up: rows go south
     info.map_origin = {extent.lo.x(), extent.hi.y()};
@@ -296,7 +298,8 @@ StatusOr<mission::PyramidInfo> PlanPyramid(const std::vector<KeyFrameView>& fram
     info.step_y = units;
   }
   info.levels = 1;
-  while ((int64_t(options.tile_size) << (info.levels - 1)) < std::max(info.width, info.height)) {
+  while ((static_cast<int64_t>(options.tile_size) << (info.levels - 1)) <
+         std::max(info.width, info.height)) {
     ++info.levels;
   }
   return info;

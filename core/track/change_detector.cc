@@ -38,8 +38,8 @@ float GradientSquared(const cv::Mat& image, int x, int y) {
     const uint8_t* row = image.ptr<uint8_t>(yy);
     const uint8_t* below = image.ptr<uint8_t>(yy + 1);
     for (int xx = std::max(1, x - 1); xx <= std::min(image.cols - 2, x + 1); ++xx) {
-      const float gx = 0.5f * (float(row[xx + 1]) - float(row[xx - 1]));
-      const float gy = 0.5f * (float(below[xx]) - float(above[xx]));
+      const float gx = 0.5f * (static_cast<float>(row[xx + 1]) - static_cast<float>(row[xx - 1]));
+      const float gy = 0.5f * (static_cast<float>(below[xx]) - static_cast<float>(above[xx]));
       largest = std::max(largest, gx * gx + gy * gy);
     }
   }
@@ -60,7 +60,7 @@ float MeanGain(const cv::Mat& centre, const cv::Mat& warped, const cv::Mat& cove
       sum_other += o[x];
     }
   }
-  return sum_other > 0 ? float(sum_centre / sum_other) : 1.0f;
+  return sum_other > 0 ? static_cast<float>(sum_centre / sum_other) : 1.0f;
 }
 
 }  // namespace
@@ -104,9 +104,9 @@ ChangeFrame ChangeDetector::Process(int64_t frame, const cv::Mat& grey,
 
   // The centre frame is the one `longest` back; each baseline compares it with the frames that
   // many before and after it.
-  std::vector<size_t> baselines = {size_t(options_.baseline_frames)};
+  std::vector<size_t> baselines = {static_cast<size_t>(options_.baseline_frames)};
   if (options_.long_baseline_frames > options_.baseline_frames) {
-    baselines.push_back(size_t(options_.long_baseline_frames));
+    baselines.push_back(static_cast<size_t>(options_.long_baseline_frames));
   }
   const size_t longest = baselines.back();
   Remember(frame, grey, current_from_previous, 2 * longest + 1);
@@ -142,8 +142,9 @@ void ChangeDetector::SetFrameSize(const cv::Size& size) {
   const int width =
       options_.processing_width > 0 ? std::min(options_.processing_width, size.width) : size.width;
   small_size_ =
-      cv::Size(width, std::max(1, int(std::lround(double(size.height) * width / size.width))));
-  scale_ = double(size.width) / width;
+      cv::Size(width, std::max(1, static_cast<int>(std::lround(static_cast<double>(size.height) *
+                                                               width / size.width))));
+  scale_ = static_cast<double>(size.width) / width;
 }
 
 void ChangeDetector::Remember(int64_t frame, const cv::Mat& grey,
@@ -200,8 +201,8 @@ bool ChangeDetector::Warp(size_t index, size_t centre, Other* other) {
   for (size_t k = 0; k < 4; ++k) {
     const Eigen::Vector3d p = centre_from_other * corners[k].homogeneous();
     if (!(p.z() > 0) || !p.allFinite()) return false;
-    outline[k] = cv::Point(int(std::lround(std::clamp(p.x() / p.z(), -1e6, 1e6))),
-                           int(std::lround(std::clamp(p.y() / p.z(), -1e6, 1e6))));
+    outline[k] = cv::Point(static_cast<int>(std::lround(std::clamp(p.x() / p.z(), -1e6, 1e6))),
+                           static_cast<int>(std::lround(std::clamp(p.y() / p.z(), -1e6, 1e6))));
   }
   other->cover.create(small_size_, CV_8U);
   other->cover.setTo(0);
@@ -222,8 +223,9 @@ bool ChangeDetector::Warp(size_t index, size_t centre, Other* other) {
 // computed only where the sensor noise alone is exceeded: a small part of the frame. Returns the
 // mask of changed pixels; strength_ holds their signed change.
 cv::Mat ChangeDetector::MarkChanged(const cv::Mat& image) {
-  const float noise = float(options_.noise_grey), allowance = float(options_.registration_px);
-  const float threshold = float(options_.threshold);
+  const float noise = static_cast<float>(options_.noise_grey),
+              allowance = static_cast<float>(options_.registration_px);
+  const float threshold = static_cast<float>(options_.threshold);
   const float quick = threshold * noise;
   const auto significant = [&](float d, const cv::Mat& other, int x, int y) {
     return d * d > threshold * threshold *
@@ -236,7 +238,7 @@ cv::Mat ChangeDetector::MarkChanged(const cv::Mat& image) {
   // exceed the sensor noise (the two signs agree at random on flat ground, so a branch there is
   // mispredicted half the time); the gradient test then runs on those few. 2.9 -> 1.1 ms a frame
   // at 960x540, with the same answer.
-  std::vector<uint8_t> candidate(size_t(small_size_.width));
+  std::vector<uint8_t> candidate(static_cast<size_t>(small_size_.width));
   for (size_t i = 0; i < pairs_.size(); ++i) {
     const Other& before = pairs_[i][0];
     const Other& after = pairs_[i][1];
@@ -248,16 +250,16 @@ cv::Mat ChangeDetector::MarkChanged(const cv::Mat& image) {
       uint8_t* out = changed.ptr<uint8_t>(y);
       float* s = strength_.ptr<float>(y);
       for (int x = 0; x < small_size_.width; ++x) {
-        const float d0 = float(c[x]) - before.gain * float(w0[x]);
-        const float d1 = float(c[x]) - after.gain * float(w1[x]);
+        const float d0 = static_cast<float>(c[x]) - before.gain * static_cast<float>(w0[x]);
+        const float d1 = static_cast<float>(c[x]) - after.gain * static_cast<float>(w1[x]);
         const float a = std::min(std::abs(d0), std::abs(d1));
-        candidate[size_t(x)] =
-            uint8_t((v[x] != 0) & (d0 * d1 > 0) & (a > quick) & (a > std::abs(s[x])));
+        candidate[static_cast<size_t>(x)] =
+            static_cast<uint8_t>((v[x] != 0) & (d0 * d1 > 0) & (a > quick) & (a > std::abs(s[x])));
       }
       for (int x = 0; x < small_size_.width; ++x) {
-        if (candidate[size_t(x)] == 0) continue;
-        const float d0 = float(c[x]) - before.gain * float(w0[x]);
-        const float d1 = float(c[x]) - after.gain * float(w1[x]);
+        if (candidate[static_cast<size_t>(x)] == 0) continue;
+        const float d0 = static_cast<float>(c[x]) - before.gain * static_cast<float>(w0[x]);
+        const float d1 = static_cast<float>(c[x]) - after.gain * static_cast<float>(w1[x]);
         if (!significant(d0, before.warped, x, y) || !significant(d1, after.warped, x, y)) {
           continue;
         }
@@ -323,7 +325,7 @@ std::vector<ChangeBlob> ChangeDetector::FindBlobs(const cv::Mat& changed) {
 bool ChangeFrame::Compared(const Eigen::Vector2d& p) const {
   if (frame < 0) return false;
   const Eigen::Vector2d q = ToProcessing(p, scale);
-  const int x = int(std::lround(q.x())), y = int(std::lround(q.y()));
+  const int x = static_cast<int>(std::lround(q.x())), y = static_cast<int>(std::lround(q.y()));
   return x >= 0 && y >= 0 && x < valid.cols && y < valid.rows && valid.at<uint8_t>(y, x) != 0;
 }
 
@@ -331,10 +333,10 @@ bool ChangeFrame::ChangedNear(const Eigen::Vector2d& p, double radius_px) const 
   if (frame < 0) return false;
   const Eigen::Vector2d q = ToProcessing(p, scale);
   const double r = radius_px / scale;
-  const int x0 = std::max(0, int(std::floor(q.x() - r))),
-            x1 = std::min(changed.cols - 1, int(std::ceil(q.x() + r)));
-  const int y0 = std::max(0, int(std::floor(q.y() - r))),
-            y1 = std::min(changed.rows - 1, int(std::ceil(q.y() + r)));
+  const int x0 = std::max(0, static_cast<int>(std::floor(q.x() - r))),
+            x1 = std::min(changed.cols - 1, static_cast<int>(std::ceil(q.x() + r)));
+  const int y0 = std::max(0, static_cast<int>(std::floor(q.y() - r))),
+            y1 = std::min(changed.rows - 1, static_cast<int>(std::ceil(q.y() + r)));
   for (int y = y0; y <= y1; ++y) {
     const uint8_t* row = changed.ptr<uint8_t>(y);
     for (int x = x0; x <= x1; ++x) {
@@ -391,13 +393,14 @@ void BlobTracker::AddFrame(int64_t frame, const std::vector<ChangeBlob>& blobs,
   for (size_t i = 0; i < active_.size(); ++i) {
     Track& t = active_[i];
     t.current_from_anchor = current_from_previous * t.current_from_anchor;
-    predicted[i] = Transfer(t.current_from_anchor,
-                            t.last_anchored + t.velocity * double(frame - t.target.last_frame()));
+    predicted[i] =
+        Transfer(t.current_from_anchor,
+                 t.last_anchored + t.velocity * static_cast<double>(frame - t.target.last_frame()));
   }
   // Greedy nearest pairs within the gate (wider the longer a track has gone unseen).
   std::vector<std::tuple<double, size_t, size_t>> pairs;
   for (size_t i = 0; i < active_.size(); ++i) {
-    const double gap = double(frame - active_[i].target.last_frame() - 1);
+    const double gap = static_cast<double>(frame - active_[i].target.last_frame() - 1);
     const double gate = options_.gate_px + 0.25 * gap;
     for (size_t j = 0; j < blobs.size(); ++j) {
       const double d = (blobs[j].position - predicted[i]).norm();
@@ -415,15 +418,15 @@ void BlobTracker::AddFrame(int64_t frame, const std::vector<ChangeBlob>& blobs,
     o.box_max = blob.box_max + margin;
     o.change = ChangeEvidence::kChanged;
     t->last_anchored = Transfer(t->current_from_anchor.inverse(), blob.position);
-    t->fit.Add(double(frame - t->first_frame), t->last_anchored);
+    t->fit.Add(static_cast<double>(frame - t->first_frame), t->last_anchored);
     ++t->hits;
     t->velocity = t->fit.Velocity();
     o.velocity = t->velocity;  // anchor pixels: close to image pixels over a track's life
     t->target.observations.push_back(std::move(o));
     if (!t->confirmed && t->hits >= options_.min_frames) {
-      const double span = double(frame - t->first_frame + 1);
-      const double travel = t->velocity.norm() * double(frame - t->first_frame);
-      t->confirmed = double(t->hits) / span >= options_.min_hit_fraction &&
+      const double span = static_cast<double>(frame - t->first_frame + 1);
+      const double travel = t->velocity.norm() * static_cast<double>(frame - t->first_frame);
+      t->confirmed = static_cast<double>(t->hits) / span >= options_.min_hit_fraction &&
                      travel >= options_.min_travel_px && t->fit.Rms() <= options_.max_fit_rms_px &&
                      t->velocity.norm() <= options_.max_speed_px;
       t->target.confirmed = t->confirmed;
@@ -448,7 +451,7 @@ void BlobTracker::AddFrame(int64_t frame, const std::vector<ChangeBlob>& blobs,
   for (size_t j = 0; j < blobs.size(); ++j) {
     if (blob_used[j]) continue;
     Track t;
-    t.target.id = TargetTrackId(next_id_++);
+    t.target.id = static_cast<TargetTrackId>(next_id_++);
     t.first_frame = frame;
     active_.push_back(std::move(t));
     observe(&active_.back(), blobs[j]);
@@ -476,7 +479,7 @@ bool SupportedByChange(const TargetTrack& track, double min_fraction) {
     looked += o.change != ChangeEvidence::kNotLooked;
     changed += o.change == ChangeEvidence::kChanged;
   }
-  return looked == 0 || double(changed) >= min_fraction * double(looked);
+  return looked == 0 || static_cast<double>(changed) >= min_fraction * static_cast<double>(looked);
 }
 
 Status ChangeEchoOptions::Validate() const {
@@ -525,13 +528,13 @@ std::vector<TargetTrack> DropChangeEchoes(std::vector<TargetTrack> tracks,
   for (size_t i = 0; i < tracks.size(); ++i) {
     const TargetTrack& t = tracks[i];
     if (t.observations.empty() || !FoundByChangeOnly(t)) continue;
-    const double needed = options.min_fraction * double(t.observations.size());
+    const double needed = options.min_fraction * static_cast<double>(t.observations.size());
     for (const TargetTrack* m : movers) {
       if (m->observations.back().frame < t.observations.front().frame ||
           m->observations.front().frame > t.observations.back().frame) {
         continue;
       }
-      if (double(FramesAlongside(t, *m, options)) >= needed) {
+      if (static_cast<double>(FramesAlongside(t, *m, options)) >= needed) {
         echo[i] = true;
         break;
       }

@@ -44,10 +44,10 @@ class PatchSampler {
     cv::Size whole;
     cv::Point offset;
     image.locateROI(whole, offset);
-    min_x_ = float(kPatchHalf - offset.x);
-    min_y_ = float(kPatchHalf - offset.y);
-    max_x_ = float(whole.width - offset.x - kPatchHalf - 2);
-    max_y_ = float(whole.height - offset.y - kPatchHalf - 2);
+    min_x_ = static_cast<float>(kPatchHalf - offset.x);
+    min_y_ = static_cast<float>(kPatchHalf - offset.y);
+    max_x_ = static_cast<float>(whole.width - offset.x - kPatchHalf - 2);
+    max_y_ = static_cast<float>(whole.height - offset.y - kPatchHalf - 2);
   }
 
   // Writes the patch centred on `p`, normalised to zero mean and unit norm (so a dot product is
@@ -55,22 +55,23 @@ class PatchSampler {
   // patch with no contrast at all is left at zero.
   float Sample(cv::Point2f p, float* out) const {
     const float x = std::clamp(p.x, min_x_, max_x_), y = std::clamp(p.y, min_y_, max_y_);
-    const int x0 = int(std::floor(x)), y0 = int(std::floor(y));
-    const float fx = x - float(x0), fy = y - float(y0);
+    const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y));
+    const float fx = x - static_cast<float>(x0), fy = y - static_cast<float>(y0);
     const float w00 = (1 - fx) * (1 - fy), w01 = fx * (1 - fy), w10 = (1 - fx) * fy, w11 = fx * fy;
     const ptrdiff_t step = ptrdiff_t(image_.step);
-    const uchar* top = image_.data + ptrdiff_t(y0 - kPatchHalf) * step + (x0 - kPatchHalf);
+    const uchar* top =
+        image_.data + static_cast<ptrdiff_t>(y0 - kPatchHalf) * step + (x0 - kPatchHalf);
     float sum = 0;
     for (int r = 0; r < kPatchSide; ++r, top += step) {
       const uchar* bottom = top + step;
       float* row = out + r * kPatchSide;
       for (int c = 0; c < kPatchSide; ++c) {
-        row[c] = w00 * float(top[c]) + w01 * float(top[c + 1]) + w10 * float(bottom[c]) +
-                 w11 * float(bottom[c + 1]);
+        row[c] = w00 * static_cast<float>(top[c]) + w01 * static_cast<float>(top[c + 1]) +
+                 w10 * static_cast<float>(bottom[c]) + w11 * static_cast<float>(bottom[c + 1]);
         sum += row[c];
       }
     }
-    const float mean = sum / float(kPatchArea);
+    const float mean = sum / static_cast<float>(kPatchArea);
     float squares = 0;
     for (int i = 0; i < kPatchArea; ++i) {
       out[i] -= mean;
@@ -79,7 +80,7 @@ class PatchSampler {
     if (squares <= 0) return 0;
     const float scale = 1.0f / std::sqrt(squares);
     for (int i = 0; i < kPatchArea; ++i) out[i] *= scale;
-    return std::sqrt(squares / float(kPatchArea));
+    return std::sqrt(squares / static_cast<float>(kPatchArea));
   }
 
  private:
@@ -145,7 +146,7 @@ Status TrackerOptions::Validate() const {
 
 const Eigen::Vector2d* FeatureTrack::PositionAt(int64_t frame) const {
   if (frame < history_start || frame > last_frame()) return nullptr;
-  return &positions[size_t(frame - history_start)];
+  return &positions[static_cast<size_t>(frame - history_start)];
 }
 
 FeatureTracker::FeatureTracker(const TrackerOptions& options) : options_(options) {
@@ -167,19 +168,21 @@ void FeatureTracker::Process(int64_t frame_index, const cv::Mat& grey) {
   const Stopwatch start;
   timing_ = Timing{};
 
-  if (have_previous_ && (grey.size() != full_size_ ||
-                         frame_index - last_frame_ - 1 > int64_t(options_.max_frame_gap))) {
+  if (have_previous_ &&
+      (grey.size() != full_size_ ||
+       frame_index - last_frame_ - 1 > static_cast<int64_t>(options_.max_frame_gap))) {
     EndAll();
   }
   full_size_ = grey.size();
   small_size_ = full_size_;
   if (options_.processing_width > 0 && options_.processing_width < full_size_.width) {
     small_size_.width = options_.processing_width;
-    small_size_.height = std::max(
-        1, int(std::lround(double(full_size_.height) * small_size_.width / full_size_.width)));
+    small_size_.height =
+        std::max(1, static_cast<int>(std::lround(static_cast<double>(full_size_.height) *
+                                                 small_size_.width / full_size_.width)));
   }
-  scale_x_ = double(full_size_.width) / small_size_.width;
-  scale_y_ = double(full_size_.height) / small_size_.height;
+  scale_x_ = static_cast<double>(full_size_.width) / small_size_.width;
+  scale_y_ = static_cast<double>(full_size_.height) / small_size_.height;
 
   if (small_size_.width < kMinProcessingSide || small_size_.height < kMinProcessingSide) {
     EndAll();
@@ -220,7 +223,8 @@ void FeatureTracker::Process(int64_t frame_index, const cv::Mat& grey) {
   if (frames_since_detection_ == 0) reference_count_ = live_.size();
   ++frames_since_detection_;
   if (frames_since_detection_ >= options_.redetect_interval ||
-      double(live_.size()) < options_.refill_fraction * double(reference_count_)) {
+      static_cast<double>(live_.size()) <
+          options_.refill_fraction * static_cast<double>(reference_count_)) {
     const Stopwatch detect_start;
     Detect(frame_index);
     timing_.detect_ms = detect_start.ElapsedMs();
@@ -247,7 +251,8 @@ void FeatureTracker::TrackPoints(int64_t frame_index) {
   // origin would let a flow that cannot move (no texture left) pass the check by standing still.
   const bool correlate = options_.min_correlation > -1;
   const PatchSampler sampler(pyramid_[0]);
-  const float max_x = float(small_size_.width - 1), max_y = float(small_size_.height - 1);
+  const float max_x = static_cast<float>(small_size_.width - 1),
+              max_y = static_cast<float>(small_size_.height - 1);
   std::vector<int> sent;
   sent.reserve(live_.size());
   std::vector<cv::Point2f> arrived;
@@ -263,7 +268,7 @@ void FeatureTracker::TrackPoints(int64_t frame_index) {
         continue;
       }
     }
-    sent.push_back(int(i));
+    sent.push_back(static_cast<int>(i));
     arrived.push_back(p);
   }
   if (!arrived.empty()) {
@@ -275,15 +280,15 @@ void FeatureTracker::TrackPoints(int64_t frame_index) {
   const double tolerance2 = options_.max_forward_backward_px * options_.max_forward_backward_px;
   for (size_t k = 0; k < sent.size(); ++k) {
     if (!backward_status_[k]) continue;
-    const cv::Point2f& origin = live_small_[size_t(sent[k])];
+    const cv::Point2f& origin = live_small_[static_cast<size_t>(sent[k])];
     const double dx = (backward_[k].x - origin.x) * scale_x_;
     const double dy = (backward_[k].y - origin.y) * scale_y_;
-    if (dx * dx + dy * dy <= tolerance2) keep[size_t(sent[k])] = int(k);
+    if (dx * dx + dy * dy <= tolerance2) keep[static_cast<size_t>(sent[k])] = static_cast<int>(k);
   }
 
   // Survivors move to the front, in id order; the others end.
   const int64_t steps = frame_index - last_frame_;
-  const size_t block = std::max<size_t>(1, size_t(options_.max_history) / 4);
+  const size_t block = std::max<size_t>(1, static_cast<size_t>(options_.max_history) / 4);
   size_t kept = 0;
   for (size_t i = 0; i < live_.size(); ++i) {
     FeatureTrack& track = live_[i];
@@ -294,20 +299,22 @@ void FeatureTracker::TrackPoints(int64_t frame_index) {
     const Eigen::Vector2d before = track.positions.back();
     const Eigen::Vector2d now = ToFull(forward_[i]);
     for (int64_t k = 1; k < steps; ++k) {
-      track.positions.push_back(before + (now - before) * (double(k) / double(steps)));
+      track.positions.push_back(before + (now - before) *
+                                             (static_cast<double>(k) / static_cast<double>(steps)));
     }
     track.positions.push_back(now);
     // Trim in blocks so the erase (a move of the whole vector) is rare.
-    if (track.positions.size() >= size_t(options_.max_history) + block) {
-      const size_t drop = track.positions.size() - size_t(options_.max_history);
-      track.positions.erase(track.positions.begin(), track.positions.begin() + ptrdiff_t(drop));
-      track.history_start += int64_t(drop);
+    if (track.positions.size() >= static_cast<size_t>(options_.max_history) + block) {
+      const size_t drop = track.positions.size() - static_cast<size_t>(options_.max_history);
+      track.positions.erase(track.positions.begin(),
+                            track.positions.begin() + static_cast<ptrdiff_t>(drop));
+      track.history_start += static_cast<int64_t>(drop);
     }
     matches_.push_back({track.id, before, now});
     if (kept != i) live_[kept] = std::move(track);
     live_small_[kept] = forward_[i];
     if (correlate) {
-      std::copy_n(&new_patches_[size_t(keep[i]) * kPatchArea], kPatchArea,
+      std::copy_n(&new_patches_[static_cast<size_t>(keep[i]) * kPatchArea], kPatchArea,
                   &live_patches_[kept * kPatchArea]);
     }
     ++kept;
@@ -330,16 +337,19 @@ void FeatureTracker::Detect(int64_t frame_index) {
   const auto share = [&](int c) {
     return options_.max_corners / cells + (c < options_.max_corners % cells ? 1 : 0);
   };
-  std::vector<int> count(size_t(cells), 0);
+  std::vector<int> count(static_cast<size_t>(cells), 0);
   for (const cv::Point2f& p : live_small_) {
-    const int i = std::clamp(int(p.x * float(cols) / float(width)), 0, cols - 1);
-    const int j = std::clamp(int(p.y * float(rows) / float(height)), 0, rows - 1);
-    ++count[size_t(j * cols + i)];
+    const int i = std::clamp(
+        static_cast<int>(p.x * static_cast<float>(cols) / static_cast<float>(width)), 0, cols - 1);
+    const int j = std::clamp(
+        static_cast<int>(p.y * static_cast<float>(rows) / static_cast<float>(height)), 0, rows - 1);
+    ++count[static_cast<size_t>(j * cols + i)];
   }
   std::vector<int> needy;
   for (int c = 0; c < cells; ++c) {
     const cv::Rect r = cell_rect(c);
-    if (share(c) > 0 && r.area() > 0 && count[size_t(c)] < options_.refill_fraction * share(c)) {
+    if (share(c) > 0 && r.area() > 0 &&
+        count[static_cast<size_t>(c)] < options_.refill_fraction * share(c)) {
       needy.push_back(c);
     }
   }
@@ -350,7 +360,7 @@ void FeatureTracker::Detect(int64_t frame_index) {
   const int border = options_.window_px / 2;
   const double scale = 0.5 * (scale_x_ + scale_y_);
   const double min_distance = options_.min_distance_px / scale;
-  const int radius = std::max(0, int(std::lround(min_distance)) - 1);
+  const int radius = std::max(0, static_cast<int>(std::lround(min_distance)) - 1);
   mask_.create(small_size_, CV_8UC1);
   mask_.setTo(0);
   if (width > 2 * border && height > 2 * border) {
@@ -358,11 +368,12 @@ void FeatureTracker::Detect(int64_t frame_index) {
   }
   const auto block = [&](const cv::Point2f& p) {
     if (radius > 0) {
-      cv::circle(mask_, cv::Point(int(std::lround(p.x)), int(std::lround(p.y))), radius,
-                 cv::Scalar(0), cv::FILLED);
+      cv::circle(mask_,
+                 cv::Point(static_cast<int>(std::lround(p.x)), static_cast<int>(std::lround(p.y))),
+                 radius, cv::Scalar(0), cv::FILLED);
     } else {
-      const int x = std::clamp(int(std::lround(p.x)), 0, width - 1);
-      const int y = std::clamp(int(std::lround(p.y)), 0, height - 1);
+      const int x = std::clamp(static_cast<int>(std::lround(p.x)), 0, width - 1);
+      const int y = std::clamp(static_cast<int>(std::lround(p.y)), 0, height - 1);
       mask_.at<uchar>(y, x) = 0;
     }
   };
@@ -374,25 +385,27 @@ void FeatureTracker::Detect(int64_t frame_index) {
   const bool correlate = options_.min_correlation > -1;
   const PatchSampler sampler(image);
   float patch[kPatchArea];
-  const float min_contrast = float(std::max<double>(options_.min_contrast, kFlatPatchSigma));
+  const float min_contrast =
+      static_cast<float>(std::max<double>(options_.min_contrast, kFlatPatchSigma));
   std::vector<cv::Point2f> corners;
   for (int c : needy) {
     const cv::Rect r = cell_rect(c);
     if (cv::countNonZero(mask_(r)) == 0) continue;
-    const int budget = options_.max_corners - int(live_.size());
+    const int budget = options_.max_corners - static_cast<int>(live_.size());
     if (budget <= 0) break;
-    cv::goodFeaturesToTrack(image(r), corners, std::min(budget, share(c) - count[size_t(c)]),
+    cv::goodFeaturesToTrack(image(r), corners,
+                            std::min(budget, share(c) - count[static_cast<size_t>(c)]),
                             options_.quality, min_distance, mask_(r), kHarrisBlock,
                             /*useHarrisDetector=*/true, kHarrisK);
     for (cv::Point2f p : corners) {
-      p.x += float(r.x);
-      p.y += float(r.y);
+      p.x += static_cast<float>(r.x);
+      p.y += static_cast<float>(r.y);
       if (sampler.Sample(p, patch) < min_contrast) continue;
       // Later cells must keep their distance from these too.
       block(p);
       if (correlate) live_patches_.insert(live_patches_.end(), patch, patch + kPatchArea);
       FeatureTrack track;
-      track.id = FeatureTrackId(next_id_++);
+      track.id = static_cast<FeatureTrackId>(next_id_++);
       track.first_frame = frame_index;
       track.history_start = frame_index;
       track.positions.reserve(16);
@@ -404,9 +417,10 @@ void FeatureTracker::Detect(int64_t frame_index) {
 }
 
 const FeatureTrack* FeatureTracker::History(FeatureTrackId id) const {
-  const auto it = std::lower_bound(
-      live_.begin(), live_.end(), id,
-      [](const FeatureTrack& t, FeatureTrackId v) { return int64_t(t.id) < int64_t(v); });
+  const auto it =
+      std::lower_bound(live_.begin(), live_.end(), id, [](const FeatureTrack& t, FeatureTrackId v) {
+        return static_cast<int64_t>(t.id) < static_cast<int64_t>(v);
+      });
   return it != live_.end() && it->id == id ? &*it : nullptr;
 }
 

@@ -103,7 +103,7 @@ struct FeatureTrack {
   int64_t history_start = 0;  // frame of positions.front()
   std::vector<Eigen::Vector2d> positions;
 
-  int64_t last_frame() const { return history_start + int64_t(positions.size()) - 1; }
+  int64_t last_frame() const { return history_start + static_cast<int64_t>(positions.size()) - 1; }
   // The position in `frame`, or null when the history does not cover it.
   const Eigen::Vector2d* PositionAt(int64_t frame) const;
 };

@@ -23,8 +23,8 @@ StatusOr<HomographyWithCovariance> HomographyFromCorners(
   Eigen::Matrix<double, 8, 8> a;
   Eigen::Matrix<double, 8, 1> b;
   for (int i = 0; i < 4; ++i) {
-    const double x = image[size_t(i)].x(), y = image[size_t(i)].y();
-    const double u = map[size_t(i)].x(), v = map[size_t(i)].y();
+    const double x = image[static_cast<size_t>(i)].x(), y = image[static_cast<size_t>(i)].y();
+    const double u = map[static_cast<size_t>(i)].x(), v = map[static_cast<size_t>(i)].y();
     a.row(2 * i) << x, y, 1, 0, 0, 0, -x * u, -y * u;
     a.row(2 * i + 1) << 0, 0, 0, x, y, 1, -x * v, -y * v;
     b(2 * i) = u;
@@ -38,7 +38,7 @@ StatusOr<HomographyWithCovariance> HomographyFromCorners(
   h.target_from_source = HomographyFromParameters(lu.solve(b));
   Eigen::Matrix<double, 8, 8> j;
   for (int i = 0; i < 4; ++i) {
-    j.block<2, 8>(2 * i, 0) = TransferJacobian(h.target_from_source, image[size_t(i)]);
+    j.block<2, 8>(2 * i, 0) = TransferJacobian(h.target_from_source, image[static_cast<size_t>(i)]);
   }
   const Eigen::FullPivLU<Eigen::Matrix<double, 8, 8>> lu_j(j);
   if (!lu_j.isInvertible()) {
@@ -73,7 +73,7 @@ std::vector<Eigen::Vector2d> EllipsePolygon(const Ellipse& ellipse, int points) 
   SAKER_CHECK(points >= 3) << "points " << points;
   const double c = std::cos(ellipse.angle_rad), s = std::sin(ellipse.angle_rad);
   std::vector<Eigen::Vector2d> polygon;
-  polygon.reserve(size_t(points));
+  polygon.reserve(static_cast<size_t>(points));
   for (int i = 0; i < points; ++i) {
     const double t = 2.0 * M_PI * i / points;
     const double a = ellipse.semi_major * std::cos(t), b = ellipse.semi_minor * std::sin(t);

@@ -60,7 +60,7 @@ void MotionSegmenter::AddFrame(const std::vector<Correspondence>& matches,
   ++calls_;
   moving_.clear();
   const double cos_limit = std::cos(options_.epipolar_angle_deg * M_PI / 180.0);
-  const size_t window = size_t(options_.window_frames);
+  const size_t window = static_cast<size_t>(options_.window_frames);
   for (const Correspondence& m : matches) {
     TrackState& state = tracks_[static_cast<int64_t>(m.id)];
     state.updated = calls_;
@@ -85,7 +85,7 @@ void MotionSegmenter::AddFrame(const std::vector<Correspondence>& matches,
     // Stage 1: motion relative to the ground over the last short_frames frames.
     Eigen::Vector2d motion(0, 0), flow(0, 0);
     double largest_step = 0;
-    const size_t n = std::min(held, size_t(options_.short_frames));
+    const size_t n = std::min(held, static_cast<size_t>(options_.short_frames));
     for (size_t k = held - n; k < held; ++k) {
       const Step& s = state.at(k);
       motion += s.residual;
@@ -118,7 +118,7 @@ void MotionSegmenter::AddFrame(const std::vector<Correspondence>& matches,
       sum += state.at(k).residual;
       count += state.at(k).significant;
     }
-    const double fraction = double(count) / double(window);
+    const double fraction = static_cast<double>(count) / static_cast<double>(window);
     if (state.label == MotionLabel::kMoving) {
       // Released when it has mostly stopped over the window, or at once when the last few
       // verdicts all say still (corners left behind on the road by a passing car).
@@ -135,7 +135,7 @@ void MotionSegmenter::AddFrame(const std::vector<Correspondence>& matches,
     }
 
     if (state.label == MotionLabel::kMoving) {
-      moving_.push_back({m.id, m.target, sum / double(held)});
+      moving_.push_back({m.id, m.target, sum / static_cast<double>(held)});
     }
   }
   // Tracks not in this frame's matches have ended.

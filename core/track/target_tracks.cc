@@ -43,8 +43,8 @@ bool Alike(const Eigen::Vector2d& pa, const Eigen::Vector2d& va, const Eigen::Ve
 // featureless one, from change detection, counts as one), boxes and features joined.
 void MergeObservation(const TargetObservation& o, TargetObservation* into) {
   TargetObservation& m = *into;
-  const double na = double(std::max<size_t>(1, m.features.size()));
-  const double nb = double(std::max<size_t>(1, o.features.size()));
+  const double na = static_cast<double>(std::max<size_t>(1, m.features.size()));
+  const double nb = static_cast<double>(std::max<size_t>(1, o.features.size()));
   m.position = (m.position * na + o.position * nb) / (na + nb);
   m.velocity = (m.velocity * na + o.velocity * nb) / (na + nb);
   m.box_min = m.box_min.cwiseMin(o.box_min);
@@ -124,8 +124,8 @@ void TargetTracker::AddFrame(int64_t frame, const std::vector<MovingPoint>& movi
       o.box_max = o.box_max.cwiseMax(moving[i].position);
       o.features.push_back(moving[i].id);
     }
-    o.position /= double(indices.size());
-    o.velocity /= double(indices.size());
+    o.position /= static_cast<double>(indices.size());
+    o.velocity /= static_cast<double>(indices.size());
     o.box_min -= Eigen::Vector2d::Constant(options_.box_margin_px);
     o.box_max += Eigen::Vector2d::Constant(options_.box_margin_px);
     std::sort(o.features.begin(), o.features.end());
@@ -140,7 +140,8 @@ void TargetTracker::AddFrame(int64_t frame, const std::vector<MovingPoint>& movi
   // 2. Tie each group to a target: most shared features first, then the nearest prediction.
   std::unordered_map<int64_t, size_t> owner;  // feature id -> active target index
   for (size_t t = 0; t < active_.size(); ++t) {
-    for (FeatureTrackId f : active_[t].observations.back().features) owner[int64_t(f)] = t;
+    for (FeatureTrackId f : active_[t].observations.back().features)
+      owner[static_cast<int64_t>(f)] = t;
   }
   std::vector<int> assigned(observations.size(), -1);
   std::vector<bool> target_taken(active_.size(), false);
@@ -154,7 +155,7 @@ void TargetTracker::AddFrame(int64_t frame, const std::vector<MovingPoint>& movi
   for (size_t g = 0; g < observations.size(); ++g) {
     std::map<size_t, int> counts;
     for (FeatureTrackId f : observations[g].features) {
-      if (auto it = owner.find(int64_t(f)); it != owner.end()) ++counts[it->second];
+      if (auto it = owner.find(static_cast<int64_t>(f)); it != owner.end()) ++counts[it->second];
     }
     for (const auto& [t, c] : counts) votes.push_back({c, g, t});
   }
@@ -164,7 +165,7 @@ void TargetTracker::AddFrame(int64_t frame, const std::vector<MovingPoint>& movi
   });
   for (const Vote& v : votes) {
     if (assigned[v.group] >= 0 || target_taken[v.target]) continue;
-    assigned[v.group] = int(v.target);
+    assigned[v.group] = static_cast<int>(v.target);
     target_taken[v.target] = true;
   }
   for (size_t g = 0; g < observations.size(); ++g) {
@@ -173,20 +174,21 @@ void TargetTracker::AddFrame(int64_t frame, const std::vector<MovingPoint>& movi
     for (size_t t = 0; t < active_.size(); ++t) {
       if (target_taken[t]) continue;
       const TargetObservation& last = active_[t].observations.back();
-      const double gate = options_.association_gate_px + double(frame - last.frame - 1);
+      const double gate =
+          options_.association_gate_px + static_cast<double>(frame - last.frame - 1);
       const Eigen::Vector2d predicted =
-          last.position + active_[t].image_velocity * double(frame - last.frame);
+          last.position + active_[t].image_velocity * static_cast<double>(frame - last.frame);
       const double distance = (observations[g].position - predicted).norm();
-      if (distance <= gate && distance < best) best = distance, assigned[g] = int(t);
+      if (distance <= gate && distance < best) best = distance, assigned[g] = static_cast<int>(t);
     }
-    if (assigned[g] >= 0) target_taken[size_t(assigned[g])] = true;
+    if (assigned[g] >= 0) target_taken[static_cast<size_t>(assigned[g])] = true;
   }
   for (size_t g = 0; g < observations.size(); ++g) {
     if (assigned[g] >= 0) {
-      TargetTrack& target = active_[size_t(assigned[g])];
+      TargetTrack& target = active_[static_cast<size_t>(assigned[g])];
       const TargetObservation& last = target.observations.back();
       const Eigen::Vector2d velocity =
-          (observations[g].position - last.position) / double(frame - last.frame);
+          (observations[g].position - last.position) / static_cast<double>(frame - last.frame);
       // Smoothed: feature sets change from frame to frame and move the mean a little.
       target.image_velocity =
           target.observations.size() == 1 ? velocity : 0.5 * (target.image_velocity + velocity);
@@ -206,7 +208,7 @@ void TargetTracker::AddFrame(int64_t frame, const std::vector<MovingPoint>& movi
     double travel = 0;
     for (const TargetObservation& o : target.observations) travel += o.velocity.norm();
     target.confirmed |=
-        int(target.observations.size()) >= needed && travel >= options_.min_travel_px;
+        static_cast<int>(target.observations.size()) >= needed && travel >= options_.min_travel_px;
   }
 
   // 3. End targets unseen for too long.
@@ -261,7 +263,7 @@ void TargetTracker::MergeAlike(int64_t frame) {
       kept.max_features = std::max({kept.max_features, active_[drop].max_features,
                                     kept.observations.back().features.size()});
       kept.confirmed = kept.confirmed || active_[drop].confirmed;
-      active_.erase(active_.begin() + long(drop));
+      active_.erase(active_.begin() + static_cast<long>(drop));
       --b;  // the next candidate moved into slot b
       if (drop < a) --a;
     }
@@ -339,7 +341,7 @@ Eigen::Vector2d EndVelocity(const TargetTrack& t) {
   const TargetObservation& last = t.observations[n - 1];
   const TargetObservation& earlier = t.observations[n - std::min<size_t>(n, 6)];
   if (last.frame == earlier.frame) return t.image_velocity;
-  return (last.position - earlier.position) / double(last.frame - earlier.frame);
+  return (last.position - earlier.position) / static_cast<double>(last.frame - earlier.frame);
 }
 
 double DistanceToSegment(const Eigen::Vector2d& p, const Eigen::Vector2d& a,
@@ -355,15 +357,15 @@ double DistanceToSegment(const Eigen::Vector2d& p, const Eigen::Vector2d& a,
 double MeanSpeed(const TargetTrack& t) {
   double sum = 0;
   for (const TargetObservation& o : t.observations) sum += o.velocity.norm();
-  return t.observations.empty() ? 0 : sum / double(t.observations.size());
+  return t.observations.empty() ? 0 : sum / static_cast<double>(t.observations.size());
 }
 
 void GroundMotion::Add(int64_t frame, bool linked, const Eigen::Matrix3d& current_from_previous) {
   if (segment_.empty()) first_frame_ = frame;
-  const int64_t next = first_frame_ + int64_t(segment_.size());
+  const int64_t next = first_frame_ + static_cast<int64_t>(segment_.size());
   SAKER_CHECK(frame >= next) << "frame " << frame << " added after frame " << next - 1;
   if (frame > next) {  // frames missing: unknown, and the chain is broken there
-    segment_.resize(size_t(frame - first_frame_), -1);
+    segment_.resize(static_cast<size_t>(frame - first_frame_), -1);
     frame_from_segment_.resize(segment_.size(), Eigen::Matrix3d::Identity());
     linked = false;
   }
@@ -380,14 +382,15 @@ void GroundMotion::Add(int64_t frame, bool linked, const Eigen::Matrix3d& curren
 
 std::optional<Eigen::Vector2d> GroundMotion::Map(const Eigen::Vector2d& point, int64_t from,
                                                  int64_t to) const {
-  const int64_t n = int64_t(segment_.size());
+  const int64_t n = static_cast<int64_t>(segment_.size());
   const int64_t i = from - first_frame_, j = to - first_frame_;
-  if (i < 0 || j < 0 || i >= n || j >= n || segment_[size_t(i)] < 0 ||
-      segment_[size_t(i)] != segment_[size_t(j)]) {
+  if (i < 0 || j < 0 || i >= n || j >= n || segment_[static_cast<size_t>(i)] < 0 ||
+      segment_[static_cast<size_t>(i)] != segment_[static_cast<size_t>(j)]) {
     return std::nullopt;
   }
-  const Eigen::Vector3d p = frame_from_segment_[size_t(j)] *
-                            frame_from_segment_[size_t(i)].inverse() * point.homogeneous();
+  const Eigen::Vector3d p = frame_from_segment_[static_cast<size_t>(j)] *
+                            frame_from_segment_[static_cast<size_t>(i)].inverse() *
+                            point.homogeneous();
   if (!(std::abs(p.z()) > 1e-12)) return std::nullopt;
   return Eigen::Vector2d(p.hnormalized());
 }
@@ -422,8 +425,8 @@ std::vector<TargetTrack> LinkFragments(std::vector<TargetTrack> tracks,
   // Folds track `from` into track `into` (into < from) and removes it.
   const auto fold = [&](size_t into, size_t from) {
     FoldInto(tracks[into], std::move(tracks[from]));
-    tracks.erase(tracks.begin() + long(from));
-    speed.erase(speed.begin() + long(from));
+    tracks.erase(tracks.begin() + static_cast<long>(from));
+    speed.erase(speed.begin() + static_cast<long>(from));
     speed[into] = MeanSpeed(tracks[into]);
   };
   // The first duplicate of track a after it in the order, or none.
@@ -462,7 +465,7 @@ std::vector<TargetTrack> LinkFragments(std::vector<TargetTrack> tracks,
     const int64_t max_gap = on_ground
                                 ? std::max(options.link_gap_frames, options.ground_link_gap_frames)
                                 : options.link_gap_frames;
-    for (size_t b = size_t(after - tracks.begin()); b < tracks.size(); ++b) {
+    for (size_t b = static_cast<size_t>(after - tracks.begin()); b < tracks.size(); ++b) {
       const TargetObservation& start = tracks[b].observations.front();
       const int64_t gap = start.frame - end.frame;
       if (gap > max_gap) break;
@@ -470,14 +473,16 @@ std::vector<TargetTrack> LinkFragments(std::vector<TargetTrack> tracks,
       const std::optional<Eigen::Vector2d> stopped =
           on_ground ? ground->Map(end.position, end.frame, start.frame) : std::nullopt;
       const std::optional<Eigen::Vector2d> went_on =
-          stopped ? ground->Map(end.position + end.velocity * double(gap), end.frame, start.frame)
+          stopped ? ground->Map(end.position + end.velocity * static_cast<double>(gap), end.frame,
+                                start.frame)
                   : std::nullopt;
       if (stopped && went_on) {
         distance = DistanceToSegment(start.position, *stopped, *went_on);
-        gate = options.association_gate_px + options.ground_link_growth_px * double(gap);
+        gate =
+            options.association_gate_px + options.ground_link_growth_px * static_cast<double>(gap);
       } else if (gap <= options.link_gap_frames) {
-        distance = (start.position - (end.position + velocity * double(gap))).norm();
-        gate = options.association_gate_px + double(gap);
+        distance = (start.position - (end.position + velocity * static_cast<double>(gap))).norm();
+        gate = options.association_gate_px + static_cast<double>(gap);
       }
       if (distance <= gate && distance < best) best = distance, best_b = b;
     }

@@ -137,7 +137,7 @@ Status ReplaceFileFromStream(const std::string& target, const StreamWriter& writ
 
 Status ReplaceFileContents(const std::string& target, std::string_view contents) {
   return ReplaceFileFromStream(target, [&](std::ostream& out) {
-    out.write(contents.data(), std::streamsize(contents.size()));
+    out.write(contents.data(), static_cast<std::streamsize>(contents.size()));
     return Status::Ok();
   });
 }

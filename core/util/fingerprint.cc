@@ -46,7 +46,8 @@ StatusOr<std::string> FingerprintFile(const std::string& path) {
 
   // The size, then the first, middle and last MiB (overlapping for files under 3 MiB).
   uint8_t size_bytes[8];
-  for (int b = 0; b < 8; ++b) size_bytes[b] = uint8_t(uint64_t(size) >> (8 * b));
+  for (int b = 0; b < 8; ++b)
+    size_bytes[b] = static_cast<uint8_t>(static_cast<uint64_t>(size) >> (8 * b));
   uint64_t hash = Fnv1a(size_bytes, sizeof(size_bytes));
   const int64_t chunk = std::min(size, kFingerprintChunk);
   const int64_t offsets[3] = {0, (size - chunk) / 2, size - chunk};
@@ -54,13 +55,14 @@ StatusOr<std::string> FingerprintFile(const std::string& path) {
   for (const int64_t offset : offsets) {
     int64_t got = 0;
     while (got < chunk) {
-      const ssize_t r = ::pread(fd, buffer.data() + got, size_t(chunk - got), off_t(offset + got));
+      const ssize_t r = ::pread(fd, buffer.data() + got, static_cast<size_t>(chunk - got),
+                                static_cast<off_t>(offset + got));
       if (r < 0 && errno == EINTR) continue;
       if (r < 0) return IoError(path + ": cannot read: " + std::strerror(errno));
       if (r == 0) return IoError(path + ": the file shrank while it was read");
       got += r;
     }
-    hash = Fnv1a(buffer.data(), size_t(chunk), hash);
+    hash = Fnv1a(buffer.data(), static_cast<size_t>(chunk), hash);
   }
   char digits[17];
   std::snprintf(digits, sizeof(digits), "%016" PRIx64, hash);

@@ -20,7 +20,7 @@ int64_t ProcKilobytes(const char* file, const char* name) {
       continue;
     long long kilobytes = 0;
     if (std::sscanf(line.c_str() + length + 1, "%lld", &kilobytes) != 1 || kilobytes < 0) return 0;
-    return int64_t(kilobytes) * 1024;
+    return static_cast<int64_t>(kilobytes) * 1024;
   }
   return 0;
 }
@@ -36,7 +36,7 @@ int64_t ResidentMemoryBytes() {
   std::fclose(file);
   const long page = sysconf(_SC_PAGESIZE);
   if (read != 2 || resident < 0 || page <= 0) return 0;
-  return int64_t(resident) * page;
+  return static_cast<int64_t>(resident) * page;
 }
 
 int64_t PeakResidentMemoryBytes() { return ProcKilobytes("/proc/self/status", "VmHWM"); }

@@ -224,7 +224,7 @@ TEST(AccuracyCorpusTest, ATrackOnOverlayPixelsInHalfItsFramesCounts) {
     track::TargetTrack t;
     for (size_t i = 0; i < positions.size(); ++i) {
       track::TargetObservation o;
-      o.frame = int64_t(i);
+      o.frame = static_cast<int64_t>(i);
       o.position = positions[i];
       t.observations.push_back(o);
     }
@@ -321,7 +321,7 @@ TEST(AccuracyCorpusTest, TheSmokeCorpusRunsEveryCaseAndTheSecondRunUsesTheCache)
     EXPECT_LE(f.correct_tracks, f.detected_tracks);
     EXPECT_LE(f.paired_movers, f.truth_mover_frames);
     EXPECT_LE(f.paired_detections, f.detections);
-    EXPECT_EQ(int64_t(f.latencies_s.size()), f.found_targets);
+    EXPECT_EQ(static_cast<int64_t>(f.latencies_s.size()), f.found_targets);
     EXPECT_LE(f.overlay_tracks, f.detected_tracks);
     EXPECT_GT(f.homography_errors_px.size(), 0u);
     EXPECT_GT(f.mosaic_key_frames, 0);
@@ -333,9 +333,9 @@ TEST(AccuracyCorpusTest, TheSmokeCorpusRunsEveryCaseAndTheSecondRunUsesTheCache)
     const StatusOr<sim::Truth> truth = sim::ReadTruth(entry / "video.truth.json");
     ASSERT_TRUE(truth.ok()) << truth.status().ToString();
     EXPECT_EQ(truth->generator, r.corpus_case.simulation.ToJson());
-    EXPECT_EQ(int64_t(truth->frames.size()),
+    EXPECT_EQ(static_cast<int64_t>(truth->frames.size()),
               std::llround(r.corpus_case.simulation.duration_s * r.corpus_case.simulation.fps));
-    EXPECT_EQ(f.cuts.expected, int64_t(truth->CutFrames().size()));
+    EXPECT_EQ(f.cuts.expected, static_cast<int64_t>(truth->CutFrames().size()));
     cuts_expected += f.cuts.expected;
     overlays += !truth->overlays.empty();
     // Geo-referenced by the KLV corners, in metres; without KLV, in pixels.

@@ -416,7 +416,7 @@ TEST(FramePanelTest, TheMissionsFrameIndexSkipsTheIndexingPass) {
     QSignalSpy ready(recall.get(), &FrameRecall::videoReady);
     recall->setVideo(VideoOf(*test), std::move(known));
     EXPECT_TRUE(ready.wait(60000));
-    EXPECT_EQ(ready.at(0).at(1).toLongLong(), int64_t(test->loaded.frames.size()));
+    EXPECT_EQ(ready.at(0).at(1).toLongLong(), static_cast<int64_t>(test->loaded.frames.size()));
     *warm_ms = ready.at(0).at(3).toDouble();
     return recall;
   };
@@ -426,7 +426,8 @@ TEST(FramePanelTest, TheMissionsFrameIndexSkipsTheIndexingPass) {
   std::printf("ready to recall: %.1f ms after indexing the video, %.1f ms on the stored index\n",
               indexed_ms, stored_ms);
   EXPECT_LT(stored_ms, indexed_ms);
-  for (const int64_t frame : {int64_t(0), int64_t(index.size() / 2), int64_t(index.size() - 1)}) {
+  for (const int64_t frame : {static_cast<int64_t>(0), static_cast<int64_t>(index.size() / 2),
+                              static_cast<int64_t>(index.size() - 1)}) {
     QSignalSpy a(indexed.get(), &FrameRecall::frameReady);
     QSignalSpy b(stored.get(), &FrameRecall::frameReady);
     indexed->request(frame, 1);

@@ -42,7 +42,7 @@ TEST(MailboxTest, CallsFromAWorkerRunOnTheGuiThreadInOrderWithTheirCaptures) {
   });
   // The GUI thread runs the calls while the worker is still posting: joining the worker first
   // would order everything for TSan and hide a missing hand-over.
-  const bool all_ran = WaitUntil([&] { return order.size() == size_t(kCalls); });
+  const bool all_ran = WaitUntil([&] { return order.size() == static_cast<size_t>(kCalls); });
   worker.join();
   ASSERT_TRUE(all_ran);
   EXPECT_TRUE(all_on_gui_thread);

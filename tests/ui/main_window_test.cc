@@ -133,16 +133,16 @@ TEST(MainWindowTest, ClickOnATrackRecallsTheFrameWithTheObjectMarkedWhereTheTrut
     const auto& points = mission.tracks[t].points;
     const mission::TrackPoint& middle = points[points.size() / 2];
     for (size_t k = 0; k < truth.targets.size(); ++k) {
-      const sim::TargetSampleTruth& s = truth.targets[k].samples[size_t(middle.frame)];
+      const sim::TargetSampleTruth& s = truth.targets[k].samples[static_cast<size_t>(middle.frame)];
       if (s.visible && (s.image_px - middle.image).norm() < 6 && points.size() > best.points)
-        best = {t, int(k), middle.frame, points.size()};
+        best = {t, static_cast<int>(k), middle.frame, points.size()};
     }
   }
   ASSERT_GE(best.target, 0) << "no track follows a truth target";
-  const mission::FrameRecord& frame = mission.frames[size_t(best.frame)];
+  const mission::FrameRecord& frame = mission.frames[static_cast<size_t>(best.frame)];
   ASSERT_TRUE(frame.map_from_frame.has_value());
   const sim::TargetSampleTruth& truth_at =
-      truth.targets[size_t(best.target)].samples[size_t(best.frame)];
+      truth.targets[static_cast<size_t>(best.target)].samples[static_cast<size_t>(best.frame)];
   const Eigen::Vector2d at =
       (*frame.map_from_frame * truth_at.image_px.homogeneous()).hnormalized();
 
@@ -168,8 +168,9 @@ TEST(MainWindowTest, ClickOnATrackRecallsTheFrameWithTheObjectMarkedWhereTheTrut
   EXPECT_LE(std::abs(displayed - best.frame), int64_t(0.5 * truth.fps));
   ASSERT_TRUE(panel->markVisible());
   const QPointF mark = panel->markImagePosition();
-  const Eigen::Vector2d truth_px =
-      truth.targets[size_t(best.target)].samples[size_t(displayed)].image_px;
+  const Eigen::Vector2d truth_px = truth.targets[static_cast<size_t>(best.target)]
+                                       .samples[static_cast<size_t>(displayed)]
+                                       .image_px;
   EXPECT_LT((Eigen::Vector2d(mark.x(), mark.y()) - truth_px).norm(), 12.0)
       << "mark at " << mark.x() << "," << mark.y() << ", truth at " << truth_px.transpose();
 
@@ -310,7 +311,8 @@ TEST(MainWindowTest, ProcessingKeepsTheWindowLiveAndCancelLeavesAUsablePartialMi
            !window.taskRunner()->isRunning();
   }));
   EXPECT_FALSE(window.mission()->progress.cancelled);
-  EXPECT_NEAR(double(window.mission()->tracks.size()), double(m->loaded.tracks.size()), 3);
+  EXPECT_NEAR(static_cast<double>(window.mission()->tracks.size()),
+              static_cast<double>(m->loaded.tracks.size()), 3);
   EXPECT_EQ(window.mission()->frames.size(), m->loaded.frames.size());
   // The tiles stage's reload may still show the checkpoint, which the job drops only as it
   // ends; the reload after the job shows the mission without it.
@@ -399,7 +401,7 @@ TEST(MainWindowTest, ExportsWriteValidFilesOfTheShownTracks) {
       ++placemarks;
   }
   EXPECT_FALSE(xml.hasError()) << xml.errorString().toStdString();
-  EXPECT_EQ(size_t(placemarks), shown);
+  EXPECT_EQ(static_cast<size_t>(placemarks), shown);
 
   run([&](const QString& p) { window.exportTracks(p); }, dir / "tracks.csv");
   run([&](const QString& p) { window.exportMosaic(p); }, dir / "mosaic.tif");

@@ -129,7 +129,7 @@ TEST(MosaicViewTest, ShowsTilesAfterLoading) {
   EXPECT_GT(imagery, total * 9 / 10) << imagery << " of " << total;
   std::printf("[ mosaic ] pyramid %dx%d px, %d levels; drawn at level %d; cache %.1f MiB\n",
               m->loaded.pyramid->width, m->loaded.pyramid->height, m->loaded.pyramid->levels,
-              view.tileLevel(), double(view.tileCache()->bytesUsed()) / (1 << 20));
+              view.tileLevel(), static_cast<double>(view.tileCache()->bytesUsed()) / (1 << 20));
 }
 
 TEST(MosaicViewTest, ZoomingInDrawsFinerLevelWithCoarsePlaceholder) {
@@ -641,7 +641,7 @@ TEST(TileCacheTest, NewestRequestsWinAndBudgetEvicts) {
   EXPECT_LE(level0, 2) << "answered " << level0 << " of " << all.size() << " dropped requests";
 
   // A budget of three tiles keeps the three used last.
-  const qint64 tile_bytes = qint64(p.tile_size) * p.tile_size * 4 + 64;
+  const qint64 tile_bytes = static_cast<qint64>(p.tile_size) * p.tile_size * 4 + 64;
   cache.setByteBudget(3 * tile_bytes);
   std::vector<TileKey> loaded;
   for (const TileKey& key : all) {
@@ -741,7 +741,7 @@ double AveragePaintMs(MosaicView& view, int repeats, const std::function<void()>
     QElapsedTimer timer;
     timer.start();
     view.repaint();
-    total_ms += double(timer.nsecsElapsed()) / 1e6;
+    total_ms += static_cast<double>(timer.nsecsElapsed()) / 1e6;
   }
   return total_ms / repeats;
 }

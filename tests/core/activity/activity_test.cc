@@ -33,10 +33,10 @@ Mission MakeMission(bool geo_referenced = true) {
   mission.source.frame_rate = kFps;
   mission.map.geo_referenced = geo_referenced;
   if (geo_referenced) mission.map.origin = geo::Wgs84{51.5, -1.2, 100};
-  for (int64_t k = 0; k < int64_t(70 * kFps); ++k) {
+  for (int64_t k = 0; k < static_cast<int64_t>(70 * kFps); ++k) {
     mission::FrameRecord frame;
     frame.index = k;
-    frame.time_s = double(k) / kFps;
+    frame.time_s = static_cast<double>(k) / kFps;
     if (const auto centre = CameraCentre(frame.time_s)) {
       Eigen::Matrix3d map_from_frame;
       const double flip = geo_referenced ? -1 : 1;  // image y down; map north up
@@ -60,9 +60,9 @@ ActivityTrack Observe(const Mission& mission, int64_t id, Eigen::Vector2d start,
   ActivityTrack track;
   track.id = id;
   for (int64_t k = first; k <= last; ++k) {
-    const mission::FrameRecord& frame = mission.frames[size_t(k)];
+    const mission::FrameRecord& frame = mission.frames[static_cast<size_t>(k)];
     const Eigen::Vector2d map =
-        start + velocity * (frame.time_s - mission.frames[size_t(first)].time_s);
+        start + velocity * (frame.time_s - mission.frames[static_cast<size_t>(first)].time_s);
     TrackPoint point;
     point.frame = k;
     point.image = (frame.map_from_frame->inverse() * map.homogeneous()).hnormalized() +

@@ -349,7 +349,7 @@ TEST(CsvExportTest, OneRowPerObservationWithQuotedFields) {
   const mission::Mission mission = MakeMission(true);
   ASSERT_TRUE(ExportCsv(mission, path.string()).ok());
   const auto rows = ParseCsv(ReadText(path));
-  ASSERT_EQ(rows.size(), size_t(TotalPoints(mission) + 1));
+  ASSERT_EQ(rows.size(), static_cast<size_t>(TotalPoints(mission) + 1));
   const auto& header = rows[0];
   std::map<std::string, size_t> column;
   for (size_t i = 0; i < header.size(); ++i) column[header[i]] = i;
@@ -389,7 +389,7 @@ TEST(CsvExportTest, NotGeoReferencedLeavesLatitudeAndLongitudeEmpty) {
   mission.tracks[1].speed_mps.reset();
   ASSERT_TRUE(ExportCsv(mission, path.string()).ok());
   const auto rows = ParseCsv(ReadText(path));
-  ASSERT_EQ(rows.size(), size_t(TotalPoints(mission) + 1));
+  ASSERT_EQ(rows.size(), static_cast<size_t>(TotalPoints(mission) + 1));
   const size_t lat = rows[0].size() - 2, lon = rows[0].size() - 1;
   ASSERT_EQ(rows[0][lat], "latitude_deg");
   for (size_t r = 1; r < rows.size(); ++r) {
@@ -586,7 +586,8 @@ TEST(GeoTiffExportTest, TileSizeThatIsNoTiffBlockSizeStillWritesEveryPixel) {
   auto tile = [](int, int tx, int ty) {
     cv::Mat bgra(50, 50, CV_8UC4);
     bgra.forEach<cv::Vec4b>([&](cv::Vec4b& p, const int* rc) {
-      p = cv::Vec4b(uchar(rc[1] + 50 * tx), uchar(rc[0] + 50 * ty), uchar(tx * 3 + ty), 255);
+      p = cv::Vec4b(static_cast<uchar>(rc[1] + 50 * tx), static_cast<uchar>(rc[0] + 50 * ty),
+                    static_cast<uchar>(tx * 3 + ty), 255);
     });
     return bgra;
   };

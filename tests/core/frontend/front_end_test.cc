@@ -100,8 +100,8 @@ TEST_F(FrontEndTest, MovingVehiclesAreFound) {
 TEST_F(FrontEndTest, OutcomesAgreeWithTheFigures) {
   ASSERT_NE(evaluation_, nullptr);
   const eval::DetectionAccuracy& a = evaluation_->targets;
-  ASSERT_EQ(int64_t(a.sightings.size()), a.truth_targets);
-  ASSERT_EQ(int64_t(a.tracks.size()), a.detected_tracks);
+  ASSERT_EQ(static_cast<int64_t>(a.sightings.size()), a.truth_targets);
+  ASSERT_EQ(static_cast<int64_t>(a.tracks.size()), a.detected_tracks);
   int64_t found = 0, correct = 0;
   for (const eval::SightingOutcome& s : a.sightings) {
     found += s.found;
@@ -116,8 +116,9 @@ TEST_F(FrontEndTest, OutcomesAgreeWithTheFigures) {
     correct += t.correct;
     EXPECT_LE(t.first_frame, t.last_frame);
     EXPECT_LE(t.best_target_frames, t.observations);
-    const auto it = std::find_if(result_->targets.begin(), result_->targets.end(),
-                                 [&](const auto& r) { return int64_t(r.id) == t.track_id; });
+    const auto it =
+        std::find_if(result_->targets.begin(), result_->targets.end(),
+                     [&](const auto& r) { return static_cast<int64_t>(r.id) == t.track_id; });
     EXPECT_NE(it, result_->targets.end()) << "track " << t.track_id;
   }
   EXPECT_EQ(found, a.found_targets);
@@ -221,12 +222,12 @@ TEST_F(FrontEndTest, ResumesFromACheckpointAsIfNeverStopped) {
   for (const FrontEndCheckpoint& d : deliveries) {
     if (d.complete) break;
     half.Append(d);
-    if (2 * half.through_frame >= int64_t(full->frames.size())) break;
+    if (2 * half.through_frame >= static_cast<int64_t>(full->frames.size())) break;
   }
   ASSERT_FALSE(half.complete);
   const int64_t seam = half.through_frame;
   ASSERT_GT(seam, 50);
-  ASSERT_LT(seam, int64_t(full->frames.size()) - 50);
+  ASSERT_LT(seam, static_cast<int64_t>(full->frames.size()) - 50);
   std::vector<FrontEndCheckpoint> resumed_deliveries;
   options.on_checkpoint = [&](const FrontEndCheckpoint& c) {
     resumed_deliveries.push_back(c);
@@ -244,10 +245,10 @@ TEST_F(FrontEndTest, ResumesFromACheckpointAsIfNeverStopped) {
   EXPECT_EQ(resumed->scan.frames.size(), full->scan.frames.size());
   int after = 0, agree = 0;
   const Eigen::Vector3d centre(320, 180, 1);
-  for (size_t i = size_t(seam) + 1; i < full->frames.size(); ++i) {
+  for (size_t i = static_cast<size_t>(seam) + 1; i < full->frames.size(); ++i) {
     const FrameResult& a = full->frames[i];
     const FrameResult& b = resumed->frames[i];
-    ASSERT_EQ(b.index, int64_t(i));
+    ASSERT_EQ(b.index, static_cast<int64_t>(i));
     ++after;
     if (a.homography_ok != b.homography_ok) continue;
     const Eigen::Vector3d pa = a.current_from_previous * centre;
@@ -259,17 +260,19 @@ TEST_F(FrontEndTest, ResumesFromACheckpointAsIfNeverStopped) {
   // The chain carries on through the seam: no break, every key frame linked to the next.
   EXPECT_EQ(resumed->breaks.size(), full->breaks.size());
   ASSERT_GT(resumed->key_frames.size(), half.key_frames.size());
-  EXPECT_NEAR(double(resumed->key_frames.size()), double(full->key_frames.size()),
-              0.15 * double(full->key_frames.size()) + 1);
+  EXPECT_NEAR(static_cast<double>(resumed->key_frames.size()),
+              static_cast<double>(full->key_frames.size()),
+              0.15 * static_cast<double>(full->key_frames.size()) + 1);
   for (size_t k = 0; k < resumed->key_frames.size(); ++k) {
-    EXPECT_EQ(int64_t(resumed->key_frames[k].id), int64_t(k));
+    EXPECT_EQ(static_cast<int64_t>(resumed->key_frames[k].id), static_cast<int64_t>(k));
     if (k < half.key_frames.size()) {
       EXPECT_EQ(resumed->key_frames[k].frame_index, full->key_frames[k].frame_index);
     }
   }
   ASSERT_EQ(resumed->links.size(), resumed->key_frames.size() - 1 - resumed->breaks.size());
   for (size_t l = 0; l < resumed->links.size(); ++l) {
-    EXPECT_EQ(int64_t(resumed->links[l].to), int64_t(resumed->links[l].from) + 1);
+    EXPECT_EQ(static_cast<int64_t>(resumed->links[l].to),
+              static_cast<int64_t>(resumed->links[l].from) + 1);
   }
   ASSERT_EQ(resumed->key_frame_images.size(), resumed->key_frames.size());
 
@@ -282,7 +285,8 @@ TEST_F(FrontEndTest, ResumesFromACheckpointAsIfNeverStopped) {
   EXPECT_GE(evaluation->targets.track_recall, evaluation_->targets.track_recall - 0.05);
   EXPECT_GE(evaluation->targets.track_precision, evaluation_->targets.track_precision - 0.05);
   EXPECT_GE(evaluation->targets.frame_recall, evaluation_->targets.frame_recall - 0.05);
-  EXPECT_NEAR(double(resumed->targets.size()), double(full->targets.size()), 2);
+  EXPECT_NEAR(static_cast<double>(resumed->targets.size()),
+              static_cast<double>(full->targets.size()), 2);
 
   // The resumed run's checkpoints carry on from the one it resumed.
   FrontEndCheckpoint again = half;
@@ -309,7 +313,8 @@ TEST_F(FrontEndTest, ResumesFromACheckpointAsIfNeverStopped) {
   // A checkpoint that does not fit the video, or itself, is refused with the video's name.
   FrontEndCheckpoint longer = all;
   longer.frames.push_back(all.frames.back());
-  longer.frames.back().index = longer.through_frame = int64_t(longer.frames.size()) - 1;
+  longer.frames.back().index = longer.through_frame =
+      static_cast<int64_t>(longer.frames.size()) - 1;
   StatusOr<FrontEndResult> refused = RunFrontEnd(video, options, nullptr, &longer);
   ASSERT_FALSE(refused.ok());
   EXPECT_EQ(refused.status().code(), StatusCode::kInvalidArgument);
@@ -371,7 +376,7 @@ TEST(FrontEndRunTest, ABlankIntervalBreaksTheChainAndItRecovers) {
   StatusOr<FrontEndResult> result = RunFrontEnd(options.output.string(), {});
   ASSERT_TRUE(result.ok()) << result.status().ToString();
   ASSERT_GE(result->breaks.size(), 1u);
-  EXPECT_NEAR(double(result->breaks[0].frame_index), 50, 2);
+  EXPECT_NEAR(static_cast<double>(result->breaks[0].frame_index), 50, 2);
   // A new segment starts after the cloud.
   bool key_frame_after = false;
   for (const track::KeyFrame& k : result->key_frames) key_frame_after |= k.frame_index >= 75;

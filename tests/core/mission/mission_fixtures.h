@@ -205,7 +205,7 @@ inline Mission MakeFullMission() {
   for (int i = 0; i < 6; ++i) {
     FrameRecord f;
     f.index = indices[i];
-    f.time_s = 0.04 * double(f.index) + 0.001;
+    f.time_s = 0.04 * static_cast<double>(f.index) + 0.001;
     const bool all = i == 0 || i == 5;
     if (all || i == 3) f.utc_us = 1700000000000000 + 40000 * f.index;
     if (all || i == 2) f.map_from_frame = PatternMatrix<Eigen::Matrix3d>(1.5 + i);

@@ -5,7 +5,6 @@
 
 #include <fcntl.h>
 #include <gtest/gtest.h>
-#include <signal.h>
 #include <sqlite3.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -15,6 +14,7 @@
 #include <chrono>
 #include <cinttypes>
 #include <cmath>
+#include <csignal>
 #include <cstdint>
 #include <cstdio>
 #include <filesystem>
@@ -229,7 +229,8 @@ TEST_F(MissionStoreTest, CheckpointRecordsAppendReplaceAndClear) {
 
   // Clearing gives the pages of a large checkpoint back to the file system.
   std::vector<CheckpointRecord> large;
-  for (int i = 0; i < 40; ++i) large.push_back({"image", i, RandomBytes(100000, uint32_t(i))});
+  for (int i = 0; i < 40; ++i)
+    large.push_back({"image", i, RandomBytes(100000, static_cast<uint32_t>(i))});
   ASSERT_TRUE(store->WriteCheckpoint(large).ok());
   store.reset();
   const auto size_with = fs::file_size(path);
@@ -413,13 +414,13 @@ TEST_F(MissionStoreTest, LargeMissionRoundTrip) {
   m.frames.resize(100000);
   for (size_t i = 0; i < m.frames.size(); ++i) {
     FrameRecord& f = m.frames[i];
-    f.index = int64_t(i);
-    f.time_s = double(i) / 25.0;
-    f.utc_us = 1700000000000000 + 40000 * int64_t(i);
-    f.map_from_frame = testing_support::PatternMatrix<Eigen::Matrix3d>(double(i));
+    f.index = static_cast<int64_t>(i);
+    f.time_s = static_cast<double>(i) / 25.0;
+    f.utc_us = 1700000000000000 + 40000 * static_cast<int64_t>(i);
+    f.map_from_frame = testing_support::PatternMatrix<Eigen::Matrix3d>(static_cast<double>(i));
     f.metadata_corners = std::array<Eigen::Vector2d, 4>{
         Eigen::Vector2d(i, 1), Eigen::Vector2d(i, 2), Eigen::Vector2d(i, 3), Eigen::Vector2d(i, 4)};
-    f.sensor = geo::Wgs84{50 + 1e-6 * double(i), 8, 1500};
+    f.sensor = geo::Wgs84{50 + 1e-6 * static_cast<double>(i), 8, 1500};
   }
   for (int i = 0; i < 2000; ++i) {
     KeyFrameRecord k;
@@ -482,8 +483,8 @@ TEST_F(MissionStoreTest, TilesRoundTripReplaceClearAndCount) {
     for (int x = 0; x < 3; ++x) {
       for (int y = 0; y < 2; ++y) {
         tiles.push_back({level, x, y,
-                         RandomBytes(size_t(100 + 1000 * level + 10 * x + y),
-                                     uint32_t(level * 100 + x * 10 + y))});
+                         RandomBytes(static_cast<size_t>(100 + 1000 * level + 10 * x + y),
+                                     static_cast<uint32_t>(level * 100 + x * 10 + y))});
       }
     }
   }
@@ -491,7 +492,7 @@ TEST_F(MissionStoreTest, TilesRoundTripReplaceClearAndCount) {
   ASSERT_TRUE(store->WriteTiles(tiles).ok());
   count = store->CountTiles();
   ASSERT_TRUE(count.ok());
-  EXPECT_EQ(*count, int64_t(tiles.size()));
+  EXPECT_EQ(*count, static_cast<int64_t>(tiles.size()));
   for (const EncodedTile& tile : tiles) {
     auto read = store->ReadTile(tile.level, tile.x, tile.y);
     ASSERT_TRUE(read.ok()) << read.status().ToString();
@@ -510,7 +511,7 @@ TEST_F(MissionStoreTest, TilesRoundTripReplaceClearAndCount) {
   ASSERT_TRUE(store->WriteTiles({{1, 2, 1, replacement}}).ok());
   count = store->CountTiles();
   ASSERT_TRUE(count.ok());
-  EXPECT_EQ(*count, int64_t(tiles.size()));
+  EXPECT_EQ(*count, static_cast<int64_t>(tiles.size()));
   auto read = store->ReadTile(1, 2, 1);
   ASSERT_TRUE(read.ok() && read->has_value());
   EXPECT_EQ(**read, replacement);
@@ -894,37 +895,37 @@ Mission GenerationMission(int64_t generation) {
   m.options_json = "{\"generation\": " + std::to_string(generation) + "}";
   m.source.frame_count = generation;
   m.map.geo_referenced = generation % 2 == 1;
-  if (m.map.geo_referenced) m.map.origin = geo::Wgs84{double(generation), 1, 2};
-  const int frames = 300 + int(generation * 37 % 400);
+  if (m.map.geo_referenced) m.map.origin = geo::Wgs84{static_cast<double>(generation), 1, 2};
+  const int frames = 300 + static_cast<int>(generation * 37 % 400);
   for (int i = 0; i < frames; ++i) {
     FrameRecord f;
     f.index = i;
-    f.time_s = double(generation);
+    f.time_s = static_cast<double>(generation);
     f.utc_us = generation;
-    f.map_from_frame = Eigen::Matrix3d::Constant(double(generation));
+    f.map_from_frame = Eigen::Matrix3d::Constant(static_cast<double>(generation));
     m.frames.push_back(f);
   }
-  const int key_frames = 40 + int(generation % 30);
+  const int key_frames = 40 + static_cast<int>(generation % 30);
   for (int i = 0; i < key_frames; ++i) {
     KeyFrameRecord k;
-    k.id = int32_t(generation);
+    k.id = static_cast<int32_t>(generation);
     k.segment = i;
-    k.covariance = Covariance8::Constant(double(generation));
+    k.covariance = Covariance8::Constant(static_cast<double>(generation));
     m.key_frames.push_back(k);
     LinkRecord l;
-    l.correspondences = int32_t(generation);
+    l.correspondences = static_cast<int32_t>(generation);
     m.links.push_back(l);
   }
-  const int tracks = 10 + int(generation % 7);
+  const int tracks = 10 + static_cast<int>(generation % 7);
   for (int i = 0; i < tracks; ++i) {
     ActivityTrack t;
     t.id = generation;
-    t.points.resize(size_t(30 + i));
+    t.points.resize(static_cast<size_t>(30 + i));
     for (TrackPoint& p : t.points) p.frame = generation;
     m.tracks.push_back(t);
   }
   PyramidInfo pyramid;
-  pyramid.levels = int(generation % 20);
+  pyramid.levels = static_cast<int>(generation % 20);
   m.pyramid = pyramid;
   m.progress.mosaic = generation % 3 == 0;
   return m;
@@ -1028,15 +1029,15 @@ TEST_F(MissionStoreTest, KillNineLeavesTheLastCommittedSave) {
       auto store = MissionStore::Open(path.string(), OpenMode::kReadWrite);
       if (!store.ok()) ::_exit(2);
       const int64_t ready = -1;
-      if (::write(fds[1], &ready, sizeof(ready)) != ssize_t(sizeof(ready))) ::_exit(4);
+      if (::write(fds[1], &ready, sizeof(ready)) != static_cast<ssize_t>(sizeof(ready))) ::_exit(4);
       for (int64_t g = first;; ++g) {
         if (!(*store)->Save(GenerationMission(g)).ok()) ::_exit(3);
-        if (::write(fds[1], &g, sizeof(g)) != ssize_t(sizeof(g))) ::_exit(4);
+        if (::write(fds[1], &g, sizeof(g)) != static_cast<ssize_t>(sizeof(g))) ::_exit(4);
       }
     }
     ::close(fds[1]);
     int64_t g = 0;
-    const bool ready = ::read(fds[0], &g, sizeof(g)) == ssize_t(sizeof(g)) && g == -1;
+    const bool ready = ::read(fds[0], &g, sizeof(g)) == static_cast<ssize_t>(sizeof(g)) && g == -1;
     // Somewhere in the first few saves: sometimes before the first commit, mostly after (the
     // first save after a kill also recovers the log, so it takes longer).
     if (ready) {
@@ -1057,7 +1058,7 @@ TEST_F(MissionStoreTest, KillNineLeavesTheLastCommittedSave) {
     ASSERT_TRUE(ready && WIFSIGNALED(wait_status))
         << "the child failed with exit code " << WEXITSTATUS(wait_status);
     int64_t reported = -1;
-    while (::read(fds[0], &g, sizeof(g)) == ssize_t(sizeof(g))) reported = g;
+    while (::read(fds[0], &g, sizeof(g)) == static_cast<ssize_t>(sizeof(g))) reported = g;
     ::close(fds[0]);
 
     auto loaded = LoadFile(path);

@@ -212,14 +212,15 @@ TEST(AdjustmentTest, MetadataBoundsAWrongStart) {
   const std::array<Eigen::Vector2d, 4> push = {Eigen::Vector2d(16, 16), Eigen::Vector2d(-10, 20),
                                                Eigen::Vector2d(16, -16), Eigen::Vector2d(20, -10)};
   for (int i = 0; i < 4; ++i) {
-    wrong_ground[size_t(i)] = track::Transfer(truth[0], corners[size_t(i)]) + push[size_t(i)];
+    wrong_ground[static_cast<size_t>(i)] =
+        track::Transfer(truth[0], corners[static_cast<size_t>(i)]) + push[static_cast<size_t>(i)];
   }
   ChainStart(&graph, FourPointHomography(corners, wrong_ground));
 
   constexpr double kMetadataSigmaM = 100;  // about the footprint (200 m x 112 m)
   for (int k = 2; k < kNodes; k += 5) {
-    graph.nodes[size_t(k)].metadata_corners =
-        NoisyMetadata(truth[size_t(k)], corners, kMetadataSigmaM, &noise);
+    graph.nodes[static_cast<size_t>(k)].metadata_corners =
+        NoisyMetadata(truth[static_cast<size_t>(k)], corners, kMetadataSigmaM, &noise);
   }
 
   LinkGraph without, with;
@@ -275,7 +276,7 @@ TEST(AdjustmentTest, MetadataBoundsAProjectivelyWrongStartOnALongFlight) {
   const double sigma =
       (track::Transfer(truth[0], corners[1]) - track::Transfer(truth[0], corners[0])).norm();
   for (int i = 0; i < 8; ++i) {
-    const size_t k = size_t(std::lround(i * (kNodes - 1) / 7.0));
+    const size_t k = static_cast<size_t>(std::lround(i * (kNodes - 1) / 7.0));
     graph.nodes[k].metadata_corners = NoisyMetadata(truth[k], corners, sigma, &noise);
   }
 
@@ -317,8 +318,8 @@ TEST(AdjustmentTest, RobustLossIsolatesAGrosslyWrongLink) {
     }
     if (outlier) {
       Link& bad = graph.links[2 * 10];  // 10 -> 11
-      EXPECT_EQ(int(bad.from), 10);
-      EXPECT_EQ(int(bad.to), 11);
+      EXPECT_EQ(static_cast<int>(bad.from), 10);
+      EXPECT_EQ(static_cast<int>(bad.to), 11);
       Eigen::Matrix3d wrong = Eigen::Matrix3d::Identity();
       wrong.topLeftCorner<2, 2>() = Eigen::Rotation2Dd(3 * M_PI / 180).toRotationMatrix();
       wrong(0, 2) = 60;
@@ -372,18 +373,19 @@ TEST(AdjustmentTest, CovarianceAgreesWithMonteCarlo) {
     exact.links.push_back(
         MeasureLink(truth, pairs[i].first, pairs[i].second, corner_cov[i], nullptr));
   }
-  for (int k = 0; k < kNodes; ++k) exact.nodes[size_t(k)].map_from_frame = truth[size_t(k)];
+  for (int k = 0; k < kNodes; ++k)
+    exact.nodes[static_cast<size_t>(k)].map_from_frame = truth[static_cast<size_t>(k)];
   AdjustmentOptions options;
   const StatusOr<std::vector<track::HomographyCovariance>> predicted =
       NodeCovariances(exact, options);
   ASSERT_TRUE(predicted.ok()) << predicted.status().ToString();
-  ASSERT_EQ(predicted->size(), size_t(kNodes));
+  ASSERT_EQ(predicted->size(), static_cast<size_t>(kNodes));
   EXPECT_EQ((*predicted)[0], track::HomographyCovariance::Zero());  // the gauge node
   EXPECT_GT((*predicted)[3].trace(), 0);
 
   const auto corners = track::ImageCorners(kWidth, kHeight);
   // Samples of each (node, corner) map position.
-  std::vector<std::vector<Eigen::Vector2d>> samples(size_t(kNodes) * 4);
+  std::vector<std::vector<Eigen::Vector2d>> samples(static_cast<size_t>(kNodes) * 4);
   for (int d = 0; d < kDraws; ++d) {
     LinkGraph graph = exact;
     for (size_t i = 0; i < pairs.size(); ++i) {
@@ -393,26 +395,28 @@ TEST(AdjustmentTest, CovarianceAgreesWithMonteCarlo) {
     ASSERT_TRUE(summary.ok() && summary->usable);
     for (int k = 0; k < kNodes; ++k) {
       for (int i = 0; i < 4; ++i) {
-        samples[size_t(4 * k + i)].push_back(
-            track::Transfer(graph.nodes[size_t(k)].map_from_frame, corners[size_t(i)]));
+        samples[static_cast<size_t>(4 * k + i)].push_back(track::Transfer(
+            graph.nodes[static_cast<size_t>(k)].map_from_frame, corners[static_cast<size_t>(i)]));
       }
     }
   }
   const auto empirical = [&](int k, int i) {
-    const std::vector<Eigen::Vector2d>& s = samples[size_t(4 * k + i)];
+    const std::vector<Eigen::Vector2d>& s = samples[static_cast<size_t>(4 * k + i)];
     Eigen::Vector2d mean = Eigen::Vector2d::Zero();
-    for (const auto& p : s) mean += p / double(s.size());
+    for (const auto& p : s) mean += p / static_cast<double>(s.size());
     Eigen::Matrix2d cov = Eigen::Matrix2d::Zero();
-    for (const auto& p : s) cov += (p - mean) * (p - mean).transpose() / double(s.size() - 1);
+    for (const auto& p : s)
+      cov += (p - mean) * (p - mean).transpose() / static_cast<double>(s.size() - 1);
     return cov;
   };
   double sum_empirical = 0, sum_predicted = 0;
   for (int k = 1; k < kNodes; ++k) {
     for (int i = 0; i < 4; ++i) {
       sum_empirical += empirical(k, i).trace();
-      sum_predicted +=
-          track::TransferCovariance(truth[size_t(k)], (*predicted)[size_t(k)], corners[size_t(i)])
-              .trace();
+      sum_predicted += track::TransferCovariance(truth[static_cast<size_t>(k)],
+                                                 (*predicted)[static_cast<size_t>(k)],
+                                                 corners[static_cast<size_t>(i)])
+                           .trace();
     }
   }
   const double one_empirical = empirical(3, 0).trace();
@@ -429,7 +433,7 @@ TEST(AdjustmentTest, CovarianceAgreesWithMonteCarlo) {
 
   // A listed subset comes back in the order asked for.
   const StatusOr<std::vector<track::HomographyCovariance>> subset =
-      NodeCovariances(exact, options, {KeyFrameId(3), KeyFrameId(0)});
+      NodeCovariances(exact, options, {static_cast<KeyFrameId>(3), static_cast<KeyFrameId>(0)});
   ASSERT_TRUE(subset.ok());
   ASSERT_EQ(subset->size(), 2u);
   EXPECT_LT(((*subset)[0] - (*predicted)[3]).norm(), 1e-9 * (*predicted)[3].norm());
@@ -514,7 +518,7 @@ TEST(AdjustmentTest, RejectsBadOptionsAndInvalidGraphs) {
   EXPECT_TRUE(AdjustmentOptions().Validate().ok());
 
   LinkGraph missing = scene.graph;
-  missing.links.back().to = KeyFrameId(99);
+  missing.links.back().to = static_cast<KeyFrameId>(99);
   const StatusOr<AdjustmentSummary> summary = Adjust(&missing, AdjustmentOptions());
   ASSERT_FALSE(summary.ok());
   EXPECT_EQ(summary.status().code(), StatusCode::kInvalidData);
@@ -534,7 +538,8 @@ TEST(AdjustmentTest, RankDeficientCovarianceFails) {
   Noise noise(23);
   const std::vector<Eigen::Matrix3d> truth = CirclePath(30, 290);
   LinkGraph graph = EmptyGraph(3, true);
-  for (int k = 0; k < 3; ++k) graph.nodes[size_t(k)].map_from_frame = truth[size_t(k)];
+  for (int k = 0; k < 3; ++k)
+    graph.nodes[static_cast<size_t>(k)].map_from_frame = truth[static_cast<size_t>(k)];
   graph.links.push_back(MeasureLink(truth, 0, 1, CornerCovariance(0.5, noise), nullptr));
   graph.links.push_back(MeasureLink(truth, 1, 2, CornerCovariance(0.5, noise), nullptr));
   graph.links.back().covariance *= 1e40;

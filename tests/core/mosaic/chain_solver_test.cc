@@ -50,7 +50,7 @@ std::vector<Eigen::Matrix3d> CurvedFlight(int frames, double step_m, double turn
   std::vector<Eigen::Matrix3d> truth;
   double x = 0, y = 0;
   for (int k = 0; k < frames; ++k) {
-    const double s = double(k) / std::max(1, frames - 1);
+    const double s = static_cast<double>(k) / std::max(1, frames - 1);
     const double heading = turn_rad * std::sin(M_PI * s);
     truth.push_back(
         GroundFromImage(x, y, heading, 0.03 * std::sin(0.05 * k), 0.02 * std::cos(0.031 * k)));
@@ -79,7 +79,8 @@ ChainStep MeasureStep(const std::vector<Eigen::Matrix3d>& truth, size_t k, doubl
   const Vector8 error = noisy ? noise.Draw<8>(corner_cov) : Vector8::Zero();
   std::array<Eigen::Vector2d, 4> measured;
   for (int i = 0; i < 4; ++i) {
-    measured[size_t(i)] = track::Transfer(exact, corners[size_t(i)]) + error.segment<2>(2 * i);
+    measured[static_cast<size_t>(i)] =
+        track::Transfer(exact, corners[static_cast<size_t>(i)]) + error.segment<2>(2 * i);
   }
   const auto fitted = track::HomographyFromCorners(corners, measured, 1.0);
   SAKER_CHECK(fitted.ok()) << fitted.status().ToString();
@@ -87,7 +88,8 @@ ChainStep MeasureStep(const std::vector<Eigen::Matrix3d>& truth, size_t k, doubl
   step.next_from_previous = fitted->target_from_source;
   Matrix8 j;
   for (int i = 0; i < 4; ++i) {
-    j.middleRows<2>(2 * i) = track::TransferJacobian(step.next_from_previous, corners[size_t(i)]);
+    j.middleRows<2>(2 * i) =
+        track::TransferJacobian(step.next_from_previous, corners[static_cast<size_t>(i)]);
   }
   const Matrix8 j_inv = j.inverse();
   step.covariance = j_inv * corner_cov * j_inv.transpose();
@@ -139,7 +141,7 @@ double CornerRmsPx(const Eigen::Matrix3d& reference, const Eigen::Matrix3d& esti
 Parameters ParametersOf(const Eigen::Matrix3d& h) {
   const track::HomographyParameters p = track::ParametersFromHomography(h);
   Parameters a;
-  for (int i = 0; i < 8; ++i) a[size_t(i)] = p(i);
+  for (int i = 0; i < 8; ++i) a[static_cast<size_t>(i)] = p(i);
   return a;
 }
 
@@ -321,14 +323,14 @@ TEST(ChainSolverTest, OneEndCovariancesEqualNodeCovariances) {
   graph.geo_referenced = true;
   for (size_t k = 0; k < truth.size(); ++k) {
     Node node;
-    node.id = KeyFrameId(int(k));
+    node.id = static_cast<KeyFrameId>(static_cast<int>(k));
     node.map_from_frame = solution->map_from_frame[k];
     graph.nodes.push_back(node);
   }
   for (size_t k = 0; k < steps.size(); ++k) {
     Link link;
-    link.from = KeyFrameId(int(k));
-    link.to = KeyFrameId(int(k) + 1);
+    link.from = static_cast<KeyFrameId>(static_cast<int>(k));
+    link.to = static_cast<KeyFrameId>(static_cast<int>(k) + 1);
     link.to_from_from = steps[k].next_from_previous;
     link.covariance = steps[k].covariance;
     graph.links.push_back(link);
@@ -368,7 +370,7 @@ TEST(ChainSolverTest, BothEndsBeatForwardChainingOnALongChain) {
 
   double sum_solved = 0, sum_chained = 0, worst = 0, predicted_worst = 0;
   size_t worst_frame = 0, predicted_worst_frame = 0;
-  for (size_t k = 1; k < size_t(kSteps); ++k) {
+  for (size_t k = 1; k < static_cast<size_t>(kSteps); ++k) {
     const double solved = CornerRmsPx(truth[k], solution->map_from_frame[k]);
     sum_solved += solved * solved;
     const double c = CornerRmsPx(truth[k], chained[k]);
@@ -393,7 +395,7 @@ TEST(ChainSolverTest, BothEndsBeatForwardChainingOnALongChain) {
   const auto mean_error = [&](size_t begin, size_t end) {
     double sum = 0;
     for (size_t k = begin; k < end; ++k) sum += CornerRmsPx(truth[k], solution->map_from_frame[k]);
-    return sum / double(end - begin);
+    return sum / static_cast<double>(end - begin);
   };
   const double near_ends = 0.5 * (mean_error(1, 16) + mean_error(kSteps - 15, kSteps));
   const double middle = mean_error(kSteps / 3, 2 * kSteps / 3);
@@ -405,7 +407,7 @@ TEST(ChainSolverTest, BothEndsBeatForwardChainingOnALongChain) {
       middle, solution->iterations, solution->initial_cost, solution->final_cost);
   EXPECT_GT(closure, 10);  // a realistic drift, tens of pixels
   EXPECT_LT(rms_solved, 0.5 * rms_chained);
-  EXPECT_GT(worst_frame, size_t(kSteps / 10));
+  EXPECT_GT(worst_frame, static_cast<size_t>(kSteps / 10));
   EXPECT_LT(worst_frame, size_t(9 * kSteps / 10));
   EXPECT_GT(middle, 2 * near_ends);
   EXPECT_GT(predicted_worst_frame, size_t(2 * kSteps / 5));
@@ -483,18 +485,20 @@ TEST(ChainSolverTest, AnalyticJacobiansMatchAutomaticDifferentiation) {
 
   std::array<Jet, 8> from_jet, to_jet, zero_from, zero_to, from_plus, to_plus, residual_jet;
   for (int i = 0; i < 8; ++i) {
-    from_jet[size_t(i)] = Jet(from[size_t(i)]);
-    to_jet[size_t(i)] = Jet(to[size_t(i)]);
-    zero_from[size_t(i)] = Jet(0, i);
-    zero_to[size_t(i)] = Jet(0, 8 + i);
+    from_jet[static_cast<size_t>(i)] = Jet(from[static_cast<size_t>(i)]);
+    to_jet[static_cast<size_t>(i)] = Jet(to[static_cast<size_t>(i)]);
+    zero_from[static_cast<size_t>(i)] = Jet(0, i);
+    zero_to[static_cast<size_t>(i)] = Jet(0, 8 + i);
   }
   ASSERT_TRUE(step.Plus(from_jet.data(), zero_from.data(), from_plus.data()));
   ASSERT_TRUE(step.Plus(to_jet.data(), zero_to.data(), to_plus.data()));
   ASSERT_TRUE(link(from_plus.data(), to_plus.data(), residual_jet.data()));
   for (int r = 0; r < 8; ++r) {
-    EXPECT_NEAR(residual(r), residual_jet[size_t(r)].a, 1e-9 * (1 + std::abs(residual(r))));
+    EXPECT_NEAR(residual(r), residual_jet[static_cast<size_t>(r)].a,
+                1e-9 * (1 + std::abs(residual(r))));
     for (int c = 0; c < 8; ++c) {
-      const double f = residual_jet[size_t(r)].v(c), t = residual_jet[size_t(r)].v(8 + c);
+      const double f = residual_jet[static_cast<size_t>(r)].v(c),
+                   t = residual_jet[static_cast<size_t>(r)].v(8 + c);
       EXPECT_NEAR(d_from(r, c), f, 1e-8 * (1 + std::abs(f))) << r << "," << c;
       EXPECT_NEAR(d_to(r, c), t, 1e-8 * (1 + std::abs(t))) << r << "," << c;
     }
@@ -503,7 +507,7 @@ TEST(ChainSolverTest, AnalyticJacobiansMatchAutomaticDifferentiation) {
   const Matrix8 plus = step.PlusJacobian(from.data());
   for (int r = 0; r < 8; ++r) {
     for (int c = 0; c < 8; ++c) {
-      const double expected = from_plus[size_t(r)].v(c);
+      const double expected = from_plus[static_cast<size_t>(r)].v(c);
       EXPECT_NEAR(plus(r, c), expected, 1e-10 * (1 + std::abs(expected))) << r << "," << c;
     }
   }

@@ -33,8 +33,8 @@ using testing_support::RmsCornerError;
 // A link from -> to (sequential unless told) with an identity measurement: structure tests only.
 Link IdentityLink(int from, int to, LinkKind kind = LinkKind::kSequential) {
   Link link;
-  link.from = KeyFrameId(from);
-  link.to = KeyFrameId(to);
+  link.from = static_cast<KeyFrameId>(from);
+  link.to = static_cast<KeyFrameId>(to);
   link.kind = kind;
   link.covariance = 1e-6 * track::HomographyCovariance::Identity();
   return link;
@@ -42,7 +42,7 @@ Link IdentityLink(int from, int to, LinkKind kind = LinkKind::kSequential) {
 
 std::vector<int> Ids(const std::vector<KeyFrameId>& ids) {
   std::vector<int> out;
-  for (KeyFrameId id : ids) out.push_back(int(id));
+  for (KeyFrameId id : ids) out.push_back(static_cast<int>(id));
   return out;
 }
 
@@ -96,8 +96,8 @@ TEST(DecompositionTest, NodesAreCrossLinkEndsChainEndsMetadataAndSplitsOfLongArc
   Decomposition d = Decompose(graph, options, /*metadata_nodes=*/true);
   EXPECT_EQ(Ids(d.nodes), (std::vector<int>{0, 2, 7, 9, 10, 12, 14}));
   ASSERT_EQ(d.arcs.size(), 5u);
-  EXPECT_EQ(int(d.arcs[1].from), 2);
-  EXPECT_EQ(int(d.arcs[1].to), 7);
+  EXPECT_EQ(static_cast<int>(d.arcs[1].from), 2);
+  EXPECT_EQ(static_cast<int>(d.arcs[1].to), 7);
   EXPECT_EQ(d.arcs[1].links.size(), 5u);
   EXPECT_EQ(d.cross_links.size(), 1u);
 
@@ -111,7 +111,7 @@ TEST(DecompositionTest, NodesAreCrossLinkEndsChainEndsMetadataAndSplitsOfLongArc
 
   // Extra nodes (the linearity check's) are honoured.
   options.max_arc_links = 50;
-  d = Decompose(graph, options, false, {KeyFrameId(4)});
+  d = Decompose(graph, options, false, {static_cast<KeyFrameId>(4)});
   EXPECT_EQ(Ids(d.nodes), (std::vector<int>{0, 2, 4, 7, 9, 10, 14}));
 }
 
@@ -154,8 +154,9 @@ TEST(DecompositionTest, ReducedGraphChainsEachArc) {
   ASSERT_EQ(reduced->links.size(), d.arcs.size());
   for (size_t a = 0; a < d.arcs.size(); ++a) {
     const Link& link = reduced->links[a];
-    const Eigen::Matrix3d expected = testing_support::Normalised(
-        truth[size_t(d.arcs[a].to)].inverse() * truth[size_t(d.arcs[a].from)]);
+    const Eigen::Matrix3d expected =
+        testing_support::Normalised(truth[static_cast<size_t>(d.arcs[a].to)].inverse() *
+                                    truth[static_cast<size_t>(d.arcs[a].from)]);
     for (const Eigen::Vector2d& c : track::ImageCorners(kWidth, kHeight)) {
       EXPECT_NEAR((track::Transfer(link.to_from_from, c) - track::Transfer(expected, c)).norm(), 0,
                   1e-6);
@@ -191,7 +192,7 @@ FigureEight MakeFigureEight(int per_closure) {
   }
   const auto cross = [&](int from, int to, int inliers) {
     Link link = MeasureLink(e.truth, from, to, CornerCovariance(1.0, noise), &noise);
-    link.correspondences.resize(size_t(inliers));
+    link.correspondences.resize(static_cast<size_t>(inliers));
     e.graph.links.push_back(link);
   };
   cross(57, 19, 60);
@@ -344,17 +345,19 @@ TEST(DecompositionTest, CovariancesCoverEveryKeyFrame) {
   StatusOr<std::vector<track::HomographyCovariance>> covariances =
       DecomposedCovariances(graph, summary->decomposition, adjustment, options.placement);
   ASSERT_TRUE(covariances.ok()) << covariances.status().ToString();
-  ASSERT_EQ(covariances->size(), size_t(kFrames));
+  ASSERT_EQ(covariances->size(), static_cast<size_t>(kFrames));
   EXPECT_EQ((*covariances)[0].norm(), 0);  // the gauge
   // At the image centre: never below the exact covariance's spread by much (it errs on the safe
   // side), and within a small factor of it.
   const Eigen::Vector2d centre(0.5 * (kWidth - 1), 0.5 * (kHeight - 1));
   for (int k = 1; k < kFrames; ++k) {
-    const double approximate = track::TransferCovariance(graph.nodes[size_t(k)].map_from_frame,
-                                                         (*covariances)[size_t(k)], centre)
-                                   .trace();
+    const double approximate =
+        track::TransferCovariance(graph.nodes[static_cast<size_t>(k)].map_from_frame,
+                                  (*covariances)[static_cast<size_t>(k)], centre)
+            .trace();
     const double reference =
-        track::TransferCovariance(full.nodes[size_t(k)].map_from_frame, (*exact)[size_t(k)], centre)
+        track::TransferCovariance(full.nodes[static_cast<size_t>(k)].map_from_frame,
+                                  (*exact)[static_cast<size_t>(k)], centre)
             .trace();
     EXPECT_GT(approximate, 0.8 * reference) << "key frame " << k;
     EXPECT_LT(approximate, 3.0 * reference) << "key frame " << k;

@@ -36,9 +36,9 @@ Video MakeVideo(int n, int spacing, uint64_t seed) {
   Video v;
   v.truth = testing_support::CurvePath(n, 4);
   Noise noise(seed);
-  v.frames.resize(size_t(n));
+  v.frames.resize(static_cast<size_t>(n));
   for (int f = 0; f < n; ++f) {
-    MosaicFrame& fr = v.frames[size_t(f)];
+    MosaicFrame& fr = v.frames[static_cast<size_t>(f)];
     fr.time_s = f / 25.0;
     if (f == 0) continue;
     const Link link = MeasureLink(v.truth, f - 1, f, CornerCovariance(0.3, noise), &noise);
@@ -50,9 +50,9 @@ Video MakeVideo(int n, int spacing, uint64_t seed) {
   v.graph.image_height = kHeight;
   for (int f = spacing / 2; f < n; f += spacing) {
     Node node;
-    node.id = KeyFrameId(v.graph.nodes.size());
+    node.id = static_cast<KeyFrameId>(v.graph.nodes.size());
     node.frame_index = f;
-    node.map_from_frame = v.truth[size_t(f)];
+    node.map_from_frame = v.truth[static_cast<size_t>(f)];
     v.graph.nodes.push_back(node);
   }
   return v;
@@ -82,8 +82,8 @@ TEST(InBetweenTest, FramesBetweenKeyFramesAreSolvedWithBothEndsFixed) {
   double solved = 0, chained = 0;
   int count = 0;
   for (size_t k = 0; k + 1 < v.graph.nodes.size(); ++k) {
-    const size_t a = size_t(v.graph.nodes[k].frame_index);
-    const size_t b = size_t(v.graph.nodes[k + 1].frame_index);
+    const size_t a = static_cast<size_t>(v.graph.nodes[k].frame_index);
+    const size_t b = static_cast<size_t>(v.graph.nodes[k + 1].frame_index);
     Eigen::Matrix3d forward = v.truth[a];
     for (size_t f = a + 1; f < b; ++f) {
       forward = Normalised(forward * v.frames[f].current_from_previous.inverse());
@@ -102,7 +102,7 @@ TEST(InBetweenTest, FramesBetweenKeyFramesAreSolvedWithBothEndsFixed) {
   EXPECT_LT(solved, 0.8 * chained);
   // The key frames themselves are kept.
   for (const Node& node : v.graph.nodes) {
-    EXPECT_EQ(*placed->map_from_frame[size_t(node.frame_index)], node.map_from_frame);
+    EXPECT_EQ(*placed->map_from_frame[static_cast<size_t>(node.frame_index)], node.map_from_frame);
   }
 }
 
@@ -114,7 +114,8 @@ TEST(InBetweenTest, AChainBreakEndsARunAndARunWithoutKeyFramesIsNotPlaced) {
   StatusOr<InBetweenFrames> placed = PlaceInBetweenFrames(v.frames, v.graph);
   ASSERT_TRUE(placed.ok()) << placed.status().ToString();
   EXPECT_EQ(placed->unplaced, 20);
-  for (int f = 140; f < 160; ++f) EXPECT_FALSE(placed->map_from_frame[size_t(f)].has_value());
+  for (int f = 140; f < 160; ++f)
+    EXPECT_FALSE(placed->map_from_frame[static_cast<size_t>(f)].has_value());
   // 126..139 chained from key frame 125; 160..174 chained back from key frame 175.
   EXPECT_TRUE(placed->map_from_frame[139].has_value());
   EXPECT_TRUE(placed->map_from_frame[160].has_value());

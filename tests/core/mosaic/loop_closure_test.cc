@@ -40,8 +40,8 @@ const Town& TheTown() {
     SAKER_CHECK(world.ok()) << world.status().ToString();
     auto shared = std::make_shared<const sim::World>(std::move(world).value());
     auto* t = new Town;
-    t->origin = cv::Point(int(shared->town_centre.x() / kGsd) - 1600,
-                          int(-shared->town_centre.y() / kGsd) - 1200);
+    t->origin = cv::Point(static_cast<int>(shared->town_centre.x() / kGsd) - 1600,
+                          static_cast<int>(-shared->town_centre.y() / kGsd) - 1200);
     t->ground = std::make_unique<sim::ProceduralGround>(shared, kGsd);
     return t;
   }();
@@ -91,8 +91,8 @@ View MakeView(const Eigen::Vector2d& centre, double angle_deg, int width, int he
     x0 = std::min(x0, r.x()), y0 = std::min(y0, r.y()), x1 = std::max(x1, r.x());
     y1 = std::max(y1, r.y());
   }
-  const cv::Rect box(int(std::floor(x0)) - 2, int(std::floor(y0)) - 2, int(x1 - x0) + 6,
-                     int(y1 - y0) + 6);
+  const cv::Rect box(static_cast<int>(std::floor(x0)) - 2, static_cast<int>(std::floor(y0)) - 2,
+                     static_cast<int>(x1 - x0) + 6, static_cast<int>(y1 - y0) + 6);
   const Town& town = TheTown();
   cv::Mat bgr, valid, raster;
   town.ground->Render(box + town.origin, &bgr, &valid);
@@ -118,7 +118,7 @@ View MakeView(const Eigen::Vector2d& centre, double angle_deg, int width, int he
   std::vector<cv::Point2f> corners;
   cv::goodFeaturesToTrack(v.full, corners, 1500, 0.001, 5, cv::noArray(), 3, true, 0.04);
   for (size_t i = 0; i < corners.size(); ++i) {
-    v.points.emplace_back(track::FeatureTrackId(first_id + int64_t(i)),
+    v.points.emplace_back(static_cast<track::FeatureTrackId>(first_id + static_cast<int64_t>(i)),
                           Eigen::Vector2d(corners[i].x, corners[i].y));
   }
   return v;
@@ -160,30 +160,34 @@ const Pair& RotatedPair() {
 }
 
 TEST(DescribeKeyFrameTest, EmptyInputsGiveEmptyFeatures) {
-  const std::vector<track::StationaryPoint> some = {{track::FeatureTrackId(1), {100, 100}}};
-  const KeyFrameFeatures no_image = DescribeKeyFrame(KeyFrameId(3), cv::Mat(), 2.0, some, {});
+  const std::vector<track::StationaryPoint> some = {
+      {static_cast<track::FeatureTrackId>(1), {100, 100}}};
+  const KeyFrameFeatures no_image =
+      DescribeKeyFrame(static_cast<KeyFrameId>(3), cv::Mat(), 2.0, some, {});
   EXPECT_EQ(no_image.id, KeyFrameId(3));
   EXPECT_TRUE(no_image.empty());
   EXPECT_EQ(no_image.descriptors.rows, 0);
-  const KeyFrameFeatures no_points =
-      DescribeKeyFrame(KeyFrameId(4), cv::Mat(360, 640, CV_8UC1, cv::Scalar(90)), 2.0, {}, {});
+  const KeyFrameFeatures no_points = DescribeKeyFrame(
+      static_cast<KeyFrameId>(4), cv::Mat(360, 640, CV_8UC1, cv::Scalar(90)), 2.0, {}, {});
   EXPECT_TRUE(no_points.empty());
   EXPECT_EQ(no_points.descriptors.rows, 0);
   // A flat image: descriptors exist (all alike) but nothing crashes.
-  const KeyFrameFeatures flat =
-      DescribeKeyFrame(KeyFrameId(5), cv::Mat(360, 640, CV_8UC1, cv::Scalar(90)), 2.0, some, {});
-  EXPECT_EQ(flat.descriptors.rows, int(flat.points.size()));
+  const KeyFrameFeatures flat = DescribeKeyFrame(
+      static_cast<KeyFrameId>(5), cv::Mat(360, 640, CV_8UC1, cv::Scalar(90)), 2.0, some, {});
+  EXPECT_EQ(flat.descriptors.rows, static_cast<int>(flat.points.size()));
 }
 
 TEST(DescribeKeyFrameTest, OneRowPerPointBorderPointsDroppedAndCapRespected) {
   const View& v = RotatedPair().a;
   ASSERT_GT(v.points.size(), 1000u);
   std::vector<track::StationaryPoint> points = v.points;
-  points.emplace_back(track::FeatureTrackId(-1), Eigen::Vector2d(3, 3));  // at the border
+  points.emplace_back(static_cast<track::FeatureTrackId>(-1),
+                      Eigen::Vector2d(3, 3));  // at the border
   DescribeOptions options;
   options.max_features = 100000;
-  const KeyFrameFeatures all = DescribeKeyFrame(KeyFrameId(0), v.grey, v.scale, points, options);
-  EXPECT_EQ(all.descriptors.rows, int(all.points.size()));
+  const KeyFrameFeatures all =
+      DescribeKeyFrame(static_cast<KeyFrameId>(0), v.grey, v.scale, points, options);
+  EXPECT_EQ(all.descriptors.rows, static_cast<int>(all.points.size()));
   EXPECT_EQ(all.track_ids.size(), all.points.size());
   EXPECT_EQ(all.descriptors.type(), CV_32F);
   EXPECT_EQ(all.descriptors.cols, 128);
@@ -197,12 +201,13 @@ TEST(DescribeKeyFrameTest, OneRowPerPointBorderPointsDroppedAndCapRespected) {
   }
   // Points keep their ids.
   std::map<int64_t, Eigen::Vector2d> by_id;
-  for (const auto& [id, p] : points) by_id[int64_t(id)] = p;
+  for (const auto& [id, p] : points) by_id[static_cast<int64_t>(id)] = p;
   for (size_t i = 0; i < all.points.size(); ++i) {
-    EXPECT_EQ(by_id.at(int64_t(all.track_ids[i])), all.points[i]);
+    EXPECT_EQ(by_id.at(static_cast<int64_t>(all.track_ids[i])), all.points[i]);
   }
   options.max_features = 300;
-  const KeyFrameFeatures capped = DescribeKeyFrame(KeyFrameId(0), v.grey, v.scale, points, options);
+  const KeyFrameFeatures capped =
+      DescribeKeyFrame(static_cast<KeyFrameId>(0), v.grey, v.scale, points, options);
   EXPECT_EQ(capped.points.size(), 300u);
   EXPECT_EQ(capped.descriptors.rows, 300);
   // Spread over the image, not bunched: every quarter keeps some.
@@ -215,13 +220,14 @@ TEST(DescribeKeyFrameTest, OneRowPerPointBorderPointsDroppedAndCapRespected) {
 
 TEST(MatchAppearanceTest, RecoversA90DegreeTurn) {
   const Pair& p = RotatedPair();
-  const KeyFrameFeatures a = Describe(KeyFrameId(0), p.a), b = Describe(KeyFrameId(7), p.b);
+  const KeyFrameFeatures a = Describe(static_cast<KeyFrameId>(0), p.a),
+                         b = Describe(static_cast<KeyFrameId>(7), p.b);
   const std::optional<Link> link = MatchAppearance(a, b, kWidth, kHeight, MatchOptions{});
   ASSERT_TRUE(link.has_value());
   EXPECT_EQ(link->from, KeyFrameId(0));
   EXPECT_EQ(link->to, KeyFrameId(7));
   EXPECT_EQ(link->kind, LinkKind::kAppearance);
-  EXPECT_GE(int(link->correspondences.size()), MatchOptions{}.min_inliers);
+  EXPECT_GE(static_cast<int>(link->correspondences.size()), MatchOptions{}.min_inliers);
   const double error = CornerError(link->to_from_from, p.b_from_a, kWidth, kHeight);
   std::cout << "appearance: " << link->correspondences.size() << " inliers of " << a.size() << " / "
             << b.size() << " features, corner error " << error << " px\n";
@@ -233,14 +239,15 @@ TEST(MatchAppearanceTest, UnrelatedViewsGiveNothing) {
   const Pair& p = RotatedPair();
   const View elsewhere =
       MakeView(Eigen::Vector2d(600, 700), 30, kWidth, kHeight, kScale, 200000, 3);
-  const KeyFrameFeatures a = Describe(KeyFrameId(0), p.a);
-  const KeyFrameFeatures c = Describe(KeyFrameId(1), elsewhere);
+  const KeyFrameFeatures a = Describe(static_cast<KeyFrameId>(0), p.a);
+  const KeyFrameFeatures c = Describe(static_cast<KeyFrameId>(1), elsewhere);
   EXPECT_FALSE(MatchAppearance(a, c, kWidth, kHeight, MatchOptions{}).has_value());
 }
 
 TEST(MatchGeometricTest, RecoversFromAPredictionOffBy15Px) {
   const Pair& p = RotatedPair();
-  const KeyFrameFeatures a = Describe(KeyFrameId(0), p.a), b = Describe(KeyFrameId(1), p.b);
+  const KeyFrameFeatures a = Describe(static_cast<KeyFrameId>(0), p.a),
+                         b = Describe(static_cast<KeyFrameId>(1), p.b);
   const Eigen::Matrix3d predicted = Translation(12, -9) * p.b_from_a;
   const auto covariance = [](const Eigen::Vector2d&) {
     return Eigen::Matrix2d(Eigen::Matrix2d::Identity() * 8.0 * 8.0);
@@ -262,7 +269,8 @@ TEST(MatchGeometricTest, RecoversFromAPredictionOffBy15Px) {
 
 TEST(MatchGeometricTest, EllipsesThatExcludeTheTruthFindNothing) {
   const Pair& p = RotatedPair();
-  const KeyFrameFeatures a = Describe(KeyFrameId(0), p.a), b = Describe(KeyFrameId(1), p.b);
+  const KeyFrameFeatures a = Describe(static_cast<KeyFrameId>(0), p.a),
+                         b = Describe(static_cast<KeyFrameId>(1), p.b);
   const Eigen::Matrix3d predicted = Translation(160, 120) * p.b_from_a;  // 200 px off
   const auto tight = [](const Eigen::Vector2d&) {
     return Eigen::Matrix2d(Eigen::Matrix2d::Identity() * 5.0 * 5.0);
@@ -326,8 +334,8 @@ std::vector<KeyFrameFeatures> Places(int count) {
   for (int k = 0; k < count && k < 25; ++k) {
     const int row = k / 5, col = k % 5;
     const View v = MakeView(Eigen::Vector2d(320 + 640 * col, 240 + 480 * row), 0, 640, 360, 1.0,
-                            1000000 * (k + 1), 10 + uint64_t(k));
-    places.push_back(Describe(KeyFrameId(k), v));
+                            1000000 * (k + 1), 10 + static_cast<uint64_t>(k));
+    places.push_back(Describe(static_cast<KeyFrameId>(k), v));
   }
   return places;
 }
@@ -341,15 +349,16 @@ TEST(AppearanceIndexTest, TheOverlappingFrameRanksFirst) {
   // The query looks at place 12 (row 2, column 2) turned by 90 degrees, half of it overlapping.
   const View query_view = MakeView(Eigen::Vector2d(320 + 640 * 2 + 100, 240 + 480 * 2), 90, 640,
                                    360, 1.0, 90000000, 99);
-  const KeyFrameFeatures query = Describe(KeyFrameId(100), query_view);
+  const KeyFrameFeatures query = Describe(static_cast<KeyFrameId>(100), query_view);
   const auto best = index.Query(query, 5);
   ASSERT_EQ(best.size(), 5u);
-  std::cout << "index: best " << int(best[0].first) << " (" << best[0].second << "), next "
-            << int(best[1].first) << " (" << best[1].second << ")\n";
+  std::cout << "index: best " << static_cast<int>(best[0].first) << " (" << best[0].second
+            << "), next " << static_cast<int>(best[1].first) << " (" << best[1].second << ")\n";
   EXPECT_EQ(best[0].first, KeyFrameId(12));
   for (size_t i = 1; i < best.size(); ++i) EXPECT_GE(best[i - 1].second, best[i].second);
   // skip() removes it; the query's own id is never returned.
-  const auto without = index.Query(query, 3, [](KeyFrameId id) { return id == KeyFrameId(12); });
+  const auto without =
+      index.Query(query, 3, [](KeyFrameId id) { return id == static_cast<KeyFrameId>(12); });
   for (const auto& [id, score] : without) EXPECT_NE(id, KeyFrameId(12));
   const auto self = index.Query(places[4], 3);
   for (const auto& [id, score] : self) EXPECT_NE(id, KeyFrameId(4));
@@ -383,7 +392,7 @@ TEST(AppearanceIndexTest, BeforeTrainingNewestFirstAndTrainingIsDeterministic) {
   }
   // An empty query touches no posting list and finds nothing.
   KeyFrameFeatures empty;
-  empty.id = KeyFrameId(50);
+  empty.id = static_cast<KeyFrameId>(50);
   EXPECT_TRUE(index.Query(empty, 5).empty());
 }
 

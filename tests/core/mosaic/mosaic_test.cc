@@ -64,7 +64,8 @@ std::optional<Outcome> MakeRun(const sim::SimulationOptions& options, const Mosa
 // Whether a loop closure joins a key frame at or after `late` with one at or before `early`.
 bool ClosesBetween(const MosaicResult& m, int early, int late) {
   for (const LoopClosure& c : m.closures) {
-    const int a = std::min(int(c.from), int(c.to)), b = std::max(int(c.from), int(c.to));
+    const int a = std::min(static_cast<int>(c.from), static_cast<int>(c.to)),
+              b = std::max(static_cast<int>(c.from), static_cast<int>(c.to));
     if (a <= early && b >= late) return true;
   }
   return false;
@@ -87,7 +88,7 @@ TEST_F(MosaicTest, RoundaboutLoopClosesAndTheAdjustmentRemovesTheDrift) {
   mosaic.use_metadata = false;
   std::optional<Outcome> run = MakeRun(options, mosaic);
   ASSERT_TRUE(run.has_value());
-  const int n = int(run->mosaic.graph.nodes.size());
+  const int n = static_cast<int>(run->mosaic.graph.nodes.size());
   ASSERT_GE(n, 8);
   EXPECT_FALSE(run->mosaic.graph.geo_referenced);
   // The flight ends over its first frames: the last key frames close the loop with the first.
@@ -98,9 +99,10 @@ TEST_F(MosaicTest, RoundaboutLoopClosesAndTheAdjustmentRemovesTheDrift) {
   EXPECT_LT(run->accuracy.after.rms_px, 0.5 * run->accuracy.before.rms_px);
   EXPECT_LT(run->accuracy.after.rms_px, 5.0);
   // Every key frame has a covariance after the adjustment; the gauge key frame's is zero.
-  ASSERT_EQ(run->mosaic.covariances.size(), size_t(n));
+  ASSERT_EQ(run->mosaic.covariances.size(), static_cast<size_t>(n));
   EXPECT_EQ(run->mosaic.covariances[0].norm(), 0);
-  for (int k = 1; k < n; ++k) EXPECT_GT(run->mosaic.covariances[size_t(k)].trace(), 0) << k;
+  for (int k = 1; k < n; ++k)
+    EXPECT_GT(run->mosaic.covariances[static_cast<size_t>(k)].trace(), 0) << k;
 
   // Every frame placed; the in-between frames no worse than their neighbouring key frames
   // (measured: 0.69 px RMS against the key frames' 0.82 px, at most 0.04 px worse than both
@@ -109,7 +111,7 @@ TEST_F(MosaicTest, RoundaboutLoopClosesAndTheAdjustmentRemovesTheDrift) {
   EXPECT_EQ(run->mosaic.in_between.map_from_frame.size(), run->front.frames.size());
   ASSERT_TRUE(run->accuracy.in_between.has_value());
   const eval::InBetweenAccuracy& between = *run->accuracy.in_between;
-  EXPECT_EQ(between.frames, int(run->front.frames.size()) - n);
+  EXPECT_EQ(between.frames, static_cast<int>(run->front.frames.size()) - n);
   EXPECT_LT(between.frames_error.rms_px, 1.1 * between.key_frames_error.rms_px + 0.1);
   EXPECT_LT(between.max_excess_px, 0.5);
 
@@ -128,7 +130,7 @@ TEST_F(MosaicTest, MetadataGeoReferencesTheMap) {
   std::optional<Outcome> run = MakeRun(options, {});
   ASSERT_TRUE(run.has_value());
   EXPECT_TRUE(run->mosaic.graph.geo_referenced);
-  EXPECT_EQ(run->mosaic.key_frames_with_metadata, int(run->mosaic.graph.nodes.size()));
+  EXPECT_EQ(run->mosaic.key_frames_with_metadata, static_cast<int>(run->mosaic.graph.nodes.size()));
   ASSERT_TRUE(run->accuracy.after_absolute.has_value());
   // Metres in the map are metres on the ground: corner noise of 5 m on every key frame averages
   // out to a few metres at most.
@@ -163,7 +165,7 @@ TEST_F(MosaicTest, FigureEightClosesAtTheCrossingAndAtTheEnd) {
   mosaic.use_metadata = false;
   std::optional<Outcome> run = MakeRun(options, mosaic);
   ASSERT_TRUE(run.has_value());
-  const int n = int(run->mosaic.graph.nodes.size());
+  const int n = static_cast<int>(run->mosaic.graph.nodes.size());
   ASSERT_GE(n, 12);
   // Start and finish: the last key frames with the first ones.
   EXPECT_TRUE(ClosesBetween(run->mosaic, 2, n - 3));
@@ -171,7 +173,8 @@ TEST_F(MosaicTest, FigureEightClosesAtTheCrossingAndAtTheEnd) {
   // pass (first half), away from the start and finish.
   bool crossing = false;
   for (const LoopClosure& c : run->mosaic.closures) {
-    const int a = std::min(int(c.from), int(c.to)), b = std::max(int(c.from), int(c.to));
+    const int a = std::min(static_cast<int>(c.from), static_cast<int>(c.to)),
+              b = std::max(static_cast<int>(c.from), static_cast<int>(c.to));
     crossing |= a > 2 && a < n / 2 && b >= n / 2 && b < n - 3;
   }
   EXPECT_TRUE(crossing);
@@ -250,11 +253,11 @@ TEST(MosaicBuilderTest, InputThatDoesNotFitIsRefused) {
   EXPECT_EQ(result.status().code(), StatusCode::kInvalidArgument);
 
   bad = input;
-  bad.key_frames[0].id = track::KeyFrameId(1);
+  bad.key_frames[0].id = static_cast<track::KeyFrameId>(1);
   EXPECT_EQ(bad.Validate().code(), StatusCode::kInvalidArgument);
   bad = input;
   track::SequentialLink link;
-  link.to = track::KeyFrameId(1);
+  link.to = static_cast<track::KeyFrameId>(1);
   bad.links.push_back(link);
   EXPECT_EQ(bad.Validate().code(), StatusCode::kInvalidArgument);
   bad = input;

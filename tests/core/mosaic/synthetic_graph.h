@@ -83,7 +83,7 @@ inline Eigen::Matrix<double, 8, 8> StackedJacobian(const Eigen::Matrix3d& h) {
   Eigen::Matrix<double, 8, 8> j;
   const auto corners = track::ImageCorners(kWidth, kHeight);
   for (int i = 0; i < 4; ++i)
-    j.middleRows<2>(2 * i) = track::TransferJacobian(h, corners[size_t(i)]);
+    j.middleRows<2>(2 * i) = track::TransferJacobian(h, corners[static_cast<size_t>(i)]);
   return j;
 }
 
@@ -100,17 +100,18 @@ inline Matrix8 CornerCovariance(double sigma_px, Noise& noise) {
 inline Link MeasureLink(const std::vector<Eigen::Matrix3d>& truth, int from, int to,
                         const Matrix8& corner_cov, Noise* noise) {
   const Eigen::Matrix3d truth_to_from_from =
-      Normalised(truth[size_t(to)].inverse() * truth[size_t(from)]);
+      Normalised(truth[static_cast<size_t>(to)].inverse() * truth[static_cast<size_t>(from)]);
   const auto corners = track::ImageCorners(kWidth, kHeight);
   const Vector8 error = noise != nullptr ? noise->Draw<8>(corner_cov) : Vector8::Zero();
   std::array<Eigen::Vector2d, 4> measured;
   for (int i = 0; i < 4; ++i) {
-    measured[size_t(i)] =
-        track::Transfer(truth_to_from_from, corners[size_t(i)]) + error.segment<2>(2 * i);
+    measured[static_cast<size_t>(i)] =
+        track::Transfer(truth_to_from_from, corners[static_cast<size_t>(i)]) +
+        error.segment<2>(2 * i);
   }
   Link link;
-  link.from = KeyFrameId(from);
-  link.to = KeyFrameId(to);
+  link.from = static_cast<KeyFrameId>(from);
+  link.to = static_cast<KeyFrameId>(to);
   link.kind = to == from + 1 ? LinkKind::kSequential : LinkKind::kGeometric;
   link.to_from_from = FourPointHomography(corners, measured);
   const Matrix8 j_inv = StackedJacobian(link.to_from_from).inverse();
@@ -138,7 +139,7 @@ inline LinkGraph EmptyGraph(int n, bool geo_referenced) {
   graph.geo_referenced = geo_referenced;
   for (int i = 0; i < n; ++i) {
     Node node;
-    node.id = KeyFrameId(i);
+    node.id = static_cast<KeyFrameId>(i);
     node.frame_index = 25 * i;
     graph.nodes.push_back(node);
   }
@@ -151,7 +152,7 @@ inline void ChainStart(LinkGraph* graph, const Eigen::Matrix3d& first) {
   graph->nodes[0].map_from_frame = first;
   for (size_t k = 1; k < graph->nodes.size(); ++k) {
     for (const Link& link : graph->links) {
-      if (size_t(link.from) == k - 1 && size_t(link.to) == k) {
+      if (static_cast<size_t>(link.from) == k - 1 && static_cast<size_t>(link.to) == k) {
         graph->nodes[k].map_from_frame =
             Normalised(graph->nodes[k - 1].map_from_frame * link.to_from_from.inverse());
       }

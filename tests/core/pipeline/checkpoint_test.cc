@@ -23,7 +23,7 @@ namespace fs = std::filesystem;
 
 track::TargetTrack Target(int64_t id, int64_t first_frame, int frames) {
   track::TargetTrack t;
-  t.id = track::TargetTrackId(id);
+  t.id = static_cast<track::TargetTrackId>(id);
   t.confirmed = true;
   t.max_features = 3;
   t.image_velocity = {1.5, -0.25};
@@ -34,8 +34,9 @@ track::TargetTrack Target(int64_t id, int64_t first_frame, int frames) {
     o.box_min = o.position - Eigen::Vector2d(4, 3);
     o.box_max = o.position + Eigen::Vector2d(4, 3);
     o.velocity = {0.5, 0.125};
-    o.change = track::ChangeEvidence(i % 3);
-    for (int f = 0; f <= i % 3; ++f) o.features.push_back(track::FeatureTrackId(100 * id + f));
+    o.change = static_cast<track::ChangeEvidence>(i % 3);
+    for (int f = 0; f <= i % 3; ++f)
+      o.features.push_back(static_cast<track::FeatureTrackId>(100 * id + f));
     t.observations.push_back(o);
   }
   return t;
@@ -63,11 +64,12 @@ frontend::FrontEndCheckpoint MakeCheckpoint() {
   }
   for (int k = 0; k < 3; ++k) {
     track::KeyFrame key;
-    key.id = track::KeyFrameId(k);
+    key.id = static_cast<track::KeyFrameId>(k);
     key.frame_index = k == 2 ? 9 : 4 * k;
     key.segment = 0;
     for (int p = 0; p < 5; ++p) {
-      key.points.emplace_back(track::FeatureTrackId(k * 10 + p), Eigen::Vector2d(p, 2.0 * p));
+      key.points.emplace_back(static_cast<track::FeatureTrackId>(k * 10 + p),
+                              Eigen::Vector2d(p, 2.0 * p));
     }
     c.key_frames.push_back(key);
     frontend::KeyFramePreview preview;
@@ -75,19 +77,19 @@ frontend::FrontEndCheckpoint MakeCheckpoint() {
     preview.image.frame_index = key.frame_index;
     preview.image.scale = 2;
     preview.image.grey = cv::Mat(18, 32, CV_8UC1);
-    cv::RNG rng(uint64_t(k + 1));  // the same pixels every time
+    cv::RNG rng(static_cast<uint64_t>(k + 1));  // the same pixels every time
     rng.fill(preview.image.grey, cv::RNG::UNIFORM, 0, 256);
     preview.preview_from_frame(0, 2) = 7.5 * k;
     c.key_frame_images.push_back(preview);
   }
   for (int l = 0; l < 2; ++l) {
     track::SequentialLink link;
-    link.from = track::KeyFrameId(l);
-    link.to = track::KeyFrameId(l + 1);
+    link.from = static_cast<track::KeyFrameId>(l);
+    link.to = static_cast<track::KeyFrameId>(l + 1);
     link.to_from_from(1, 2) = -3.0 * (l + 1);
     link.covariance = track::HomographyCovariance::Identity() * 1e-5;
     link.chained = l == 1;
-    link.correspondences.push_back({track::FeatureTrackId(4), {1, 2}, {3, 4}});
+    link.correspondences.push_back({static_cast<track::FeatureTrackId>(4), {1, 2}, {3, 4}});
     c.links.push_back(link);
   }
   c.breaks.push_back({3, "a cloud"});
@@ -142,8 +144,8 @@ class CheckpointTest : public ::testing::Test {
                                  -1, &stmt, nullptr),
               SQLITE_OK);
     static const uint8_t kEmpty = 0;
-    sqlite3_bind_blob(stmt, 1, bytes.empty() ? &kEmpty : bytes.data(), int(bytes.size()),
-                      SQLITE_TRANSIENT);
+    sqlite3_bind_blob(stmt, 1, bytes.empty() ? &kEmpty : bytes.data(),
+                      static_cast<int>(bytes.size()), SQLITE_TRANSIENT);
     sqlite3_bind_text(stmt, 2, kind.c_str(), -1, SQLITE_TRANSIENT);
     sqlite3_bind_int64(stmt, 3, key);
     EXPECT_EQ(sqlite3_step(stmt), SQLITE_DONE);
@@ -236,7 +238,10 @@ TEST_F(CheckpointTest, DamagedRecordsAreRefusedNamingTheFile) {
       {"break", 0}, {"target", 1}, {"change_target", 0}, {"open_target", 0}};
   std::mt19937 random(7);
   int refused = 0, read_anyway = 0;
-  for (const auto& [kind, key] : records) {
+  for (const auto& record : records) {
+    // Named copies, not structured bindings: a lambda may capture those only since C++20.
+    const std::string& kind = record.first;
+    const int64_t key = record.second;
     const std::vector<uint8_t> good = GetRecord(kind, key);
     ASSERT_FALSE(good.empty());
     const auto check = [&](const std::vector<uint8_t>& bad, const std::string& what) {
@@ -255,7 +260,7 @@ TEST_F(CheckpointTest, DamagedRecordsAreRefusedNamingTheFile) {
     };
     const size_t step = std::max<size_t>(1, good.size() / 40);
     for (size_t n = 0; n < good.size(); n += step) {
-      check(std::vector<uint8_t>(good.begin(), good.begin() + std::ptrdiff_t(n)),
+      check(std::vector<uint8_t>(good.begin(), good.begin() + static_cast<std::ptrdiff_t>(n)),
             "cut to " + std::to_string(n));
     }
     std::vector<uint8_t> longer = good;
@@ -277,7 +282,7 @@ TEST_F(CheckpointTest, DamagedRecordsAreRefusedNamingTheFile) {
   std::vector<uint8_t> link = GetRecord("link", 0);
   const size_t count_at = 4 + 4 + 1 + 9 * 8 + 64 * 8;
   ASSERT_GT(link.size(), count_at + 8);
-  const uint64_t huge = uint64_t(1) << 60;
+  const uint64_t huge = static_cast<uint64_t>(1) << 60;
   std::memcpy(link.data() + count_at, &huge, sizeof(huge));
   SetRecord("link", 0, link);
   const auto read = Read();

@@ -10,12 +10,12 @@
 
 #include <fcntl.h>
 #include <gtest/gtest.h>
-#include <signal.h>
 #include <sqlite3.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <chrono>
+#include <csignal>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -64,7 +64,7 @@ TEST_F(ProcessTest, ProcessesIntoAMissionThatReopensWithTheTruthsActivity) {
   std::cout << summary->ToText();
   EXPECT_EQ(commits,
             (std::vector<std::string>{"source", "front end", "mosaic", "activity", "tiles"}));
-  ASSERT_EQ(int64_t(previews.size()), summary->key_frames);
+  ASSERT_EQ(static_cast<int64_t>(previews.size()), summary->key_frames);
   for (size_t i = 1; i < previews.size(); ++i) {
     EXPECT_GT(previews[i].image.frame_index, previews[i - 1].image.frame_index);
     EXPECT_FALSE(previews[i].image.grey.empty());
@@ -85,9 +85,9 @@ TEST_F(ProcessTest, ProcessesIntoAMissionThatReopensWithTheTruthsActivity) {
   EXPECT_TRUE(m->progress.front_end && m->progress.mosaic && m->progress.activity &&
               m->progress.tiles);
   EXPECT_FALSE(m->progress.cancelled);
-  EXPECT_EQ(int64_t(m->frames.size()), summary->frames);
-  EXPECT_EQ(int64_t(m->key_frames.size()), summary->key_frames);
-  EXPECT_EQ(int64_t(m->tracks.size()), summary->tracks);
+  EXPECT_EQ(static_cast<int64_t>(m->frames.size()), summary->frames);
+  EXPECT_EQ(static_cast<int64_t>(m->key_frames.size()), summary->key_frames);
+  EXPECT_EQ(static_cast<int64_t>(m->tracks.size()), summary->tracks);
   EXPECT_GT(summary->tracks, 3);
   ASSERT_TRUE(m->pyramid.has_value());
   EXPECT_EQ(*(*store)->CountTiles(), summary->tiles);
@@ -285,9 +285,9 @@ TEST_F(ProcessTest, AnInterruptedJobResumesFromItsCheckpoint) {
   ASSERT_TRUE(reference.ok());
   EXPECT_EQ(m->frames.size(), reference->frames.size());
   EXPECT_EQ(resumed->frames_placed, baseline->frames_placed);
-  EXPECT_NEAR(double(resumed->key_frames), double(baseline->key_frames),
-              0.15 * double(baseline->key_frames) + 1);
-  EXPECT_NEAR(double(resumed->tracks), double(baseline->tracks), 3);
+  EXPECT_NEAR(static_cast<double>(resumed->key_frames), static_cast<double>(baseline->key_frames),
+              0.15 * static_cast<double>(baseline->key_frames) + 1);
+  EXPECT_NEAR(static_cast<double>(resumed->tracks), static_cast<double>(baseline->tracks), 3);
   const auto truth = sim::ReadTruth(*truth_path_);
   ASSERT_TRUE(truth.ok());
   const auto a = eval::EvaluateActivity(*reference, *truth, options.activity.visit_gap_s);

@@ -56,7 +56,8 @@ StatusOr<cv::Mat> GreyTile(int, int, int) {
 
 cv::Vec3b At(const ActivityMap& map, const Eigen::Vector2d& point) {
   const Eigen::Vector2d p = (map.image_from_map * point.homogeneous()).hnormalized();
-  return map.bgr.at<cv::Vec3b>(int(std::lround(p.y())), int(std::lround(p.x())));
+  return map.bgr.at<cv::Vec3b>(static_cast<int>(std::lround(p.y())),
+                               static_cast<int>(std::lround(p.x())));
 }
 
 void ExpectColour(const cv::Vec3b& pixel, const activity::Rgb& rgb) {

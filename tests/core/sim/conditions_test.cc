@@ -71,8 +71,8 @@ TEST_F(ConditionsTest, ObliqueViewsShowTheGroundTheTruthSays) {
     const Eigen::Vector2d offset = centre - first.position_m.head<2>();
     EXPECT_NEAR(offset.norm(), 100 * std::tan(c.off_nadir * M_PI / 180), 5.0);
     for (int64_t i : {0, 19}) {
-      const double ncc = GroundCorrelation(*setup_, truth_, i, frames_[size_t(i)],
-                                           truth_.frames[size_t(i)].frame_from_ground);
+      const double ncc = GroundCorrelation(*setup_, truth_, i, frames_[static_cast<size_t>(i)],
+                                           truth_.frames[static_cast<size_t>(i)].frame_from_ground);
       EXPECT_GT(ncc, 0.75) << "frame " << i;
     }
     // The check can fail: the homography of a frame 1.5 s later does not fit.
@@ -132,8 +132,8 @@ TEST_F(ConditionsTest, AZoomChangesTheScaleAsTheTruthSays) {
   };
   EXPECT_NEAR(scale(truth_.frames[19]) / scale(truth_.frames[0]), 2.05, 0.1);
   for (int64_t i : {0, 10, 19}) {
-    EXPECT_GT(GroundCorrelation(*setup_, truth_, i, frames_[size_t(i)],
-                                truth_.frames[size_t(i)].frame_from_ground),
+    EXPECT_GT(GroundCorrelation(*setup_, truth_, i, frames_[static_cast<size_t>(i)],
+                                truth_.frames[static_cast<size_t>(i)].frame_from_ground),
               0.8)
         << "frame " << i;
   }
@@ -155,7 +155,7 @@ TEST(OverlayPainterTest, EveryOverlayPixelLiesInsideTheTruthBoxes) {
     int logo_changes = 0;
     for (int k = 0; k < 40; ++k) {
       HudTelemetry telemetry;
-      telemetry.utc_us = 1790000000000000 + uint64_t(k) * 40000;
+      telemetry.utc_us = 1790000000000000 + static_cast<uint64_t>(k) * 40000;
       telemetry.frame_index = k;
       telemetry.latitude_deg = 51.15 + 1e-5 * k, telemetry.longitude_deg = -1.747 - 1e-5 * k;
       telemetry.height_m = 500 + k, telemetry.heading_deg = 359.9 - k;
@@ -209,7 +209,7 @@ TEST_F(ConditionsTest, OverlaysAreBurnedInWhereTheTruthSays) {
   for (const OverlayTruth& r : truth_.overlays) {
     inside(cv::Rect(r.x, r.y, r.width, r.height)).setTo(255);
   }
-  for (size_t i : {size_t(0), size_t(19)}) {
+  for (size_t i : {static_cast<size_t>(0), static_cast<size_t>(19)}) {
     cv::Mat difference;
     cv::absdiff(frames_[i], clean[i], difference);
     cv::cvtColor(difference, difference, cv::COLOR_BGR2GRAY);
@@ -242,13 +242,15 @@ TEST_F(ConditionsTest, InfraredTargetsAreWarmAndThePolaritySwitches) {
     for (const TargetTruth& t : truth_.targets) {
       const TargetSampleTruth& s = t.samples[i];
       if (!s.visible || t.target_class == "person") continue;
-      const cv::Point at(int(std::lround(s.image_px.x())), int(std::lround(s.image_px.y())));
+      const cv::Point at(static_cast<int>(std::lround(s.image_px.x())),
+                         static_cast<int>(std::lround(s.image_px.y())));
       // 4 m beside a moving vehicle is road or verge.
       const Eigen::Vector2d side =
           s.ground_m + Eigen::Vector2d(-s.velocity_mps.y(), s.velocity_mps.x()).normalized() * 4.0;
       const Eigen::Vector2d q =
           (truth_.frames[i].frame_from_ground * side.homogeneous()).hnormalized();
-      const cv::Point off(int(std::lround(q.x())), int(std::lround(q.y())));
+      const cv::Point off(static_cast<int>(std::lround(q.x())),
+                          static_cast<int>(std::lround(q.y())));
       const cv::Rect inner(4, 4, 632, 352);
       if (!inner.contains(at) || !inner.contains(off) || s.velocity_mps.norm() < 0.5) continue;
       const double target = grey.at<uint8_t>(at), ground = grey.at<uint8_t>(off);
@@ -278,7 +280,7 @@ TEST_F(ConditionsTest, DroppedRepeatedAndIrregularFrames) {
   ASSERT_NO_FATAL_FAILURE(Run(options));
   EXPECT_GT(summary_.dropped_frames, 2);
   EXPECT_GT(summary_.repeated_frames, 2);
-  EXPECT_EQ(summary_.frames, int64_t(truth_.frames.size()));
+  EXPECT_EQ(summary_.frames, static_cast<int64_t>(truth_.frames.size()));
   // The decoded time stamps are the truth's, on a grid of quarter frame intervals, with gaps
   // where frames were dropped and intervals of 3 to 5 quarters otherwise.
   const std::vector<double> times = DecodeTimes(options.output);
@@ -295,7 +297,9 @@ TEST_F(ConditionsTest, DroppedRepeatedAndIrregularFrames) {
     if (!truth_.frames[i].repeated) continue;
     ++repeats;
     EXPECT_EQ(truth_.frames[i].frame_from_ground, truth_.frames[i - 1].frame_from_ground);
-    EXPECT_LT(cv::norm(frames_[i], frames_[i - 1], cv::NORM_L1) / double(frames_[i].total()), 1.0)
+    EXPECT_LT(
+        cv::norm(frames_[i], frames_[i - 1], cv::NORM_L1) / static_cast<double>(frames_[i].total()),
+        1.0)
         << "a repeated frame shows the same picture";
   }
   EXPECT_EQ(repeats, summary_.repeated_frames);
@@ -312,8 +316,8 @@ TEST_F(ConditionsTest, ACutSplicesInAnotherPlace) {
   EXPECT_LT((truth_.frames[11].position_m - truth_.frames[10].position_m).norm(), 3.0);
   // Both sides of the cut show the ground their truth says, and nothing relates them.
   for (int64_t i : {9, 10}) {
-    EXPECT_GT(GroundCorrelation(*setup_, truth_, i, frames_[size_t(i)],
-                                truth_.frames[size_t(i)].frame_from_ground),
+    EXPECT_GT(GroundCorrelation(*setup_, truth_, i, frames_[static_cast<size_t>(i)],
+                                truth_.frames[static_cast<size_t>(i)].frame_from_ground),
               0.85);
   }
   EXPECT_LT(GroundCorrelation(*setup_, truth_, 10, frames_[10], truth_.frames[9].frame_from_ground),
@@ -339,15 +343,18 @@ TEST_F(ConditionsTest, LensDistortionMovesTargetsWhereTheTruthSays) {
   for (size_t i = 0; i < frames_.size(); ++i) {
     const Eigen::Matrix3d& h = truth_.frames[i].frame_from_ground;
     // The same frame without targets, through the same lens.
-    const cv::Mat empty = renderer.Render(h, {}, Eigen::Vector2d::Zero(), int64_t(i), 0.1 * i);
+    const cv::Mat empty =
+        renderer.Render(h, {}, Eigen::Vector2d::Zero(), static_cast<int64_t>(i), 0.1 * i);
     cv::Mat difference;
     cv::absdiff(frames_[i], empty, difference);
     cv::cvtColor(difference, difference, cv::COLOR_BGR2GRAY);
     for (const TargetTruth& t : truth_.targets) {
       const TargetSampleTruth& s = t.samples[i];
       const Eigen::Vector2d pinhole = (h * s.ground_m.homogeneous()).hnormalized();
-      const cv::Point a(int(std::lround(s.image_px.x())), int(std::lround(s.image_px.y())));
-      const cv::Point b(int(std::lround(pinhole.x())), int(std::lround(pinhole.y())));
+      const cv::Point a(static_cast<int>(std::lround(s.image_px.x())),
+                        static_cast<int>(std::lround(s.image_px.y())));
+      const cv::Point b(static_cast<int>(std::lround(pinhole.x())),
+                        static_cast<int>(std::lround(pinhole.y())));
       const cv::Rect inner(4, 4, 632, 352);
       if (!s.visible || t.target_class == "person" || !inner.contains(a) || !inner.contains(b) ||
           (s.image_px - pinhole).norm() < 6)
@@ -399,14 +406,15 @@ TEST_F(ConditionsTest, TargetsMoveOverAnOrthophotoAlongGeneratedPaths) {
     }
     moved += (t.samples.back().ground_m - t.samples.front().ground_m).norm() > 4.0;
   }
-  for (size_t i : {size_t(0), size_t(10), size_t(19)}) {
+  for (size_t i : {static_cast<size_t>(0), static_cast<size_t>(10), static_cast<size_t>(19)}) {
     const cv::Mat ground = renderer.RenderGround(truth_.frames[i].frame_from_ground);
     cv::Mat difference;
     cv::absdiff(frames_[i], ground, difference);
     cv::cvtColor(difference, difference, cv::COLOR_BGR2GRAY);
     for (const TargetTruth& t : truth_.targets) {
       const TargetSampleTruth& s = t.samples[i];
-      const cv::Point at(int(std::lround(s.image_px.x())), int(std::lround(s.image_px.y())));
+      const cv::Point at(static_cast<int>(std::lround(s.image_px.x())),
+                         static_cast<int>(std::lround(s.image_px.y())));
       if (!s.visible || t.target_class == "person" || !cv::Rect(2, 2, 636, 356).contains(at))
         continue;
       ++visible;

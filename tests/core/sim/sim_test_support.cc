@@ -90,7 +90,7 @@ double GroundCorrelation(const SimulationSetup& setup, const Truth& truth, int64
   std::vector<cv::Point2f> corners;
   for (const Eigen::Vector2d& c : ImageCorners(setup.options().camera)) {
     const Eigen::Vector2d p = (raster_from_frame * c.homogeneous()).hnormalized();
-    corners.emplace_back(float(p.x()), float(p.y()));
+    corners.emplace_back(static_cast<float>(p.x()), static_cast<float>(p.y()));
   }
   const cv::Rect region = cv::boundingRect(corners);
   cv::Mat rendered, valid;
@@ -107,11 +107,12 @@ double GroundCorrelation(const SimulationSetup& setup, const Truth& truth, int64
   cv::Mat mask = valid & seen;
   // Targets (and their shadows) are in the frame but not in the ground render.
   for (const TargetTruth& t : truth.targets) {
-    const Eigen::Vector2d p =
-        (RasterFromGround(ground.gsd_m()) * t.samples[size_t(frame)].ground_m.homogeneous())
-            .hnormalized();
-    cv::circle(mask, cv::Point(int(p.x()) - region.x, int(p.y()) - region.y),
-               int(6.0 / ground.gsd_m()), cv::Scalar(0), cv::FILLED);
+    const Eigen::Vector2d p = (RasterFromGround(ground.gsd_m()) *
+                               t.samples[static_cast<size_t>(frame)].ground_m.homogeneous())
+                                  .hnormalized();
+    cv::circle(mask,
+               cv::Point(static_cast<int>(p.x()) - region.x, static_cast<int>(p.y()) - region.y),
+               static_cast<int>(6.0 / ground.gsd_m()), cv::Scalar(0), cv::FILLED);
   }
   EXPECT_GT(cv::countNonZero(mask), mask.total() / 3);
   return Ncc(warped, rendered, mask);

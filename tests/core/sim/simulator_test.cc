@@ -64,8 +64,8 @@ TEST_F(SimulatorTest, TruthHomographyMapsTheFrameOntoTheGround) {
   const std::vector<cv::Mat> frames = DecodeAll(options.output);
   ASSERT_EQ(frames.size(), 20u);
   for (int64_t i : {0, 9, 19}) {
-    const double ncc = GroundCorrelation(*setup, *truth, i, frames[size_t(i)],
-                                         truth->frames[size_t(i)].frame_from_ground);
+    const double ncc = GroundCorrelation(*setup, *truth, i, frames[static_cast<size_t>(i)],
+                                         truth->frames[static_cast<size_t>(i)].frame_from_ground);
     EXPECT_GT(ncc, 0.85) << "frame " << i;
   }
   // The check can fail: another frame's homography (1.5 m further on) does not fit.
@@ -98,7 +98,8 @@ TEST_F(SimulatorTest, TargetImagePositionsLandOnTheDrawnTargets) {
       const TargetSampleTruth& s = t.samples[i];
       if (!s.visible || t.target_class == "person") continue;
       const cv::Rect inner(8, 8, options.camera.width - 16, options.camera.height - 16);
-      const cv::Point at(int(std::lround(s.image_px.x())), int(std::lround(s.image_px.y())));
+      const cv::Point at(static_cast<int>(std::lround(s.image_px.x())),
+                         static_cast<int>(std::lround(s.image_px.y())));
       if (!inner.contains(at)) continue;
       ++checked;
       on_target += cv::mean(difference(cv::Rect(at.x - 1, at.y - 1, 3, 3)))[0] > 12;
@@ -106,7 +107,8 @@ TEST_F(SimulatorTest, TargetImagePositionsLandOnTheDrawnTargets) {
       const Eigen::Vector2d side =
           s.ground_m + Eigen::Vector2d(-s.velocity_mps.y(), s.velocity_mps.x()).normalized() * 4.0;
       const Eigen::Vector2d q = (h * side.homogeneous()).hnormalized();
-      const cv::Point off(int(std::lround(q.x())), int(std::lround(q.y())));
+      const cv::Point off(static_cast<int>(std::lround(q.x())),
+                          static_cast<int>(std::lround(q.y())));
       if (inner.contains(off) && s.velocity_mps.norm() > 0.5) {
         off_target += cv::mean(difference(cv::Rect(off.x - 1, off.y - 1, 3, 3)))[0] > 12;
       }
@@ -119,7 +121,8 @@ TEST_F(SimulatorTest, TargetImagePositionsLandOnTheDrawnTargets) {
 
 TEST_F(SimulatorTest, KlvCornersDecodeToTheTruthWithinTheNoise) {
   for (double noise : {0.0, 5.0}) {
-    SimulationOptions options = SmallOptions(dir_ / ("k" + std::to_string(int(noise)) + ".ts"));
+    SimulationOptions options =
+        SmallOptions(dir_ / ("k" + std::to_string(static_cast<int>(noise)) + ".ts"));
     options.metadata.position_noise_m = noise;
     options.duration_s = 4;
     ASSERT_TRUE(Simulate(options).ok());

@@ -40,8 +40,8 @@ TEST(TargetsTest, VehiclesStayOnRoadsAtRealisticSpeedsAndStopAndStart) {
       }
       max_vehicle_speed = std::max(max_vehicle_speed, speed);
       ASSERT_LT(OffRoad(*world, t.position), 0.5)
-          << "vehicle " << int(t.id) << " left the road at " << t.position.transpose();
-      (speed < 0.05 ? stopped_steps : moving_steps)[int(t.id)]++;
+          << "vehicle " << static_cast<int>(t.id) << " left the road at " << t.position.transpose();
+      (speed < 0.05 ? stopped_steps : moving_steps)[static_cast<int>(t.id)]++;
     }
   }
   EXPECT_LT(max_vehicle_speed, 14.5);
@@ -107,17 +107,19 @@ double StopsPerVehicleMinute(const TargetOptions& options, double seconds) {
   TargetSimulation sim(TestWorld(), options, 7);
   std::map<int, bool> was_stopped;
   int stops = 0, vehicles = 0;
-  for (int step = 0; step < int(seconds / 0.04); ++step) {
+  for (int step = 0; step < static_cast<int>(seconds / 0.04); ++step) {
     sim.Step(0.04);
     for (const Target& t : sim.targets()) {
       if (t.target_class == TargetClass::kPerson) continue;
       const bool stopped = t.velocity.norm() < 0.05;
-      if (stopped && was_stopped.count(int(t.id)) && !was_stopped[int(t.id)]) ++stops;
-      was_stopped[int(t.id)] = stopped;
+      if (stopped && was_stopped.count(static_cast<int>(t.id)) &&
+          !was_stopped[static_cast<int>(t.id)])
+        ++stops;
+      was_stopped[static_cast<int>(t.id)] = stopped;
     }
   }
   for (const Target& t : sim.targets()) vehicles += t.target_class != TargetClass::kPerson;
-  return stops / double(vehicles) / (seconds / 60);
+  return stops / static_cast<double>(vehicles) / (seconds / 60);
 }
 
 TEST(HarderTrafficTest, StopAndGoStopsMoreOften) {

@@ -25,7 +25,7 @@ int CornerCount(const cv::Mat& bgr) {
   cv::cvtColor(bgr, grey, cv::COLOR_BGR2GRAY);
   std::vector<cv::Point2f> corners;
   cv::goodFeaturesToTrack(grey, corners, 5000, 0.002, 5, cv::noArray(), 3, true);
-  return int(corners.size());
+  return static_cast<int>(corners.size());
 }
 
 TEST(WorldTest, SameSeedSameWorldOtherSeedOtherWorld) {
@@ -104,11 +104,13 @@ TEST(WorldTest, GroundHasTextureInTownAndCountry) {
   cv::Mat bgr, valid;
   // 100 m x 100 m in town (north of the roundabout, inside the loop) and in the fields.
   const Eigen::Vector2d town = world->town_centre + Eigen::Vector2d(-60, 40);
-  ground.Render(cv::Rect(int(town.x() / 0.2) - 250, int(-town.y() / 0.2) - 250, 500, 500), &bgr,
-                &valid);
+  ground.Render(cv::Rect(static_cast<int>(town.x() / 0.2) - 250,
+                         static_cast<int>(-town.y() / 0.2) - 250, 500, 500),
+                &bgr, &valid);
   EXPECT_EQ(cv::countNonZero(valid), 500 * 500);
   const int town_corners = CornerCount(bgr);
-  ground.Render(cv::Rect(int(1100 / 0.2), int(600 / 0.2), 500, 500), &bgr, &valid);
+  ground.Render(cv::Rect(static_cast<int>(1100 / 0.2), static_cast<int>(600 / 0.2), 500, 500), &bgr,
+                &valid);
   const int field_corners = CornerCount(bgr);
   EXPECT_GT(town_corners, 150);
   EXPECT_GT(field_corners, 100);
@@ -139,7 +141,7 @@ TEST(WorldTest, OutsideTheExtentIsNoData) {
   const ProceduralGround ground(world, 1.0);
   cv::Mat bgr, valid;
   const cv::Rect2d e = world->extent_m;
-  ground.Render(cv::Rect(int(e.x + e.width) + 10, 0, 50, 50), &bgr, &valid);
+  ground.Render(cv::Rect(static_cast<int>(e.x + e.width) + 10, 0, 50, 50), &bgr, &valid);
   EXPECT_EQ(cv::countNonZero(valid), 0);
 }
 

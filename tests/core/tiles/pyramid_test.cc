@@ -17,7 +17,7 @@ cv::Mat TestCard(int width, int height, int offset) {
   for (int y = 0; y < height; ++y) {
     for (int x = 0; x < width; ++x) {
       const bool line = (x + offset) % 32 == 0 || y % 32 == 0;
-      grey.at<uint8_t>(y, x) = line ? 10 : uint8_t(60 + (x + offset) % 160);
+      grey.at<uint8_t>(y, x) = line ? 10 : static_cast<uint8_t>(60 + (x + offset) % 160);
     }
   }
   return grey;
@@ -42,8 +42,8 @@ TileSink Into(Store* store) {
 
 // The level 0 pixel of `info` nearest `map` as (tile x, tile y, column, row in the tile).
 std::array<int, 4> Locate(const mission::PyramidInfo& info, const Eigen::Vector2d& map) {
-  const int u = int(std::lround((map.x() - info.map_origin.x()) / info.step_x));
-  const int v = int(std::lround((map.y() - info.map_origin.y()) / info.step_y));
+  const int u = static_cast<int>(std::lround((map.x() - info.map_origin.x()) / info.step_x));
+  const int v = static_cast<int>(std::lround((map.y() - info.map_origin.y()) / info.step_y));
   return {u / info.tile_size, v / info.tile_size, u % info.tile_size, v % info.tile_size};
 }
 
@@ -67,7 +67,7 @@ TEST(Pyramid, PlacesAndBlendsKeyFramesAcrossLevels) {
   Store store;
   const auto summary = RenderPyramid(frames, kWidth, kHeight, *info, options, Into(&store));
   ASSERT_TRUE(summary.ok()) << summary.status().ToString();
-  EXPECT_EQ(summary->tiles_written, int64_t(store.size()));
+  EXPECT_EQ(summary->tiles_written, static_cast<int64_t>(store.size()));
   // Level 0: 14 x 8 tiles, all covered; the top level: a single tile.
   int level0 = 0;
   for (const auto& [key, bytes] : store) level0 += std::get<0>(key) == 0;

@@ -40,8 +40,10 @@ cv::Mat Frame(const cv::Mat& ground, int n, const std::vector<Mover>& movers, do
   cv::warpAffine(ground, shifted, m, cv::Size(kWidth, kHeight), cv::INTER_LINEAR);
   for (const Mover& mover : movers) {
     const Eigen::Vector2d c = mover.centre - shift;
-    for (int y = int(c.y() - mover.half.y()) - 1; y <= int(c.y() + mover.half.y()) + 1; ++y) {
-      for (int x = int(c.x() - mover.half.x()) - 1; x <= int(c.x() + mover.half.x()) + 1; ++x) {
+    for (int y = static_cast<int>(c.y() - mover.half.y()) - 1;
+         y <= static_cast<int>(c.y() + mover.half.y()) + 1; ++y) {
+      for (int x = static_cast<int>(c.x() - mover.half.x()) - 1;
+           x <= static_cast<int>(c.x() + mover.half.x()) + 1; ++x) {
         if (x < 0 || y < 0 || x >= kWidth || y >= kHeight) continue;
         int inside = 0;
         for (int sy = 0; sy < 4; ++sy) {
@@ -51,7 +53,7 @@ cv::Mat Frame(const cv::Mat& ground, int n, const std::vector<Mover>& movers, do
           }
         }
         float& v = shifted.at<float>(y, x);
-        v = float(v + (40.0 - v) * inside / 16.0);
+        v = static_cast<float>(v + (40.0 - v) * inside / 16.0);
       }
     }
   }
@@ -115,7 +117,8 @@ TEST(ChangeDetectorTest, AWalkerIsFoundWhereItIsAndNowhereElse) {
     const int64_t f = result.frame;
     EXPECT_EQ(f, n - 12);
     EXPECT_TRUE(result.frame_motion.isApprox(CameraMotion()));
-    const Eigen::Vector2d truth = walker(int(f)).centre - kCameraStep * double(f);
+    const Eigen::Vector2d truth =
+        walker(static_cast<int>(f)).centre - kCameraStep * static_cast<double>(f);
     for (const ChangeBlob& blob : result.blobs) {
       EXPECT_LT((blob.position - truth).norm(), 1.5) << "frame " << f;
       EXPECT_LT(blob.contrast, 0) << "darker than the ground";
@@ -129,10 +132,10 @@ TEST(ChangeDetectorTest, AWalkerIsFoundWhereItIsAndNowhereElse) {
   EXPECT_GE(found, frames * 9 / 10);
   // Each answer holds its own masks: after the detector has moved on, the old answers still say
   // where the walker was in their frame, and only there.
-  ASSERT_EQ(int(kept.size()), frames);
+  ASSERT_EQ(static_cast<int>(kept.size()), frames);
   for (const ChangeFrame& result : kept) {
-    const Eigen::Vector2d truth =
-        walker(int(result.frame)).centre - kCameraStep * double(result.frame);
+    const Eigen::Vector2d truth = walker(static_cast<int>(result.frame)).centre -
+                                  kCameraStep * static_cast<double>(result.frame);
     EXPECT_TRUE(result.ChangedNear(truth, 2.0)) << "frame " << result.frame;
     EXPECT_FALSE(result.ChangedNear(truth + Eigen::Vector2d(20, 0), 5.0));
   }
@@ -159,7 +162,8 @@ TEST(ChangeDetectorTest, NoGhostBehindASlowLongMover) {
                          n == 0 ? std::nullopt : std::optional<Eigen::Matrix3d>(CameraMotion()));
     if (!result.answered()) continue;
     const int64_t f = result.frame;
-    const Eigen::Vector2d centre = bar(int(f)).centre - kCameraStep * double(f);
+    const Eigen::Vector2d centre =
+        bar(static_cast<int>(f)).centre - kCameraStep * static_cast<double>(f);
     // The bar's middle changed (in neither other frame); behind it, where it was, nothing did.
     EXPECT_TRUE(result.ChangedNear(centre, 2.0)) << "frame " << f;
     for (double behind = 5; behind <= 10; behind += 1) {
@@ -224,9 +228,9 @@ TEST(ChangeDetectorTest, AnswersAtTheProcessingSizeMapToFullResolution) {
     EXPECT_EQ(result.changed.size(), cv::Size(kWidth, kHeight));
     EXPECT_EQ(result.valid.size(), cv::Size(kWidth, kHeight));
     EXPECT_DOUBLE_EQ(result.scale, 2.0);
-    const Eigen::Vector2d truth =
-        2.0 * (walker(int(result.frame)).centre - kCameraStep * double(result.frame)) +
-        Eigen::Vector2d(0.5, 0.5);
+    const Eigen::Vector2d truth = 2.0 * (walker(static_cast<int>(result.frame)).centre -
+                                         kCameraStep * static_cast<double>(result.frame)) +
+                                  Eigen::Vector2d(0.5, 0.5);
     EXPECT_TRUE(result.ChangedNear(truth, 4.0)) << "frame " << result.frame;
     EXPECT_FALSE(result.ChangedNear(truth + Eigen::Vector2d(40, 0), 10.0));
   }
@@ -313,9 +317,9 @@ TargetTrack Moving(int64_t first, int n, Eigen::Vector2d start, Eigen::Vector2d 
   for (int i = 0; i < n; ++i) {
     TargetObservation o;
     o.frame = first + i;
-    o.position = start + double(i) * velocity;
+    o.position = start + static_cast<double>(i) * velocity;
     o.velocity = velocity;
-    if (with_features) o.features.push_back(FeatureTrackId(7));
+    if (with_features) o.features.push_back(static_cast<FeatureTrackId>(7));
     track.observations.push_back(o);
   }
   return track;
@@ -331,11 +335,12 @@ TEST(DropChangeEchoesTest, DropsOnlyChangeTracksRidingAlongACar) {
   // Beside it for 70 of 100 frames only (the car turns off after frame 70).
   tracks.push_back(Moving(0, 100, {100, 120}, car_velocity, false));
   tracks[0].observations.resize(70);
-  for (size_t i = 0; i < tracks.size(); ++i) tracks[i].id = TargetTrackId(int64_t(i) + 1);
+  for (size_t i = 0; i < tracks.size(); ++i)
+    tracks[i].id = static_cast<TargetTrackId>(static_cast<int64_t>(i) + 1);
 
   std::vector<TargetTrack> kept = DropChangeEchoes(tracks, {});
   std::vector<int64_t> ids;
-  for (const TargetTrack& t : kept) ids.push_back(int64_t(t.id));
+  for (const TargetTrack& t : kept) ids.push_back(static_cast<int64_t>(t.id));
   EXPECT_EQ(ids, (std::vector<int64_t>{1, 3, 4, 5}));
 
   ChangeEchoOptions off;
@@ -377,8 +382,8 @@ std::vector<std::pair<int64_t, TargetTrack>> EndingTarget(bool wait_for_change, 
     if (n < 10) {
       for (int i = 0; i < 2; ++i) {
         MovingPoint p;
-        p.id = FeatureTrackId(i + 1);
-        p.position = Eigen::Vector2d(100 + 2.0 * double(n), 50 + 3.0 * i);
+        p.id = static_cast<FeatureTrackId>(i + 1);
+        p.position = Eigen::Vector2d(100 + 2.0 * static_cast<double>(n), 50 + 3.0 * i);
         p.residual_velocity = Eigen::Vector2d(2, 0);
         moving.push_back(p);
       }
@@ -424,8 +429,8 @@ TEST(ChangeEvidenceTest, WaitingEndsWhenNoMoreEvidenceWillCome) {
   for (int64_t n = 0; n < 12; ++n) {
     std::vector<MovingPoint> moving(2);
     for (int i = 0; i < 2; ++i) {
-      moving[i].id = FeatureTrackId(i + 1);
-      moving[i].position = Eigen::Vector2d(100 + 2.0 * double(n), 50 + 3.0 * i);
+      moving[i].id = static_cast<FeatureTrackId>(i + 1);
+      moving[i].position = Eigen::Vector2d(100 + 2.0 * static_cast<double>(n), 50 + 3.0 * i);
       moving[i].residual_velocity = Eigen::Vector2d(2, 0);
     }
     tracker.AddFrame(n, moving);

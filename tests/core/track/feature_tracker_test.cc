@@ -65,7 +65,7 @@ Eigen::Vector2d Map(const Eigen::Matrix3d& h, const Eigen::Vector2d& p) {
 
 double Median(std::vector<double> v) {
   if (v.empty()) return std::nan("");
-  const auto middle = v.begin() + ptrdiff_t(v.size() / 2);
+  const auto middle = v.begin() + static_cast<ptrdiff_t>(v.size() / 2);
   std::nth_element(v.begin(), middle, v.end());
   return *middle;
 }
@@ -139,17 +139,18 @@ TEST(FeatureTrackerTest, FollowsSubPixelTranslationAndRotation) {
     ASSERT_GT(tracker.points().size(), 300u) << "frame " << k;
     if (k > 0) {
       const Eigen::Matrix3d now_from_before = frame_from_base(k) * frame_from_base(k - 1).inverse();
-      EXPECT_GT(tracker.matches().size(), 0.9 * double(previous.size())) << "frame " << k;
+      EXPECT_GT(tracker.matches().size(), 0.9 * static_cast<double>(previous.size()))
+          << "frame " << k;
       for (const Correspondence& m : tracker.matches()) {
-        ASSERT_TRUE(previous.count(int64_t(m.id))) << "a match of an unknown track";
-        EXPECT_EQ(previous[int64_t(m.id)], m.source);
+        ASSERT_TRUE(previous.count(static_cast<int64_t>(m.id))) << "a match of an unknown track";
+        EXPECT_EQ(previous[static_cast<int64_t>(m.id)], m.source);
         errors.Add(m.target, Map(now_from_before, m.source));
       }
     }
     std::map<int64_t, Eigen::Vector2d> now;
     int64_t last_id = 0;
     for (const TrackedPoint& p : tracker.points()) {
-      const int64_t id = int64_t(p.id);
+      const int64_t id = static_cast<int64_t>(p.id);
       EXPECT_GT(id, last_id) << "points are ordered by id";
       last_id = id;
       EXPECT_FALSE(ended.count(id)) << "id " << id << " came back";
@@ -183,7 +184,7 @@ TEST(FeatureTrackerTest, FollowsSubPixelTranslationAndRotation) {
     EXPECT_EQ(track->positions.back(), p.position);
     if (p.first_frame > kFrames - 10) continue;
     const Eigen::Matrix3d last_from_first =
-        frame_from_base(kFrames - 1) * frame_from_base(int(p.first_frame)).inverse();
+        frame_from_base(kFrames - 1) * frame_from_base(static_cast<int>(p.first_frame)).inverse();
     drift.Add(p.position, Map(last_from_first, track->positions.front()));
   }
   ASSERT_GT(drift.norm.size(), 200u);
@@ -220,18 +221,18 @@ TEST(FeatureTrackerTest, ChecksEndTracksOnAChangingRegion) {
                              patch.height + 2 * half);
         for (const TrackedPoint& p : tracker.points()) {
           const cv::Point2d at(p.position.x(), p.position.y());
-          if (core.contains(at)) inside.insert(int64_t(p.id));
-          if (!clear.contains(at)) outside.insert(int64_t(p.id));
+          if (core.contains(at)) inside.insert(static_cast<int64_t>(p.id));
+          if (!clear.contains(at)) outside.insert(static_cast<int64_t>(p.id));
         }
       }
     }
     for (const Correspondence& m : tracker.matches()) {
-      survived_inside += int(inside.count(int64_t(m.id)));
-      survived_outside += int(outside.count(int64_t(m.id)));
+      survived_inside += static_cast<int>(inside.count(static_cast<int64_t>(m.id)));
+      survived_outside += static_cast<int>(outside.count(static_cast<int64_t>(m.id)));
     }
     EXPECT_GT(inside.size(), 15u);
-    EXPECT_GT(survived_outside, 0.95 * double(outside.size()));
-    return double(survived_inside) / double(inside.size());
+    EXPECT_GT(survived_outside, 0.95 * static_cast<double>(outside.size()));
+    return static_cast<double>(survived_inside) / static_cast<double>(inside.size());
   };
   EXPECT_EQ(survivors_inside(0.5, 0.8), 0.0);
   // Each check alone lets a few through (so both are needed); without either (an absurd
@@ -294,13 +295,14 @@ TEST(FeatureTrackerTest, KeepsTheCountUpOverALongPanWithBoundedHistories) {
       const FeatureTrack* track = tracker.History(p.id);
       ASSERT_NE(track, nullptr);
       ASSERT_LE(track->positions.size(), 25u);
-      ASSERT_GE(track->positions.size(), std::min<size_t>(20, size_t(k - p.first_frame + 1)));
+      ASSERT_GE(track->positions.size(),
+                std::min<size_t>(20, static_cast<size_t>(k - p.first_frame + 1)));
       ASSERT_EQ(track->last_frame(), k);
       ASSERT_EQ(*track->PositionAt(k), p.position);
       ASSERT_EQ(track->PositionAt(track->history_start - 1), nullptr);
     }
     for (FeatureTrack& t : tracker.TakeFinished()) {
-      EXPECT_TRUE(finished_ids.insert(int64_t(t.id)).second) << "handed out twice";
+      EXPECT_TRUE(finished_ids.insert(static_cast<int64_t>(t.id)).second) << "handed out twice";
       EXPECT_EQ(tracker.History(t.id), nullptr);
       EXPECT_LT(t.last_frame(), k);
       EXPECT_GE(t.last_frame() - t.first_frame + 1, options.min_finished_length);
@@ -329,8 +331,8 @@ TEST(FeatureTrackerTest, ProcessingWidthKeepsFrameToFrameAccuracy) {
     options.max_corners = 500;
     FeatureTracker tracker(options);
     Errors errors;
-    for (int k = 0; k < int(frames.size()); ++k) {
-      tracker.Process(k, frames[size_t(k)]);
+    for (int k = 0; k < static_cast<int>(frames.size()); ++k) {
+      tracker.Process(k, frames[static_cast<size_t>(k)]);
       const Eigen::Matrix3d now_from_before = frame_from_base(k) * frame_from_base(k - 1).inverse();
       for (const Correspondence& m : tracker.matches()) {
         errors.Add(m.target, Map(now_from_before, m.source));
@@ -344,15 +346,15 @@ TEST(FeatureTrackerTest, ProcessingWidthKeepsFrameToFrameAccuracy) {
 // Round bright blobs on a dark ground, drawn exactly (no resampling) centred on `centres`.
 cv::Mat Blobs(cv::Size size, const std::vector<Eigen::Vector2d>& centres, double sigma) {
   cv::Mat image(size, CV_32F, cv::Scalar(40));
-  const int reach = int(std::ceil(4 * sigma));
+  const int reach = static_cast<int>(std::ceil(4 * sigma));
   const double k = -1 / (2 * sigma * sigma);
   for (const Eigen::Vector2d& c : centres) {
-    const int cx = int(std::lround(c.x())), cy = int(std::lround(c.y()));
+    const int cx = static_cast<int>(std::lround(c.x())), cy = static_cast<int>(std::lround(c.y()));
     for (int y = std::max(0, cy - reach); y <= std::min(size.height - 1, cy + reach); ++y) {
       float* row = image.ptr<float>(y);
       const double dy2 = (y - c.y()) * (y - c.y());
       for (int x = std::max(0, cx - reach); x <= std::min(size.width - 1, cx + reach); ++x) {
-        row[x] += float(180 * std::exp(k * ((x - c.x()) * (x - c.x()) + dy2)));
+        row[x] += static_cast<float>(180 * std::exp(k * ((x - c.x()) * (x - c.x()) + dy2)));
       }
     }
   }
@@ -369,13 +371,13 @@ cv::Mat Blobs(cv::Size size, const std::vector<Eigen::Vector2d>& centres, double
 TEST(FeatureTrackerTest, ProcessingWidthKeepsPositionsAbsolute) {
   const cv::Size size(960, 540);
   for (int width : {0, 720, 480}) {
-    const double scale = width == 0 ? 1.0 : double(size.width) / width;
+    const double scale = width == 0 ? 1.0 : static_cast<double>(size.width) / width;
     // A blob every 16 processing pixels, on processing-pixel centres (i + 0.5) * scale - 0.5.
     const auto centre = [&](int i, int j) {
       return Eigen::Vector2d((24 + 16 * i + 0.5) * scale - 0.5, (24 + 16 * j + 0.5) * scale - 0.5);
     };
-    const int columns = int((size.width - 80) / (16 * scale)),
-              rows = int((size.height - 80) / (16 * scale));
+    const int columns = static_cast<int>((size.width - 80) / (16 * scale)),
+              rows = static_cast<int>((size.height - 80) / (16 * scale));
     std::vector<Eigen::Vector2d> grid;
     for (int j = 0; j < rows; ++j) {
       for (int i = 0; i < columns; ++i) grid.push_back(centre(i, j));
@@ -395,15 +397,15 @@ TEST(FeatureTrackerTest, ProcessingWidthKeepsPositionsAbsolute) {
       for (const TrackedPoint& p : tracker.points()) {
         // The blob this track was detected on: the lattice point nearest to its start.
         const Eigen::Vector2d start = tracker.History(p.id)->positions.front();
-        const int i = int(std::lround(((start.x() + 0.5) / scale - 24.5) / 16));
-        const int j = int(std::lround(((start.y() + 0.5) / scale - 24.5) / 16));
+        const int i = static_cast<int>(std::lround(((start.x() + 0.5) / scale - 24.5) / 16));
+        const int j = static_cast<int>(std::lround(((start.y() + 0.5) / scale - 24.5) / 16));
         if (i < 0 || i >= columns || j < 0 || j >= rows) continue;
         if ((centre(i, j) - start).norm() > 1.5 * scale) continue;
         errors.Add(p.position, centre(i, j) + shift);
         found += k == 0;
       }
     }
-    EXPECT_GT(found, 0.8 * double(grid.size())) << "width " << width;
+    EXPECT_GT(found, 0.8 * static_cast<double>(grid.size())) << "width " << width;
     EXPECT_LT(Median(errors.norm), 0.05) << "width " << width;
   }
 }
@@ -442,7 +444,8 @@ TEST(FeatureTrackerTest, GapsJumpsResetAndIds) {
   EXPECT_THROW(tracker.Process(5, cv::Mat(size, CV_8UC3)), CheckError);
 
   int64_t highest = 0;
-  for (const TrackedPoint& p : tracker.points()) highest = std::max(highest, int64_t(p.id));
+  for (const TrackedPoint& p : tracker.points())
+    highest = std::max(highest, static_cast<int64_t>(p.id));
   const size_t live = tracker.points().size();
   tracker.TakeFinished();
   tracker.Process(8, frame(8));  // 3 skipped: still followed
@@ -452,13 +455,14 @@ TEST(FeatureTrackerTest, GapsJumpsResetAndIds) {
   tracker.Process(17, frame(17));  // 4 skipped: every track ends, fresh corners
   EXPECT_TRUE(tracker.matches().empty());
   std::set<int64_t> ended;
-  for (const FeatureTrack& t : tracker.TakeFinished()) ended.insert(int64_t(t.id));
+  for (const FeatureTrack& t : tracker.TakeFinished()) ended.insert(static_cast<int64_t>(t.id));
   EXPECT_GE(ended.size(), live / 2);
   for (const TrackedPoint& p : tracker.points()) {
-    EXPECT_GT(int64_t(p.id), highest);
+    EXPECT_GT(static_cast<int64_t>(p.id), highest);
     EXPECT_EQ(p.first_frame, 17);
   }
-  for (const TrackedPoint& p : tracker.points()) highest = std::max(highest, int64_t(p.id));
+  for (const TrackedPoint& p : tracker.points())
+    highest = std::max(highest, static_cast<int64_t>(p.id));
 
   // A new image size is a new video: everything ends.
   tracker.Process(18, frame(18));
@@ -470,7 +474,8 @@ TEST(FeatureTrackerTest, GapsJumpsResetAndIds) {
   const size_t before_reset = tracker.points().size();
   tracker.Process(20, View(base, Eigen::Matrix3d::Identity(), cv::Size(320, 240)));
   tracker.TakeFinished();
-  for (const TrackedPoint& p : tracker.points()) highest = std::max(highest, int64_t(p.id));
+  for (const TrackedPoint& p : tracker.points())
+    highest = std::max(highest, static_cast<int64_t>(p.id));
   tracker.Reset();
   EXPECT_TRUE(tracker.points().empty());
   EXPECT_EQ(tracker.last_frame(), -1);
@@ -479,7 +484,7 @@ TEST(FeatureTrackerTest, GapsJumpsResetAndIds) {
   tracker.Process(0, frame(0));
   EXPECT_TRUE(tracker.matches().empty());
   ASSERT_FALSE(tracker.points().empty());
-  for (const TrackedPoint& p : tracker.points()) EXPECT_GT(int64_t(p.id), highest);
+  for (const TrackedPoint& p : tracker.points()) EXPECT_GT(static_cast<int64_t>(p.id), highest);
 
   // A frame too small to track is survived.
   tracker.Process(1, cv::Mat(8, 8, CV_8UC1, cv::Scalar(100)));
@@ -544,7 +549,7 @@ TEST(FeatureTrackerTest, FollowsTheGroundInSimulatedVideo) {
     Errors errors;
     int excluded = 0;
     for (size_t i = 0; i < frames.size(); ++i) {
-      tracker.Process(int64_t(i), frames[i]);
+      tracker.Process(static_cast<int64_t>(i), frames[i]);
       if (i == 0) continue;
       EXPECT_GT(tracker.matches().size(), 300u) << "frame " << i;
       const Eigen::Matrix3d now_from_before =

@@ -24,10 +24,13 @@ TEST(HomographyFromCornersTest, FitsFourCornersWithTheirCovariance) {
   StatusOr<HomographyWithCovariance> h = HomographyFromCorners(image, map, 2.0);
   ASSERT_TRUE(h.ok());
   for (int i = 0; i < 4; ++i) {
-    EXPECT_LT((Transfer(h->target_from_source, image[size_t(i)]) - map[size_t(i)]).norm(), 1e-6);
+    EXPECT_LT((Transfer(h->target_from_source, image[static_cast<size_t>(i)]) -
+               map[static_cast<size_t>(i)])
+                  .norm(),
+              1e-6);
     // Each corner is known to the stated sigma: 2 m per coordinate.
     const Eigen::Matrix2d cov =
-        TransferCovariance(h->target_from_source, h->covariance, image[size_t(i)]);
+        TransferCovariance(h->target_from_source, h->covariance, image[static_cast<size_t>(i)]);
     EXPECT_NEAR(cov(0, 0), 4.0, 1e-6);
     EXPECT_NEAR(cov(1, 1), 4.0, 1e-6);
   }

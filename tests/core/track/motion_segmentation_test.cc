@@ -174,11 +174,13 @@ TEST(TargetTrackerTest, ObjectsThatMeetStayTwoButPiecesOfOneAreOne) {
   }
   ASSERT_EQ(tracker.active().size(), 3u);
   for (const TargetTrack& t : tracker.active()) {
-    EXPECT_EQ(t.observations.size(), 60u) << "target " << int64_t(t.id);
+    EXPECT_EQ(t.observations.size(), 60u) << "target " << static_cast<int64_t>(t.id);
     for (const TargetObservation& o : t.observations) {
       // Never a van-and-car box (100 px wide before the car caught up).
-      EXPECT_LT((o.box_max - o.box_min).x(), 40) << "target " << int64_t(t.id);
-      if (o.position.y() > 200) EXPECT_EQ(o.features.size(), 4u);
+      EXPECT_LT((o.box_max - o.box_min).x(), 40) << "target " << static_cast<int64_t>(t.id);
+      if (o.position.y() > 200) {
+        EXPECT_EQ(o.features.size(), 4u);
+      }
     }
   }
 }
@@ -198,7 +200,7 @@ TargetTrack Track(int64_t id, int64_t first, int64_t last, Eigen::Vector2d start
   for (int64_t f = first; f <= last; ++f) {
     TargetObservation o;
     o.frame = f;
-    o.position = start + image_step * double(f - first);
+    o.position = start + image_step * static_cast<double>(f - first);
     o.velocity = velocity;
     o.features = {FeatureTrackId{id * 1000 + f}};
     t.observations.push_back(o);
@@ -296,7 +298,8 @@ TEST(LinkFragmentsTest, ThousandsOfFragmentsLinkIntoTheirTargets) {
     const Eigen::Vector2d step(4, 0);
     const auto piece = [&](int64_t id, int64_t first, int64_t last, double dx) {
       tracks.push_back(Track(id, s + first, s + last,
-                             at + step * double(first) + Eigen::Vector2d(dx, 0), step, {2, 0}));
+                             at + step * static_cast<double>(first) + Eigen::Vector2d(dx, 0), step,
+                             {2, 0}));
     };
     const int64_t id = 10 * i + 1;
     piece(id, 0, 60, 0);
@@ -306,7 +309,7 @@ TEST(LinkFragmentsTest, ThousandsOfFragmentsLinkIntoTheirTargets) {
   }
   std::shuffle(tracks.begin(), tracks.end(), std::mt19937(7));
   const std::vector<TargetTrack> linked = LinkFragments(tracks, options);
-  ASSERT_EQ(linked.size(), size_t(kCars));
+  ASSERT_EQ(linked.size(), static_cast<size_t>(kCars));
   for (int i = 0; i < kCars; ++i) {
     EXPECT_EQ(linked[i].id, TargetTrackId{10 * i + 1});
     EXPECT_EQ(linked[i].observations.front().frame, 20 * i);

@@ -20,7 +20,7 @@ TEST(BoundedQueueTest, DeliversInOrderThroughASmallQueueAndEndsWithTheStatus) {
   while (std::optional<int> item = queue.Pop()) received.push_back(*item);
   producer.join();
   ASSERT_EQ(received.size(), 1000u);
-  for (int i = 0; i < 1000; ++i) EXPECT_EQ(received[size_t(i)], i);
+  for (int i = 0; i < 1000; ++i) EXPECT_EQ(received[static_cast<size_t>(i)], i);
   EXPECT_EQ(queue.status().code(), StatusCode::kIoError);
   EXPECT_FALSE(queue.Pop().has_value()) << "closed and empty stays at the end";
 }

@@ -47,7 +47,7 @@ TEST_F(FingerprintTest, FingerprintRecognisesTheSameContent) {
       << *a;
 
   // One byte in the first, middle or last MiB changes it.
-  for (size_t offset : {size_t(1000), size / 2, size - 1}) {
+  for (size_t offset : {static_cast<size_t>(1000), size / 2, size - 1}) {
     std::vector<uint8_t> changed = bytes;
     changed[offset] ^= 0x01;
     WriteFileBytes(File("c.ts"), changed);

@@ -40,9 +40,9 @@ TEST(StatisticsTest, MatchesTheRankOfTheSortedValues) {
     for (double& x : v) x = uniform(engine);
     std::vector<double> sorted = v;
     std::sort(sorted.begin(), sorted.end());
-    EXPECT_EQ(Median(v), sorted[size_t(n) / 2]) << n;
+    EXPECT_EQ(Median(v), sorted[static_cast<size_t>(n) / 2]) << n;
     for (double q : {0.05, 0.1, 0.5, 0.9, 0.95, 0.99}) {
-      const size_t k = std::min(size_t(n - 1), size_t(q * (n - 1) + 0.5));
+      const size_t k = std::min(static_cast<size_t>(n - 1), static_cast<size_t>(q * (n - 1) + 0.5));
       EXPECT_EQ(Quantile(v, q), sorted[k]) << n << " " << q;
     }
   }
