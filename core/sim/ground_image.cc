@@ -161,21 +161,13 @@ std::optional<double> GsdFromGeotransform(GDALDatasetH dataset, std::string* rea
   return gt[1] * metres_per_unit;
 }
 
-StatusOr<Decoded> DecodeWithGdal(const std::filesystem::path& path) {
-  QuietGdalErrors quiet;
-  GdalDataset owner = OpenWithGdal(path);
-  if (!owner) {
-    return InvalidDataError(Name(path) + ": not a readable TIFF / GeoTIFF" + GdalMessage());
-  }
-  GDALDatasetH dataset = owner.get();
-  const int width = GDALGetRasterXSize(dataset);
-  const int height = GDALGetRasterYSize(dataset);
-  SAKER_RETURN_IF_ERROR(CheckSize(path, width, height));
+// The colour bands to read, in B, G, R order or one grey band: by their declared role, else by
+// position. `*alpha` receives the first band declared alpha (alpha only when declared), or null.
+StatusOr<std::vector<GDALRasterBandH>> ColourBands(const std::filesystem::path& path,
+                                                   GDALDatasetH dataset, GDALRasterBandH* alpha) {
   const int band_count = GDALGetRasterCount(dataset);
-  if (band_count < 1) return InvalidDataError(Name(path) + ": no raster bands");
-
-  // Colour bands by their declared role, else by position; alpha only when declared.
-  GDALRasterBandH red = nullptr, green = nullptr, blue = nullptr, grey = nullptr, alpha = nullptr;
+  GDALRasterBandH red = nullptr, green = nullptr, blue = nullptr;
+  *alpha = nullptr;
   for (int i = 1; i <= band_count; ++i) {
     GDALRasterBandH band = GDALGetRasterBand(dataset, i);
     switch (GDALGetRasterColorInterpretation(band)) {
@@ -189,7 +181,7 @@ StatusOr<Decoded> DecodeWithGdal(const std::filesystem::path& path) {
         blue = band;
         break;
       case GCI_AlphaBand:
-        if (alpha == nullptr) alpha = band;
+        if (*alpha == nullptr) *alpha = band;
         break;
       case GCI_PaletteIndex:
         return UnsupportedError(Name(path) +
@@ -199,23 +191,25 @@ StatusOr<Decoded> DecodeWithGdal(const std::filesystem::path& path) {
         break;
     }
   }
-  std::vector<GDALRasterBandH> colour;  // in B, G, R order, or one grey band
   if (red != nullptr && green != nullptr && blue != nullptr) {
-    colour = {blue, green, red};
-  } else if (band_count - (alpha != nullptr ? 1 : 0) >= 3) {
-    colour = {GDALGetRasterBand(dataset, 3), GDALGetRasterBand(dataset, 2),
-              GDALGetRasterBand(dataset, 1)};
-  } else {
-    grey = GDALGetRasterBand(dataset, 1) == alpha ? GDALGetRasterBand(dataset, 2)
-                                                  : GDALGetRasterBand(dataset, 1);
-    if (grey == nullptr) return InvalidDataError(Name(path) + ": only an alpha band");
-    colour = {grey};
+    return std::vector<GDALRasterBandH>{blue, green, red};
   }
+  if (band_count - (*alpha != nullptr ? 1 : 0) >= 3) {
+    return std::vector<GDALRasterBandH>{GDALGetRasterBand(dataset, 3),
+                                        GDALGetRasterBand(dataset, 2),
+                                        GDALGetRasterBand(dataset, 1)};
+  }
+  GDALRasterBandH grey = GDALGetRasterBand(dataset, 1) == *alpha ? GDALGetRasterBand(dataset, 2)
+                                                                 : GDALGetRasterBand(dataset, 1);
+  if (grey == nullptr) return InvalidDataError(Name(path) + ": only an alpha band");
+  return std::vector<GDALRasterBandH>{grey};
+}
 
-  std::vector<GDALRasterBandH> used = colour;
-  if (alpha != nullptr) used.push_back(alpha);
-  const GDALDataType type = GDALGetRasterDataType(colour[0]);
-  for (GDALRasterBandH band : used) {
+// The pixel type of `bands` (the first band's), which all must share: 8- or 16-bit unsigned.
+StatusOr<GDALDataType> SharedBandType(const std::filesystem::path& path,
+                                      const std::vector<GDALRasterBandH>& bands) {
+  const GDALDataType type = GDALGetRasterDataType(bands[0]);
+  for (GDALRasterBandH band : bands) {
     const GDALDataType band_type = GDALGetRasterDataType(band);
     if (band_type != type || (type != GDT_Byte && type != GDT_UInt16)) {
       return UnsupportedError(Name(path) + ": pixel type " + GDALGetDataTypeName(band_type) +
@@ -223,62 +217,97 @@ StatusOr<Decoded> DecodeWithGdal(const std::filesystem::path& path) {
                               "with gdal_translate -ot Byte -scale)");
     }
   }
-  const int cv_type = type == GDT_Byte ? CV_8UC1 : CV_16UC1;
-  auto read = [&](GDALRasterBandH band, GDALDataType as, int mat_type) -> StatusOr<cv::Mat> {
-    cv::Mat pixels(height, width, mat_type);
-    if (GDALRasterIO(band, GF_Read, 0, 0, width, height, pixels.data, width, height, as, 0, 0) !=
-        CE_None) {
-      return InvalidDataError(Name(path) + ": reading the pixels failed" + GdalMessage());
+  return type;
+}
+
+// The whole of `band`, read as `as` into a matrix of `mat_type`.
+StatusOr<cv::Mat> ReadBand(const std::filesystem::path& path, GDALRasterBandH band, GDALDataType as,
+                           int mat_type, cv::Size size) {
+  cv::Mat pixels(size, mat_type);
+  if (GDALRasterIO(band, GF_Read, 0, 0, size.width, size.height, pixels.data, size.width,
+                   size.height, as, 0, 0) != CE_None) {
+    return InvalidDataError(Name(path) + ": reading the pixels failed" + GdalMessage());
+  }
+  return pixels;
+}
+
+// Validity without an alpha band, from nodata: a pixel is missing when every colour band that
+// declares a nodata value holds it (one band at 0 is just a dark colour). Without nodata, from
+// GDAL's mask band when it has one (an internal or .msk mask); else every pixel is data.
+StatusOr<cv::Mat> MaskWithoutAlpha(const std::filesystem::path& path,
+                                   const std::vector<GDALRasterBandH>& colour,
+                                   const std::vector<cv::Mat>& channels, GDALDataType type) {
+  const cv::Size size = channels[0].size();
+  cv::Mat mask(size, CV_8UC1, cv::Scalar(255));
+  bool any_nodata = false;
+  for (size_t i = 0; i < colour.size(); ++i) {
+    int has_nodata = 0;
+    const double nodata = GDALGetRasterNoDataValue(colour[i], &has_nodata);
+    if (!has_nodata) continue;
+    cv::Mat equal;
+    if (nodata >= 0 && nodata <= (type == GDT_Byte ? 255 : 65535) && nodata == std::floor(nodata)) {
+      equal = channels[i] == nodata;
+    } else {
+      equal = cv::Mat::zeros(size, CV_8UC1);  // a value the band cannot hold
     }
-    return pixels;
-  };
+    mask = any_nodata ? (mask | ~equal) : ~equal;
+    any_nodata = true;
+  }
+  if (!any_nodata && GDALGetMaskFlags(colour[0]) == GMF_PER_DATASET) {
+    SAKER_ASSIGN_OR_RETURN(const cv::Mat pixels,
+                           ReadBand(path, GDALGetMaskBand(colour[0]), GDT_Byte, CV_8UC1, size));
+    mask = pixels > 0;
+  }
+  return mask;
+}
+
+// 8-bit BGR from one grey channel or B, G, R channels, each of 8 or 16 bits.
+cv::Mat ToBgr(std::vector<cv::Mat> channels) {
+  for (cv::Mat& channel : channels) channel = To8Bit(channel);
+  cv::Mat bgr;
+  if (channels.size() == 1) {
+    cv::cvtColor(channels[0], bgr, cv::COLOR_GRAY2BGR);
+  } else {
+    cv::merge(channels, bgr);
+  }
+  return bgr;
+}
+
+StatusOr<Decoded> DecodeWithGdal(const std::filesystem::path& path) {
+  QuietGdalErrors quiet;
+  GdalDataset owner = OpenWithGdal(path);
+  if (!owner) {
+    return InvalidDataError(Name(path) + ": not a readable TIFF / GeoTIFF" + GdalMessage());
+  }
+  GDALDatasetH dataset = owner.get();
+  const int width = GDALGetRasterXSize(dataset);
+  const int height = GDALGetRasterYSize(dataset);
+  SAKER_RETURN_IF_ERROR(CheckSize(path, width, height));
+  if (GDALGetRasterCount(dataset) < 1) return InvalidDataError(Name(path) + ": no raster bands");
+
+  GDALRasterBandH alpha = nullptr;
+  SAKER_ASSIGN_OR_RETURN(const std::vector<GDALRasterBandH> colour,
+                         ColourBands(path, dataset, &alpha));
+  std::vector<GDALRasterBandH> used = colour;
+  if (alpha != nullptr) used.push_back(alpha);
+  SAKER_ASSIGN_OR_RETURN(const GDALDataType type, SharedBandType(path, used));
+  const int cv_type = type == GDT_Byte ? CV_8UC1 : CV_16UC1;
+  const cv::Size size(width, height);
 
   std::vector<cv::Mat> channels;
   for (GDALRasterBandH band : colour) {
-    StatusOr<cv::Mat> pixels = read(band, type, cv_type);
-    if (!pixels.ok()) return pixels.status();
-    channels.push_back(std::move(pixels).value());
+    SAKER_ASSIGN_OR_RETURN(cv::Mat pixels, ReadBand(path, band, type, cv_type, size));
+    channels.push_back(std::move(pixels));
   }
-
   Decoded decoded;
-  decoded.mask = cv::Mat(height, width, CV_8UC1, cv::Scalar(255));
   if (alpha != nullptr) {
-    StatusOr<cv::Mat> pixels = read(alpha, type, cv_type);
-    if (!pixels.ok()) return pixels.status();
+    SAKER_ASSIGN_OR_RETURN(const cv::Mat pixels, ReadBand(path, alpha, type, cv_type, size));
     // Validity from the full-depth alpha: a 16-bit alpha of 100 is still data.
-    decoded.mask = *pixels > 0;
+    decoded.mask = pixels > 0;
   } else {
-    // Nodata: a pixel is missing when every colour band that declares a nodata value holds it
-    // (one band at 0 is just a dark colour).
-    bool any_nodata = false;
-    for (size_t i = 0; i < colour.size(); ++i) {
-      int has_nodata = 0;
-      const double nodata = GDALGetRasterNoDataValue(colour[i], &has_nodata);
-      if (!has_nodata) continue;
-      cv::Mat equal;
-      if (nodata >= 0 && nodata <= (type == GDT_Byte ? 255 : 65535) &&
-          nodata == std::floor(nodata)) {
-        equal = channels[i] == nodata;
-      } else {
-        equal = cv::Mat::zeros(height, width, CV_8UC1);  // a value the band cannot hold
-      }
-      decoded.mask = any_nodata ? (decoded.mask | ~equal) : ~equal;
-      any_nodata = true;
-    }
-    // No alpha, no nodata: GDAL may still have a mask band (an internal or .msk mask).
-    if (!any_nodata && GDALGetMaskFlags(colour[0]) == GMF_PER_DATASET) {
-      StatusOr<cv::Mat> pixels = read(GDALGetMaskBand(colour[0]), GDT_Byte, CV_8UC1);
-      if (!pixels.ok()) return pixels.status();
-      decoded.mask = *pixels > 0;
-    }
+    SAKER_ASSIGN_OR_RETURN(decoded.mask, MaskWithoutAlpha(path, colour, channels, type));
   }
-
-  for (cv::Mat& channel : channels) channel = To8Bit(channel);
-  if (channels.size() == 1) {
-    cv::cvtColor(channels[0], decoded.bgr, cv::COLOR_GRAY2BGR);
-  } else {
-    cv::merge(channels, decoded.bgr);
-  }
+  decoded.bgr = ToBgr(std::move(channels));
   decoded.gsd_m = GsdFromGeotransform(dataset, &decoded.no_gsd_reason);
   return decoded;
 }
@@ -319,12 +348,7 @@ StatusOr<Decoded> DecodeWithOpenCv(const std::filesystem::path& path) {
     decoded.mask = channels.back() > 0;  // alpha 0 = no data, at full depth
     channels.pop_back();
   }
-  for (cv::Mat& channel : channels) channel = To8Bit(channel);
-  if (channels.size() == 1) {
-    cv::cvtColor(channels[0], decoded.bgr, cv::COLOR_GRAY2BGR);
-  } else {
-    cv::merge(channels, decoded.bgr);
-  }
+  decoded.bgr = ToBgr(std::move(channels));
   decoded.no_gsd_reason = "PNG and JPEG files carry no ground sample distance";
   return decoded;
 }

@@ -611,204 +611,305 @@ StatusOr<SimulationSetup> SimulationSetup::Create(const SimulationOptions& optio
   return setup;
 }
 
-StatusOr<SimulationSummary> Simulate(const SimulationOptions& options_in, JobContext* job) {
-  SAKER_ASSIGN_OR_RETURN(const SimulationSetup setup, SimulationSetup::Create(options_in));
-  const SimulationOptions& options = setup.options();
-  const CameraIntrinsics& camera = options.camera;
-  const Flight& flight = setup.flight();
-  const double frame_interval = setup.frame_interval_s();
-  const int64_t frame_count = setup.frame_count();
-  const double nominal_gsd = setup.nominal_gsd_m();
-  const std::unique_ptr<TargetSimulation> targets = setup.MakeTargets();
-  FrameRenderer renderer(setup.ground(), camera, options.imaging, options.seed);
-  renderer.SetCoarserLevels(setup.coarser_ground());
-  const OverlayPainter overlay(options.overlay, camera.width, camera.height);
-  FrameClock clock(options, frame_interval, frame_count);
-  SAKER_ASSIGN_OR_RETURN(const geo::LocalTangentPlane plane,
-                         geo::LocalTangentPlane::Create(options.origin));
+namespace {
 
+// One run of Simulate over a setup: steps the targets frame by frame, records the truth, writes
+// the KLV and hands the frames to the encoder. Frames are rendered on a worker one ahead of the
+// encoder: while frame k renders, frame k - 1 is encoded here (the encoder has its own threads
+// too).
+class SimulationRun {
+ public:
+  SimulationRun(const SimulationSetup& setup, const geo::LocalTangentPlane& plane, JobContext* job)
+      : setup_(setup),
+        options_(setup.options()),
+        camera_(options_.camera),
+        plane_(plane),
+        job_(job),
+        targets_(setup.MakeTargets()),
+        renderer_(setup.ground(), camera_, options_.imaging, options_.seed),
+        overlay_(options_.overlay, camera_.width, camera_.height),
+        clock_(options_, setup.frame_interval_s(), setup.frame_count()),
+        klv_random_(HashCombine(options_.seed, 0x4B4Cu)),
+        mission_(std::string("SAKER SIM ") + ScenarioName(options_.scenario)),
+        shadow_(targets_ ? targets_->shadow_per_m() : Eigen::Vector2d::Zero()) {
+    renderer_.SetCoarserLevels(setup.coarser_ground());
+    InitTruth();
+  }
+
+  // The encoder's settings for this run's video.
+  video::TsWriterOptions WriterOptions() const;
+  // Renders and writes every frame, its KLV and its truth; `writer` is left open.
+  Status WriteFrames(video::TsWriter* writer);
+
+  const Truth& truth() const { return truth_; }
+  const SimulationSummary& summary() const { return summary_; }
+
+ private:
+  // The truth's header: the generator, origin, camera, overlays and one entry per target.
+  void InitTruth();
+  // Records the truth and KLV of the camera frame in `slot` (the `k`th camera frame), starts
+  // rendering it and writes the frame before it.
+  Status AddFrame(const FrameSlot& slot, int64_t k);
+  // The truth of a frame showing a new picture, without its KLV flag; appends the targets'
+  // samples.
+  FrameTruth NewFrameTruth(int64_t index, double time_s, bool cut, const CameraPose& pose,
+                           const CameraIntrinsics& lens, const Eigen::Matrix3d& frame_from_ground);
+  // The truth of a repeated frame: the previous frame's, with this frame's index and time.
+  void RepeatPreviousTruth(int64_t index, double time_s);
+  // Writes frame `index`'s KLV packet at writer slot `slot` when it is due and not dropped.
+  Status WriteKlvIfDue(int64_t index, int64_t slot, uint64_t utc_us, const CameraIntrinsics& lens,
+                       const CameraPose& pose, FrameTruth* frame);
+  // Starts rendering a frame on a worker; the targets are copied, so the simulation can step on.
+  std::shared_future<cv::Mat> StartRender(const Eigen::Matrix3d& frame_from_ground, int64_t k,
+                                          double time_s, const HudTelemetry& telemetry) const;
+  // Writes the pending frame at its time slot, leaving the slots before it empty.
+  Status WritePending();
+
+  const SimulationSetup& setup_;
+  const SimulationOptions& options_;
+  const CameraIntrinsics& camera_;
+  const geo::LocalTangentPlane& plane_;
+  JobContext* job_;
+  const std::unique_ptr<TargetSimulation> targets_;
+  FrameRenderer renderer_;
+  const OverlayPainter overlay_;
+  FrameClock clock_;
+  Random klv_random_;
+  const std::string mission_;
+  const Eigen::Vector2d shadow_;
+  Truth truth_;
+  SimulationSummary summary_;
+  video::TsWriter* writer_ = nullptr;    // the encoder, while WriteFrames runs
+  std::shared_future<cv::Mat> pending_;  // the previous frame, being rendered
+  int64_t pending_slot_ = 0;             // its time slot
+  int64_t next_slot_ = 0;                // the writer's next time slot
+};
+
+video::TsWriterOptions SimulationRun::WriterOptions() const {
   video::TsWriterOptions writer_options;
-  writer_options.width = camera.width;
-  writer_options.height = camera.height;
-  writer_options.fps_num = setup.fps_num() * clock.slots_per_frame();
-  writer_options.fps_den = setup.fps_den();
-  writer_options.gop_size = std::max(1, static_cast<int>(std::lround(options.fps)));
-  writer_options.crf = options.crf;
-  writer_options.x264_preset = options.x264_preset;
+  writer_options.width = camera_.width;
+  writer_options.height = camera_.height;
+  writer_options.fps_num = setup_.fps_num() * clock_.slots_per_frame();
+  writer_options.fps_den = setup_.fps_den();
+  writer_options.gop_size = std::max(1, static_cast<int>(std::lround(options_.fps)));
+  writer_options.crf = options_.crf;
+  writer_options.x264_preset = options_.x264_preset;
   // libx264's output depends on its thread count: fix it so a seed gives the same file on any
   // machine (4 threads keep two cores busy and cost little on more).
   writer_options.threads = 4;
   writer_options.with_klv =
-      options.metadata.every_n_frames > 0 || !options.metadata.only_frames.empty();
+      options_.metadata.every_n_frames > 0 || !options_.metadata.only_frames.empty();
+  return writer_options;
+}
+
+void SimulationRun::InitTruth() {
+  truth_.generator = options_.ToJson();
+  truth_.origin_latitude_deg = options_.origin.latitude_deg;
+  truth_.origin_longitude_deg = options_.origin.longitude_deg;
+  truth_.origin_height_m = options_.origin.height_m;
+  truth_.width = camera_.width, truth_.height = camera_.height;
+  truth_.fx = camera_.fx(), truth_.fy = camera_.fy(), truth_.cx = camera_.cx(),
+  truth_.cy = camera_.cy();
+  truth_.fps = static_cast<double>(setup_.fps_num()) / setup_.fps_den();
+  truth_.start_utc_us = options_.start_utc_us;
+  truth_.overlays = overlay_.regions();
+  if (targets_) {
+    for (const Target& t : targets_->targets()) {
+      truth_.targets.push_back(
+          {static_cast<int>(t.id), TargetClassName(t.target_class), t.length_m(), t.width_m(), {}});
+      truth_.targets.back().samples.reserve(static_cast<size_t>(setup_.frame_count()));
+    }
+  }
+}
+
+Status SimulationRun::WriteFrames(video::TsWriter* writer) {
+  writer_ = writer;
+  FrameSlot slot;
+  for (int64_t k = 0; clock_.Next(&slot); ++k) {
+    if (job_ != nullptr && job_->IsCancelled()) {
+      if (pending_.valid()) pending_.wait();
+      return CancelledError("simulate: cancelled");
+    }
+    for (int64_t step = 0; targets_ && step < slot.target_steps; ++step) {
+      targets_->Step(clock_.step_s());
+    }
+    if (slot.dropped) {
+      ++summary_.dropped_frames;
+      continue;
+    }
+    SAKER_RETURN_IF_ERROR(AddFrame(slot, k));
+  }
+  if (pending_.valid()) {
+    SAKER_RETURN_IF_ERROR(WritePending());
+    if (job_ != nullptr) job_->ReportProgress("simulate", 1.0);
+  }
+  return Status::Ok();
+}
+
+Status SimulationRun::AddFrame(const FrameSlot& slot, int64_t k) {
+  const int64_t i = static_cast<int64_t>(truth_.frames.size());  // the frame's index in the video
+  const double t = slot.video_s;
+  const CameraPose pose = setup_.flight().PoseAt(slot.camera_s);
+  const CameraIntrinsics lens = setup_.CameraAt(slot.camera_s);
+  const Eigen::Matrix3d frame_from_ground = FrameFromGround(lens, pose);
+  // UTC of the moment shown (after a cut, later than the video time says).
+  const uint64_t utc_us =
+      options_.start_utc_us + static_cast<uint64_t>(std::llround(slot.camera_s * 1e6));
+
+  if (slot.repeated) {
+    RepeatPreviousTruth(i, t);
+  } else {
+    FrameTruth frame = NewFrameTruth(i, t, slot.cut, pose, lens, frame_from_ground);
+    SAKER_RETURN_IF_ERROR(WriteKlvIfDue(i, slot.slot, utc_us, lens, pose, &frame));
+    truth_.frames.push_back(frame);
+  }
+
+  // A repeat shares the previous frame's picture.
+  std::shared_future<cv::Mat> next;
+  if (slot.repeated) {
+    next = pending_;
+  } else {
+    HudTelemetry telemetry;
+    telemetry.utc_us = utc_us;
+    telemetry.frame_index = i;
+    const geo::Wgs84 sensor = plane_.Wgs84FromEnu(pose.position_m);
+    telemetry.latitude_deg = sensor.latitude_deg, telemetry.longitude_deg = sensor.longitude_deg;
+    telemetry.height_m = sensor.height_m;
+    telemetry.heading_deg = pose.heading_deg;
+    telemetry.hfov_deg = lens.hfov_deg;
+    next = StartRender(frame_from_ground, k, t, telemetry);
+  }
+  if (pending_.valid()) {
+    Status status = WritePending();
+    if (!status.ok()) {
+      next.wait();
+      return status;
+    }
+    if (job_ != nullptr) job_->ReportProgress("simulate", clock_.fraction_done());
+  }
+  pending_ = std::move(next);
+  pending_slot_ = slot.slot;
+  return Status::Ok();
+}
+
+FrameTruth SimulationRun::NewFrameTruth(int64_t index, double time_s, bool cut,
+                                        const CameraPose& pose, const CameraIntrinsics& lens,
+                                        const Eigen::Matrix3d& frame_from_ground) {
+  FrameTruth frame;
+  frame.index = index;
+  frame.time_s = time_s;
+  frame.frame_from_ground = frame_from_ground;
+  frame.position_m = pose.position_m;
+  frame.heading_deg = pose.heading_deg, frame.pitch_deg = pose.pitch_deg,
+  frame.roll_deg = pose.roll_deg;
+  frame.blank = options_.imaging.IsBlank(time_s);
+  frame.cut = cut;
+  frame.hfov_deg = lens.hfov_deg;
+  frame.gimbal_azimuth_deg = pose.gimbal_azimuth_deg;
+  frame.gimbal_off_nadir_deg = pose.gimbal_off_nadir_deg;
+  if (targets_) {
+    const std::vector<Target>& list = targets_->targets();
+    for (size_t n = 0; n < list.size(); ++n) {
+      TargetSampleTruth sample;
+      sample.ground_m = list[n].position;
+      sample.velocity_mps = list[n].velocity;
+      sample.image_px =
+          LensDistort((frame_from_ground * list[n].position.homogeneous()).hnormalized(),
+                      camera_.width, camera_.height, options_.imaging.lens_k1);
+      sample.visible = !frame.blank && sample.image_px.x() >= -0.5 && sample.image_px.y() >= -0.5 &&
+                       sample.image_px.x() <= camera_.width - 0.5 &&
+                       sample.image_px.y() <= camera_.height - 0.5;
+      truth_.targets[n].samples.push_back(sample);
+    }
+  }
+  return frame;
+}
+
+void SimulationRun::RepeatPreviousTruth(int64_t index, double time_s) {
+  FrameTruth frame = truth_.frames.back();
+  frame.index = index;
+  frame.time_s = time_s;
+  frame.repeated = true;
+  frame.klv = false;
+  frame.cut = false;
+  truth_.frames.push_back(frame);
+  for (TargetTruth& target : truth_.targets) target.samples.push_back(target.samples.back());
+  ++summary_.repeated_frames;
+}
+
+Status SimulationRun::WriteKlvIfDue(int64_t index, int64_t slot, uint64_t utc_us,
+                                    const CameraIntrinsics& lens, const CameraPose& pose,
+                                    FrameTruth* frame) {
+  // The dropout is drawn only for due frames, then the packet's noise.
+  if (!options_.metadata.Due(index) ||
+      klv_random_.Bernoulli(options_.metadata.dropout_probability)) {
+    return Status::Ok();
+  }
+  SAKER_ASSIGN_OR_RETURN(const std::vector<uint8_t> packet,
+                         FrameKlv(plane_, utc_us, lens, pose, options_, mission_, &klv_random_));
+  SAKER_RETURN_IF_ERROR(writer_->WriteKlv(packet, slot));
+  frame->klv = true;
+  ++summary_.klv_packets;
+  return Status::Ok();
+}
+
+std::shared_future<cv::Mat> SimulationRun::StartRender(const Eigen::Matrix3d& frame_from_ground,
+                                                       int64_t k, double time_s,
+                                                       const HudTelemetry& telemetry) const {
+  const FrameRenderer& renderer = renderer_;
+  const OverlayPainter& overlay = overlay_;
+  return std::async(std::launch::async,
+                    [&renderer, &overlay, frame_from_ground,
+                     snapshot = targets_ ? targets_->targets() : std::vector<Target>(),
+                     shadow = shadow_, k, t = time_s, telemetry] {
+                      cv::Mat picture = renderer.Render(frame_from_ground, snapshot, shadow, k, t);
+                      overlay.Paint(telemetry, t, &picture);
+                      return picture;
+                    })
+      .share();
+}
+
+Status SimulationRun::WritePending() {
+  SAKER_RETURN_IF_ERROR(writer_->SkipFrames(pending_slot_ - next_slot_));
+  next_slot_ = pending_slot_ + 1;
+  return writer_->WriteFrame(pending_.get());
+}
+
+}  // namespace
+
+StatusOr<SimulationSummary> Simulate(const SimulationOptions& options_in, JobContext* job) {
+  SAKER_ASSIGN_OR_RETURN(const SimulationSetup setup, SimulationSetup::Create(options_in));
+  const SimulationOptions& options = setup.options();
+  SAKER_ASSIGN_OR_RETURN(const geo::LocalTangentPlane plane,
+                         geo::LocalTangentPlane::Create(options.origin));
+  SimulationRun run(setup, plane, job);
+
   // The video is renamed into place once it and its truth are complete.
   FileReplacement video(options.output.string());
   SAKER_ASSIGN_OR_RETURN(std::unique_ptr<video::TsWriter> writer,
-                         video::TsWriter::Open(video.temporary(), writer_options));
+                         video::TsWriter::Open(video.temporary(), run.WriterOptions()));
   const auto fail = [&](Status status) {
     writer.reset();
     video.Discard();
     return status;
   };
-
-  Truth truth;
-  truth.generator = options.ToJson();
-  truth.origin_latitude_deg = options.origin.latitude_deg;
-  truth.origin_longitude_deg = options.origin.longitude_deg;
-  truth.origin_height_m = options.origin.height_m;
-  truth.width = camera.width, truth.height = camera.height;
-  truth.fx = camera.fx(), truth.fy = camera.fy(), truth.cx = camera.cx(), truth.cy = camera.cy();
-  truth.fps = static_cast<double>(setup.fps_num()) / setup.fps_den();
-  truth.start_utc_us = options.start_utc_us;
-  truth.overlays = overlay.regions();
-  if (targets) {
-    for (const Target& t : targets->targets()) {
-      truth.targets.push_back(
-          {static_cast<int>(t.id), TargetClassName(t.target_class), t.length_m(), t.width_m(), {}});
-      truth.targets.back().samples.reserve(static_cast<size_t>(frame_count));
-    }
-  }
-
-  Random klv_random(HashCombine(options.seed, 0x4B4Cu));
-  const std::string mission = std::string("SAKER SIM ") + ScenarioName(options.scenario);
-  SimulationSummary summary;
-  const Eigen::Vector2d shadow = targets ? targets->shadow_per_m() : Eigen::Vector2d::Zero();
-  std::shared_future<cv::Mat> pending;  // the previous frame, being rendered
-  int64_t pending_slot = 0;             // its time slot
-  int64_t next_slot = 0;                // the writer's next time slot
-  // Writes the pending frame at its time slot, leaving the slots before it empty.
-  const auto write_pending = [&]() -> Status {
-    SAKER_RETURN_IF_ERROR(writer->SkipFrames(pending_slot - next_slot));
-    next_slot = pending_slot + 1;
-    return writer->WriteFrame(pending.get());
-  };
-  FrameSlot slot;
-  for (int64_t k = 0; clock.Next(&slot); ++k) {
-    if (job != nullptr && job->IsCancelled()) {
-      if (pending.valid()) pending.wait();
-      return fail(CancelledError("simulate: cancelled"));
-    }
-    for (int64_t step = 0; targets && step < slot.target_steps; ++step) {
-      targets->Step(clock.step_s());
-    }
-    if (slot.dropped) {
-      ++summary.dropped_frames;
-      continue;
-    }
-    const int64_t i = static_cast<int64_t>(truth.frames.size());  // the frame's index in the video
-    const double t = slot.video_s;
-    const CameraPose pose = flight.PoseAt(slot.camera_s);
-    const CameraIntrinsics lens = setup.CameraAt(slot.camera_s);
-    const Eigen::Matrix3d frame_from_ground = FrameFromGround(lens, pose);
-    // UTC of the moment shown (after a cut, later than the video time says).
-    const uint64_t utc_us =
-        options.start_utc_us + static_cast<uint64_t>(std::llround(slot.camera_s * 1e6));
-
-    if (slot.repeated) {
-      // The previous picture again, with this frame's time: its truth is the previous frame's.
-      FrameTruth frame = truth.frames.back();
-      frame.index = i;
-      frame.time_s = t;
-      frame.repeated = true;
-      frame.klv = false;
-      frame.cut = false;
-      truth.frames.push_back(frame);
-      for (TargetTruth& target : truth.targets) target.samples.push_back(target.samples.back());
-      ++summary.repeated_frames;
-    } else {
-      FrameTruth frame;
-      frame.index = i;
-      frame.time_s = t;
-      frame.frame_from_ground = frame_from_ground;
-      frame.position_m = pose.position_m;
-      frame.heading_deg = pose.heading_deg, frame.pitch_deg = pose.pitch_deg,
-      frame.roll_deg = pose.roll_deg;
-      frame.blank = options.imaging.IsBlank(t);
-      frame.cut = slot.cut;
-      frame.hfov_deg = lens.hfov_deg;
-      frame.gimbal_azimuth_deg = pose.gimbal_azimuth_deg;
-      frame.gimbal_off_nadir_deg = pose.gimbal_off_nadir_deg;
-      if (targets) {
-        const std::vector<Target>& list = targets->targets();
-        for (size_t n = 0; n < list.size(); ++n) {
-          TargetSampleTruth sample;
-          sample.ground_m = list[n].position;
-          sample.velocity_mps = list[n].velocity;
-          sample.image_px =
-              LensDistort((frame_from_ground * list[n].position.homogeneous()).hnormalized(),
-                          camera.width, camera.height, options.imaging.lens_k1);
-          sample.visible = !frame.blank && sample.image_px.x() >= -0.5 &&
-                           sample.image_px.y() >= -0.5 &&
-                           sample.image_px.x() <= camera.width - 0.5 &&
-                           sample.image_px.y() <= camera.height - 0.5;
-          truth.targets[n].samples.push_back(sample);
-        }
-      }
-      if (options.metadata.Due(i) && !klv_random.Bernoulli(options.metadata.dropout_probability)) {
-        StatusOr<std::vector<uint8_t>> packet =
-            FrameKlv(plane, utc_us, lens, pose, options, mission, &klv_random);
-        if (!packet.ok()) return fail(packet.status());
-        Status status = writer->WriteKlv(*packet, slot.slot);
-        if (!status.ok()) return fail(status);
-        frame.klv = true;
-        ++summary.klv_packets;
-      }
-      truth.frames.push_back(frame);
-    }
-
-    // Render this frame on a worker while the previous one is encoded here (the encoder has its
-    // own threads too); targets are copied, so the simulation can step on. A repeat shares the
-    // previous frame's picture.
-    std::shared_future<cv::Mat> next;
-    if (slot.repeated) {
-      next = pending;
-    } else {
-      HudTelemetry telemetry;
-      telemetry.utc_us = utc_us;
-      telemetry.frame_index = i;
-      const geo::Wgs84 sensor = plane.Wgs84FromEnu(pose.position_m);
-      telemetry.latitude_deg = sensor.latitude_deg, telemetry.longitude_deg = sensor.longitude_deg;
-      telemetry.height_m = sensor.height_m;
-      telemetry.heading_deg = pose.heading_deg;
-      telemetry.hfov_deg = lens.hfov_deg;
-      next = std::async(std::launch::async, [&renderer, &overlay, frame_from_ground,
-                                             snapshot = targets ? targets->targets()
-                                                                : std::vector<Target>(),
-                                             shadow, k, t, telemetry] {
-               cv::Mat picture = renderer.Render(frame_from_ground, snapshot, shadow, k, t);
-               overlay.Paint(telemetry, t, &picture);
-               return picture;
-             }).share();
-    }
-    if (pending.valid()) {
-      Status status = write_pending();
-      if (!status.ok()) {
-        next.wait();
-        return fail(status);
-      }
-      if (job != nullptr) job->ReportProgress("simulate", clock.fraction_done());
-    }
-    pending = std::move(next);
-    pending_slot = slot.slot;
-  }
-  if (pending.valid()) {
-    Status status = write_pending();
-    if (!status.ok()) return fail(status);
-    if (job != nullptr) job->ReportProgress("simulate", 1.0);
-  }
-  Status status = writer->Close();
+  Status status = run.WriteFrames(writer.get());
+  if (!status.ok()) return fail(status);
+  status = writer->Close();
   if (!status.ok()) return fail(status);
   writer.reset();
 
   const std::filesystem::path truth_path = options.TruthPath();
-  status = WriteTruth(truth, truth_path);
+  status = WriteTruth(run.truth(), truth_path);
   if (!status.ok()) return fail(status);
   status = video.Commit();
   if (!status.ok()) return status;
-  summary.frames = static_cast<int64_t>(truth.frames.size());
-  summary.duration_s = static_cast<double>(frame_count) * frame_interval;
-  summary.track_length_m = flight.track().length_m();
-  summary.nominal_gsd_m = nominal_gsd;
-  summary.targets = static_cast<int>(truth.targets.size());
+  SimulationSummary summary = run.summary();
+  summary.frames = static_cast<int64_t>(run.truth().frames.size());
+  summary.duration_s = static_cast<double>(setup.frame_count()) * setup.frame_interval_s();
+  summary.track_length_m = setup.flight().track().length_m();
+  summary.nominal_gsd_m = setup.nominal_gsd_m();
+  summary.targets = static_cast<int>(run.truth().targets.size());
   summary.video = options.output;
   summary.truth = truth_path;
   return summary;

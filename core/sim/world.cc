@@ -6,6 +6,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <optional>
 
@@ -490,48 +491,41 @@ Status WorldOptions::Validate() const {
   return Status::Ok();
 }
 
-StatusOr<World> GenerateWorld(const WorldOptions& options, const cv::Rect2d& extent_m) {
-  SAKER_RETURN_IF_ERROR(options.Validate());
-  if (!(extent_m.width > 0 && extent_m.height > 0) || extent_m.width > 50000 ||
-      extent_m.height > 50000) {
-    return InvalidArgumentError("world: the extent must be between 0 and 50 km on a side");
-  }
-  World world;
-  world.seed = options.seed;
-  Random random(HashCombine(options.seed, 0x7041u));
+namespace {
 
-  // The town must fit in the extent whatever the flight: grow the extent around it.
+// The town's shape: the road loop, an oval of semi-axes `a` (east-west) and `b` whose centre is
+// `centre`, and where the three streets crossing it north-south run.
+struct Town {
+  Polyline loop;
+  Vector2d centre{0, 0};
   double a = 0, b = 0;
-  Polyline loop = MakeLoop(options.loop_length_m, random, &a, &b);
-  const Vector2d centre(a, 0);
-  const cv::Rect2d town_box(centre.x() - a - 450, centre.y() - b - 450, 2 * a + 900, 2 * b + 900);
-  world.extent_m = extent_m | town_box;
-  world.town_centre = centre;
-  world.road_loop = loop;
-  const double sun_azimuth = random.Uniform(135, 165) * kDegToRad;
-  world.sun_direction = Vector2d(std::sin(sun_azimuth), std::cos(sun_azimuth));
-  world.shadow_length_per_m = 1.0 / std::tan(random.Uniform(42, 55) * kDegToRad);
+  std::array<double, 3> chord_x{};
+};
 
-  // Roads.
-  NetworkBuilder network;
-  network.Add(loop, 8.0, RoadClass::kMain);
-  const cv::Rect2d& extent = world.extent_m;
-  {
-    Polyline west{{0, 0}, {-70, 6}};
-    Polyline rest = RayToEdge({-70, 6}, {-1, 0.04}, extent);
-    west.insert(west.end(), rest.begin() + 1, rest.end());
-    network.Add(west, 8.0, RoadClass::kMain);
-    Polyline south_west{{0, 0}, {-35, -45}};
-    rest = RayToEdge({-35, -45}, {-0.55, -0.85}, extent);
-    south_west.insert(south_west.end(), rest.begin() + 1, rest.end());
-    network.Add(south_west, 6.0, RoadClass::kCountry);
-    Polyline north_west{{0, 0}, {-30, 55}};
-    rest = RayToEdge({-30, 55}, {-0.25, 1}, extent);
-    north_west.insert(north_west.end(), rest.begin() + 1, rest.end());
-    network.Add(north_west, 6.0, RoadClass::kCountry);
-  }
+// A main road west from the roundabout and two country roads north-west and south-west, all out
+// to the edge of `extent`.
+void AddRoadsFromRoundabout(const cv::Rect2d& extent, NetworkBuilder* network) {
+  Polyline west{{0, 0}, {-70, 6}};
+  Polyline rest = RayToEdge({-70, 6}, {-1, 0.04}, extent);
+  west.insert(west.end(), rest.begin() + 1, rest.end());
+  network->Add(west, 8.0, RoadClass::kMain);
+  Polyline south_west{{0, 0}, {-35, -45}};
+  rest = RayToEdge({-35, -45}, {-0.55, -0.85}, extent);
+  south_west.insert(south_west.end(), rest.begin() + 1, rest.end());
+  network->Add(south_west, 6.0, RoadClass::kCountry);
+  Polyline north_west{{0, 0}, {-30, 55}};
+  rest = RayToEdge({-30, 55}, {-0.25, 1}, extent);
+  north_west.insert(north_west.end(), rest.begin() + 1, rest.end());
+  network->Add(north_west, 6.0, RoadClass::kCountry);
+}
+
+// The town's streets across and around the loop.
+void AddTownStreets(const Town& town, const cv::Rect2d& extent, NetworkBuilder* network) {
+  const Polyline& loop = town.loop;
+  const Vector2d& centre = town.centre;
+  const double a = town.a, b = town.b;
+  const std::array<double, 3>& chord_x = town.chord_x;
   // Streets crossing the loop north-south; the middle one runs on into the country.
-  const double chord_x[3] = {centre.x() - 0.5 * a, centre.x() + 0.02 * a, centre.x() + 0.5 * a};
   for (int k = 0; k < 3; ++k) {
     const auto [lo, hi] = LoopSpanAt(loop, chord_x[k]);
     if (k == 1) {
@@ -539,9 +533,9 @@ StatusOr<World> GenerateWorld(const WorldOptions& options, const cv::Rect2d& ext
       Polyline south = RayToEdge({chord_x[k], lo}, {-0.03, -1}, extent);
       Polyline street(south.rbegin(), south.rend());
       street.insert(street.end(), north.begin() + 1, north.end());
-      network.Add(street, 7.0, RoadClass::kStreet);
+      network->Add(street, 7.0, RoadClass::kStreet);
     } else {
-      network.Add({{chord_x[k], lo - 130}, {chord_x[k], hi + 130}}, 6.5, RoadClass::kStreet);
+      network->Add({{chord_x[k], lo - 130}, {chord_x[k], hi + 130}}, 6.5, RoadClass::kStreet);
     }
   }
   // An east-west street from the first chord through the loop and east into the country.
@@ -550,58 +544,66 @@ StatusOr<World> GenerateWorld(const WorldOptions& options, const cv::Rect2d& ext
     Polyline east{{chord_x[0] - 1.0, y}, {centre.x() + a + 60, y}};
     Polyline rest = RayToEdge(east.back(), {1, -0.06}, extent);
     east.insert(east.end(), rest.begin() + 1, rest.end());
-    network.Add(east, 7.5, RoadClass::kMain);
+    network->Add(east, 7.5, RoadClass::kMain);
   }
   // A short street across the loop's south-east quarter, past the shops.
   {
     const double y = -0.5 * b;
     const double x_end =
         LoopSpanAt(loop, centre.x() + 0.8 * a).first < y ? centre.x() + a : centre.x() + 0.8 * a;
-    network.Add({{chord_x[1] - 1.0, y}, {x_end + 30, y}}, 6.0, RoadClass::kStreet);
+    network->Add({{chord_x[1] - 1.0, y}, {x_end + 30, y}}, 6.0, RoadClass::kStreet);
   }
   // Streets outside the loop joining the chord ends: a crescent to the north, a street south.
-  {
-    Polyline crescent;
-    for (int k = 0; k <= 16; ++k) {
-      const double x = chord_x[0] - 25 + (chord_x[2] - chord_x[0] + 50) * k / 16.0;
-      const double u = (x - centre.x()) / (0.5 * a + 25);
-      crescent.emplace_back(x, b + 95 - 25 * u * u);
-    }
-    network.Add(crescent, 6.0, RoadClass::kStreet);
-    network.Add({{chord_x[0] - 25, -b - 80}, {chord_x[2] + 25, -b - 80}}, 6.0, RoadClass::kStreet);
+  Polyline crescent;
+  for (int k = 0; k <= 16; ++k) {
+    const double x = chord_x[0] - 25 + (chord_x[2] - chord_x[0] + 50) * k / 16.0;
+    const double u = (x - centre.x()) / (0.5 * a + 25);
+    crescent.emplace_back(x, b + 95 - 25 * u * u);
   }
-  network.Build(&world);
-  for (size_t i = 0; i < world.nodes.size(); ++i) {
-    if (world.nodes[i].position.norm() < 1.0) {
-      world.roundabout_node = static_cast<int>(i);
-      world.nodes[i].roundabout_radius_m = 16.0;
-    }
-  }
-  SAKER_CHECK(world.roundabout_node >= 0);
+  network->Add(crescent, 6.0, RoadClass::kStreet);
+  network->Add({{chord_x[0] - 25, -b - 80}, {chord_x[2] + 25, -b - 80}}, 6.0, RoadClass::kStreet);
+}
 
-  // Reserve the roads, then the park, shops and car parks, then houses along the streets.
-  Occupancy occupancy(town_box);
-  for (const Road& road : world.roads) occupancy.MarkPolyline(road.centreline, road.width_m + 5);
-  occupancy.MarkPolygon(OrientedBox{{0, 0}, {40, 40}, 0}.Corners());  // the roundabout
-
-  {  // The park: grass and trees inside the loop's south-west, crossed by footpaths.
-    const double x0 = chord_x[0] + 12, x1 = chord_x[1] - 12;
-    const double y1 = 0.3 * b - 12;
-    const double y0 = std::max(LoopSpanAt(loop, x0).first, LoopSpanAt(loop, x1).first) + 14;
-    world.park_boundary = {{x0, y0}, {x1, y0}, {x1, y1}, {x0, y1}};
-    occupancy.MarkPolygon(world.park_boundary);
-    world.footpaths.push_back({{x0, y0}, {x1, y1}});
-    world.footpaths.push_back({{x0, y1}, {x1, y0}});
-    world.footpaths.push_back(
-        {{x0, (y0 + y1) / 2}, {(x0 + x1) / 2, (y0 + y1) / 2 + 8}, {x1, (y0 + y1) / 2}});
-    for (int k = 0; k < 28; ++k) {
-      const Vector2d p(random.Uniform(x0 + 4, x1 - 4), random.Uniform(y0 + 4, y1 - 4));
-      bool on_path = false;
-      for (const Polyline& path : world.footpaths) on_path |= DistanceToPolyline(p, path) < 6;
-      if (!on_path) world.trees.push_back({p, random.Uniform(2.5, 5.5)});
+// The road network: the loop, the roads from the roundabout and the town's streets, joined at
+// their crossings; the node at the origin is the roundabout.
+void AddRoads(const Town& town, World* world) {
+  NetworkBuilder network;
+  network.Add(town.loop, 8.0, RoadClass::kMain);
+  AddRoadsFromRoundabout(world->extent_m, &network);
+  AddTownStreets(town, world->extent_m, &network);
+  network.Build(world);
+  for (size_t i = 0; i < world->nodes.size(); ++i) {
+    if (world->nodes[i].position.norm() < 1.0) {
+      world->roundabout_node = static_cast<int>(i);
+      world->nodes[i].roundabout_radius_m = 16.0;
     }
   }
-  // Shops with car parks in front, where they fit.
+  SAKER_CHECK(world->roundabout_node >= 0);
+}
+
+// The park: grass and trees inside the loop's south-west, crossed by footpaths.
+void AddPark(const Town& town, Occupancy& occupancy, Random& random, World* world) {
+  const double x0 = town.chord_x[0] + 12, x1 = town.chord_x[1] - 12;
+  const double y1 = 0.3 * town.b - 12;
+  const double y0 = std::max(LoopSpanAt(town.loop, x0).first, LoopSpanAt(town.loop, x1).first) + 14;
+  world->park_boundary = {{x0, y0}, {x1, y0}, {x1, y1}, {x0, y1}};
+  occupancy.MarkPolygon(world->park_boundary);
+  world->footpaths.push_back({{x0, y0}, {x1, y1}});
+  world->footpaths.push_back({{x0, y1}, {x1, y0}});
+  world->footpaths.push_back(
+      {{x0, (y0 + y1) / 2}, {(x0 + x1) / 2, (y0 + y1) / 2 + 8}, {x1, (y0 + y1) / 2}});
+  for (int k = 0; k < 28; ++k) {
+    const Vector2d p(random.Uniform(x0 + 4, x1 - 4), random.Uniform(y0 + 4, y1 - 4));
+    bool on_path = false;
+    for (const Polyline& path : world->footpaths) on_path |= DistanceToPolyline(p, path) < 6;
+    if (!on_path) world->trees.push_back({p, random.Uniform(2.5, 5.5)});
+  }
+}
+
+// Shops with car parks in front, where they fit.
+void AddShops(const Town& town, Occupancy& occupancy, Random& random, World* world) {
+  const Vector2d& centre = town.centre;
+  const double a = town.a, b = town.b;
   const struct {
     Vector2d at;
     double angle;
@@ -621,23 +623,16 @@ StatusOr<World> GenerateWorld(const WorldOptions& options, const cv::Rect2d& ext
     if (!occupancy.IsFree(car_park_plot) || !occupancy.IsFree(shop_plot)) continue;
     occupancy.MarkPolygon(car_park_plot);
     occupancy.MarkPolygon(shop_plot);
-    world.car_parks.push_back(car_park);
-    FillCarPark(car_park, random, &world);
-    world.buildings.push_back({shop, random.Uniform(7, 10),
-                               cv::Scalar(170, 172, 168) * random.Uniform(0.9, 1.05), false});
+    world->car_parks.push_back(car_park);
+    FillCarPark(car_park, random, world);
+    world->buildings.push_back({shop, random.Uniform(7, 10),
+                                cv::Scalar(170, 172, 168) * random.Uniform(0.9, 1.05), false});
   }
-  for (const Road& road : world.roads) {
-    const Vector2d mid = road.centreline[road.centreline.size() / 2];
-    const Vector2d d = mid - centre;
-    const bool in_town = std::pow(d.x() / (a + 160), 2) + std::pow(d.y() / (b + 160), 2) < 1;
-    if (in_town) LineStreetWithHouses(road, occupancy, random, &world);
-  }
-  // Footpaths between the crescent and the loop, past the houses.
-  world.footpaths.push_back(
-      {{chord_x[1] + 30, LoopSpanAt(loop, chord_x[1] + 30).second + 6}, {chord_x[1] + 34, b + 70}});
+}
 
-  // Trees along the main roads outside the town.
-  for (const Road& road : world.roads) {
+// Trees along the main and country roads outside the town.
+void AddRoadsideTrees(const Town& town, Random& random, World* world) {
+  for (const Road& road : world->roads) {
     if (road.road_class == RoadClass::kStreet) continue;
     const Polyline& line = road.centreline;
     for (size_t i = 0; i + 1 < line.size(); ++i) {
@@ -646,13 +641,62 @@ StatusOr<World> GenerateWorld(const WorldOptions& options, const cv::Rect2d& ext
       for (int side : {-1, 1}) {
         if (!random.Bernoulli(0.35)) continue;
         const Vector2d p = line[i] + normal * side * (road.width_m / 2 + random.Uniform(4, 7));
-        const Vector2d d = p - centre;
-        if (std::pow(d.x() / (a + 200), 2) + std::pow(d.y() / (b + 200), 2) < 1) continue;
-        world.trees.push_back({p, random.Uniform(2.5, 4.5)});
+        const Vector2d d = p - town.centre;
+        if (std::pow(d.x() / (town.a + 200), 2) + std::pow(d.y() / (town.b + 200), 2) < 1) continue;
+        world->trees.push_back({p, random.Uniform(2.5, 4.5)});
       }
     }
   }
-  MakeCountryside(extent, centre, a + 170, b + 170, HashCombine(options.seed, 0xC0u), &world);
+}
+
+}  // namespace
+
+StatusOr<World> GenerateWorld(const WorldOptions& options, const cv::Rect2d& extent_m) {
+  SAKER_RETURN_IF_ERROR(options.Validate());
+  if (!(extent_m.width > 0 && extent_m.height > 0) || extent_m.width > 50000 ||
+      extent_m.height > 50000) {
+    return InvalidArgumentError("world: the extent must be between 0 and 50 km on a side");
+  }
+  World world;
+  world.seed = options.seed;
+  Random random(HashCombine(options.seed, 0x7041u));
+
+  // The town must fit in the extent whatever the flight: grow the extent around it.
+  Town town;
+  town.loop = MakeLoop(options.loop_length_m, random, &town.a, &town.b);
+  const double a = town.a, b = town.b;
+  const Vector2d centre(a, 0);
+  town.centre = centre;
+  town.chord_x = {centre.x() - 0.5 * a, centre.x() + 0.02 * a, centre.x() + 0.5 * a};
+  const cv::Rect2d town_box(centre.x() - a - 450, centre.y() - b - 450, 2 * a + 900, 2 * b + 900);
+  world.extent_m = extent_m | town_box;
+  world.town_centre = centre;
+  world.road_loop = town.loop;
+  const double sun_azimuth = random.Uniform(135, 165) * kDegToRad;
+  world.sun_direction = Vector2d(std::sin(sun_azimuth), std::cos(sun_azimuth));
+  world.shadow_length_per_m = 1.0 / std::tan(random.Uniform(42, 55) * kDegToRad);
+  AddRoads(town, &world);
+
+  // Reserve the roads, then the park, shops and car parks, then houses along the streets.
+  Occupancy occupancy(town_box);
+  for (const Road& road : world.roads) occupancy.MarkPolyline(road.centreline, road.width_m + 5);
+  occupancy.MarkPolygon(OrientedBox{{0, 0}, {40, 40}, 0}.Corners());  // the roundabout
+  AddPark(town, occupancy, random, &world);
+  AddShops(town, occupancy, random, &world);
+  for (const Road& road : world.roads) {
+    const Vector2d mid = road.centreline[road.centreline.size() / 2];
+    const Vector2d d = mid - centre;
+    const bool in_town = std::pow(d.x() / (a + 160), 2) + std::pow(d.y() / (b + 160), 2) < 1;
+    if (in_town) LineStreetWithHouses(road, occupancy, random, &world);
+  }
+  // Footpaths between the crescent and the loop, past the houses.
+  const double chord_x1 = town.chord_x[1];
+  world.footpaths.push_back(
+      {{chord_x1 + 30, LoopSpanAt(town.loop, chord_x1 + 30).second + 6}, {chord_x1 + 34, b + 70}});
+
+  AddRoadsideTrees(town, random, &world);
+  MakeCountryside(world.extent_m, centre, a + 170, b + 170, HashCombine(options.seed, 0xC0u),
+                  &world);
   return world;
 }
 

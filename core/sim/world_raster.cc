@@ -210,6 +210,243 @@ Polyline VehicleBand(const Vector2d& position, const Vector2d& forward, double l
           nose - forward * to_front + left * half_width};
 }
 
+// The material of a field: its colour, with noise and stripes by crop (stripes no finer than a
+// few raster pixels, so they do not alias).
+Material FieldMaterial(const Field& field, double gsd) {
+  Material m = MakeMaterial(field.bgr, 0.06f, 0.05f, 0.07f, 0.08f);
+  const double a = field.stripe_angle_deg * kDegToRad;
+  m.stripe_normal = Vector2d(-std::sin(a), std::cos(a));
+  switch (field.crop) {
+    case Crop::kPasture:
+      m.fine = 0.09f, m.mid = 0.09f, m.coarse = 0.1f;
+      break;
+    case Crop::kStripes:
+      m.stripe_amplitude = 0.12f, m.stripe_spacing_m = static_cast<float>(std::max(1.6, 4 * gsd));
+      break;
+    case Crop::kPloughed:
+      m.fine = 0.12f, m.stripe_amplitude = 0.16f,
+      m.stripe_spacing_m = static_cast<float>(std::max(1.0, 3.5 * gsd));
+      break;
+    case Crop::kStubble:
+      m.fine = 0.08f, m.stripe_amplitude = 0.06f,
+      m.stripe_spacing_m = static_cast<float>(std::max(3.0, 4 * gsd));
+      break;
+  }
+  return m;
+}
+
+// The ground layer: fields, then hedges between them; the park, footpaths, car parks, roads
+// (pavements along town streets, then the carriageway) and the roundabout on top.
+void PaintGroundLayer(const World& w, TilePainter& p) {
+  cv::Mat& ground = p.ground();
+  for (const Field& field : w.fields) {
+    const Material m = FieldMaterial(field, p.gsd());
+    if (p.Touches(TilePainter::Bounds(field.polygon), 0))
+      p.FillPolygon(ground, field.polygon, p.AddMaterial(m));
+  }
+  const uint16_t hedge = p.AddMaterial(MakeMaterial({38, 82, 52}, 0.22f, 0.25f, 0.1f, 0.05f));
+  for (const Polyline& line : w.hedges) p.StrokePolyline(ground, line, 2.8, hedge);
+  // The park and the roundabout's island: mown grass.
+  const uint16_t lawn = p.AddMaterial(MakeMaterial({80, 150, 100}, 0.05f, 0.05f, 0.06f, 0.06f));
+  if (!w.park_boundary.empty()) p.FillPolygon(ground, w.park_boundary, lawn);
+  const uint16_t path = p.AddMaterial(MakeMaterial({140, 170, 185}, 0.12f, 0.06f, 0.04f, 0.0f));
+  for (const Polyline& line : w.footpaths) p.StrokePolyline(ground, line, 2.0, path);
+  // Car parks.
+  const uint16_t tarmac = p.AddMaterial(MakeMaterial({92, 94, 96}, 0.08f, 0.05f, 0.06f, 0.04f));
+  for (const OrientedBox& park : w.car_parks) p.FillPolygon(ground, park.Corners(), tarmac);
+  // Roads: pavements along town streets, then the carriageway; the roundabout on top.
+  const uint16_t pavement = p.AddMaterial(MakeMaterial({165, 168, 170}, 0.06f, 0.04f, 0.03f, 0.0f));
+  const uint16_t asphalt = p.AddMaterial(MakeMaterial({78, 80, 82}, 0.09f, 0.05f, 0.05f, 0.05f));
+  const uint16_t lane = p.AddMaterial(MakeMaterial({95, 100, 104}, 0.1f, 0.06f, 0.06f, 0.05f));
+  for (const Road& road : w.roads) {
+    if (road.road_class != RoadClass::kCountry)
+      p.StrokePolyline(ground, road.centreline, road.width_m + 3.6, pavement);
+  }
+  for (const Road& road : w.roads) {
+    p.StrokePolyline(ground, road.centreline, road.width_m,
+                     road.road_class == RoadClass::kCountry ? lane : asphalt);
+  }
+  if (w.roundabout_node >= 0) {
+    const RoadNode& node = w.nodes[w.roundabout_node];
+    p.FillCircle(ground, node.position, node.roundabout_radius_m + 1.8, pavement);
+    p.FillCircle(ground, node.position, node.roundabout_radius_m, asphalt);
+    p.FillCircle(ground, node.position, node.roundabout_radius_m * 0.5 + 0.6, pavement);
+    p.FillCircle(ground, node.position, node.roundabout_radius_m * 0.5, lawn);
+  }
+}
+
+// A white painted stripe from `a` to `b` (ground metres) `width` metres wide.
+void PaintStripe(const Eigen::Matrix3d& tile_from_ground, const Vector2d& a, const Vector2d& b,
+                 double width, double alpha, cv::Mat* image) {
+  const Vector2d along = (b - a).normalized();
+  const Vector2d n(-along.y() * width / 2, along.x() * width / 2);
+  BlendPolygon(ProjectAll(tile_from_ground, {a + n, b + n, b - n, a - n}),
+               cv::Scalar(225, 228, 230), alpha, image);
+}
+
+// Road markings: dashed centre lines on streets and main roads; bays in car parks.
+void DrawRoadMarkings(const World& w, const TilePainter& p, cv::Mat* image) {
+  const Eigen::Matrix3d tile_from_ground = p.TileFromGround();
+  for (const Road& road : w.roads) {
+    if (road.road_class == RoadClass::kCountry) continue;
+    if (!p.Touches(TilePainter::Bounds(road.centreline), 2)) continue;
+    const double skip = 12.0;
+    for (const auto& [a, b] : Dashes(road.centreline, 3.0, 9.0, skip)) {
+      if (w.roundabout_node >= 0 && (a - w.nodes[w.roundabout_node].position).norm() < 24) continue;
+      PaintStripe(tile_from_ground, a, b, 0.15, 0.85, image);
+    }
+  }
+  for (const OrientedBox& park : w.car_parks) {
+    if (!p.Touches(TilePainter::Bounds(park.Corners()), 1)) continue;
+    const double a = park.angle_deg * kDegToRad;
+    const Vector2d ax(std::cos(a), std::sin(a)), ay(-std::sin(a), std::cos(a));
+    const int bays = static_cast<int>((park.size.x() - 2.0) / 2.5);
+    for (int row : {-1, 1}) {
+      for (int k = 0; k <= bays; ++k) {
+        const Vector2d base = park.centre + ax * (-park.size.x() / 2 + 1.0 + k * 2.5) +
+                              ay * (row * (park.size.y() / 2 - 0.4));
+        PaintStripe(tile_from_ground, base, base - ay * (row * 5.0), 0.12, 0.8, image);
+      }
+    }
+  }
+}
+
+// Marks on `shadow` (the tile's 8-bit shadow mask) the shadow that `outline` casts when raised
+// `height` metres: the convex hull of the outline and its image on the ground.
+void CastShadow(const TilePainter& p, const Polyline& outline, double height,
+                const Vector2d& shadow_per_m, cv::Mat* shadow) {
+  std::vector<cv::Point2f> all, hull;
+  for (const Vector2d& q : outline) {
+    all.emplace_back(static_cast<float>(q.x()), static_cast<float>(q.y()));
+    all.emplace_back(static_cast<float>(q.x() + shadow_per_m.x() * height),
+                     static_cast<float>(q.y() + shadow_per_m.y() * height));
+  }
+  cv::convexHull(all, hull);
+  Polyline polygon;
+  for (const cv::Point2f& q : hull) polygon.emplace_back(q.x, q.y);
+  if (!p.Touches(TilePainter::Bounds(polygon), 0)) return;
+  cv::fillPoly(*shadow, std::vector<std::vector<cv::Point>>{p.ToPixels(polygon)}, cv::Scalar(255),
+               cv::LINE_AA, kShift);
+}
+
+// Shadows of buildings and trees, cast away from the sun, darken the ground.
+void DarkenShadows(const World& w, const TilePainter& p, cv::Mat* image) {
+  const Vector2d shadow_per_m = ShadowPerMetre(w);
+  cv::Mat shadow = cv::Mat::zeros(image->size(), CV_8U);
+  for (const Building& b : w.buildings) {
+    CastShadow(p, b.footprint.Corners(), b.height_m, shadow_per_m, &shadow);
+  }
+  for (const Tree& t : w.trees) {
+    if (!p.Touches({t.centre.x() - 20, t.centre.y() - 20, 40, 40}, 0)) continue;
+    Polyline disc;
+    for (int k = 0; k < 12; ++k) {
+      const double a = 2 * M_PI * k / 12;
+      disc.push_back(t.centre + shadow_per_m * (1.6 * t.radius_m) +
+                     t.radius_m * Vector2d(std::cos(a), std::sin(a)));
+    }
+    CastShadow(p, disc, 0.8 * t.radius_m, shadow_per_m, &shadow);
+  }
+  for (int r = 0; r < image->rows; ++r) {
+    const uint8_t* s = shadow.ptr<uint8_t>(r);
+    cv::Vec3b* px = image->ptr<cv::Vec3b>(r);
+    for (int c = 0; c < image->cols; ++c) {
+      if (s[c] == 0) continue;
+      const double f = 1.0 - 0.5 * s[c] / 255.0;
+      px[c] =
+          cv::Vec3b(static_cast<uint8_t>(px[c][0] * f), static_cast<uint8_t>(px[c][1] * f * 0.98),
+                    static_cast<uint8_t>(px[c][2] * f * 0.95));
+    }
+  }
+}
+
+// A building's roof on the top layer: a flat roof, or two planes either side of the ridge.
+void FillRoof(const World& w, const Building& b, const Polyline& corners, TilePainter& p) {
+  Material roof = MakeMaterial(b.roof_bgr, 0.05f, 0.03f, 0.02f, 0.0f);
+  const double a = b.footprint.angle_deg * kDegToRad;
+  roof.stripe_normal = Vector2d(-std::sin(a), std::cos(a));
+  if (b.gabled) {
+    // Two roof planes either side of the ridge; the one facing the sun is brighter. Tile
+    // courses run along the ridge.
+    roof.stripe_amplitude = p.gsd() < 0.15 ? 0.06f : 0.0f;
+    roof.stripe_spacing_m = 0.5f;
+    const Vector2d mid_a = (corners[0] + corners[3]) / 2, mid_b = (corners[1] + corners[2]) / 2;
+    const double facing = roof.stripe_normal.dot(w.sun_direction);
+    Material lit = roof, dark = roof;
+    lit.bgr *= static_cast<float>(1.0 + 0.18 * std::abs(facing));
+    dark.bgr *= static_cast<float>(1.0 - 0.22 * std::abs(facing));
+    const Polyline half0{corners[0], corners[1], mid_b, mid_a};
+    const Polyline half1{mid_a, mid_b, corners[2], corners[3]};
+    const bool half1_lit = facing > 0;
+    p.FillPolygon(p.top(), half0, p.AddMaterial(half1_lit ? dark : lit));
+    p.FillPolygon(p.top(), half1, p.AddMaterial(half1_lit ? lit : dark));
+  } else {
+    roof.fine = 0.04f, roof.mid = 0.04f;
+    p.FillPolygon(p.top(), corners, p.AddMaterial(roof));
+  }
+}
+
+// Roofs and tree canopies, shaded on their own layer and laid over the ground.
+void LayRoofsAndCanopies(const World& w, TilePainter& p, cv::Mat* image) {
+  for (const Building& b : w.buildings) {
+    const Polyline corners = b.footprint.Corners();
+    if (!p.Touches(TilePainter::Bounds(corners), 0)) continue;
+    FillRoof(w, b, corners, p);
+  }
+  for (const Tree& t : w.trees) {
+    Random r(HashCombine(w.seed, static_cast<uint64_t>(std::llround(t.centre.x() * 10)) * 31 +
+                                     static_cast<uint64_t>(std::llround(t.centre.y() * 10))));
+    Material canopy =
+        MakeMaterial(cv::Scalar(35, 95, 55) * r.Uniform(0.8, 1.2), 0.18f, 0.22f, 0.0f, 0.0f);
+    p.FillCircle(p.top(), t.centre, t.radius_m, p.AddMaterial(canopy));
+  }
+  cv::Mat top_image(image->size(), CV_8UC3);  // only the pixels under the mask are shaded and used
+  p.Shade(p.top(), &top_image, true);
+  cv::Mat top_mask = p.top() != 0;
+  top_image.copyTo(*image, top_mask);
+}
+
+// Air-conditioning plant on the roof of a shop, with its shadows.
+void DrawRoofPlant(const World& w, const Building& b, const Eigen::Matrix3d& tile_from_ground,
+                   const Vector2d& shadow_per_m, cv::Mat* image) {
+  Random r(HashCombine(w.seed, static_cast<uint64_t>(std::llround(b.footprint.centre.x() * 7))));
+  const double a = b.footprint.angle_deg * kDegToRad;
+  const Vector2d ax(std::cos(a), std::sin(a)), ay(-std::sin(a), std::cos(a));
+  for (int k = 0; k < 4; ++k) {
+    const Vector2d at = b.footprint.centre + ax * r.Uniform(-0.35, 0.35) * b.footprint.size.x() +
+                        ay * r.Uniform(-0.3, 0.3) * b.footprint.size.y();
+    const OrientedBox unit{at, {r.Uniform(1.5, 3.5), r.Uniform(1.2, 2.5)}, b.footprint.angle_deg};
+    Polyline unit_shadow = unit.Corners();
+    for (Vector2d& q : unit_shadow) q += shadow_per_m * 1.2;
+    BlendPolygon(ProjectAll(tile_from_ground, unit_shadow), cv::Scalar(0, 0, 0), 0.4, image);
+    BlendPolygon(ProjectAll(tile_from_ground, unit.Corners()), cv::Scalar(200, 202, 205), 1.0,
+                 image);
+  }
+}
+
+// Roof edges and ridges, roof plant on the shops, and the parked vehicles.
+void DrawRoofDetailsAndParkedVehicles(const World& w, const TilePainter& p, cv::Mat* image) {
+  const Eigen::Matrix3d tile_from_ground = p.TileFromGround();
+  const Vector2d shadow_per_m = ShadowPerMetre(w);
+  for (const Building& b : w.buildings) {
+    const Polyline corners = b.footprint.Corners();
+    if (!p.Touches(TilePainter::Bounds(corners), 1)) continue;
+    if (b.gabled) {
+      const Vector2d mid_a = (corners[0] + corners[3]) / 2, mid_b = (corners[1] + corners[2]) / 2;
+      cv::line(*image, p.ToPixel(mid_a), p.ToPixel(mid_b), b.roof_bgr * 0.7, 1, cv::LINE_AA,
+               kShift);
+    } else if (b.footprint.size.x() * b.footprint.size.y() > 200) {
+      DrawRoofPlant(w, b, tile_from_ground, shadow_per_m, image);
+    }
+    std::vector<cv::Point> outline = p.ToPixels(corners);
+    cv::polylines(*image, std::vector<std::vector<cv::Point>>{outline}, true, b.roof_bgr * 0.6, 1,
+                  cv::LINE_AA, kShift);
+  }
+  for (const ParkedVehicle& v : w.parked) {
+    if (!p.Touches({v.position.x() - 4, v.position.y() - 4, 8, 8}, 0)) continue;
+    DrawVehicle(tile_from_ground, v.position, v.heading_deg, v.look, shadow_per_m, image);
+  }
+}
+
 }  // namespace
 
 Eigen::Vector2d ShadowPerMetre(const World& world) {
@@ -399,212 +636,15 @@ void ProceduralGround::Render(const cv::Rect& region, cv::Mat* bgr, cv::Mat* val
 
 cv::Mat ProceduralGround::PaintTile(const TileKey& key) const {
   const World& w = *world_;
-  const double g = gsd_m_;
-  TilePainter p(w, g, key.col * kTileSize, key.row * kTileSize, kTileSize);
-  cv::Mat& ground = p.ground();
-  cv::Mat& top = p.top();
-
-  // Fields, then hedges between them.
-  for (const Field& field : w.fields) {
-    Material m = MakeMaterial(field.bgr, 0.06f, 0.05f, 0.07f, 0.08f);
-    const double a = field.stripe_angle_deg * kDegToRad;
-    m.stripe_normal = Vector2d(-std::sin(a), std::cos(a));
-    switch (field.crop) {
-      case Crop::kPasture:
-        m.fine = 0.09f, m.mid = 0.09f, m.coarse = 0.1f;
-        break;
-      case Crop::kStripes:
-        m.stripe_amplitude = 0.12f, m.stripe_spacing_m = static_cast<float>(std::max(1.6, 4 * g));
-        break;
-      case Crop::kPloughed:
-        m.fine = 0.12f, m.stripe_amplitude = 0.16f,
-        m.stripe_spacing_m = static_cast<float>(std::max(1.0, 3.5 * g));
-        break;
-      case Crop::kStubble:
-        m.fine = 0.08f, m.stripe_amplitude = 0.06f,
-        m.stripe_spacing_m = static_cast<float>(std::max(3.0, 4 * g));
-        break;
-    }
-    if (p.Touches(TilePainter::Bounds(field.polygon), 0))
-      p.FillPolygon(ground, field.polygon, p.AddMaterial(m));
-  }
-  const uint16_t hedge = p.AddMaterial(MakeMaterial({38, 82, 52}, 0.22f, 0.25f, 0.1f, 0.05f));
-  for (const Polyline& line : w.hedges) p.StrokePolyline(ground, line, 2.8, hedge);
-  // The park and the roundabout's island: mown grass.
-  const uint16_t lawn = p.AddMaterial(MakeMaterial({80, 150, 100}, 0.05f, 0.05f, 0.06f, 0.06f));
-  if (!w.park_boundary.empty()) p.FillPolygon(ground, w.park_boundary, lawn);
-  const uint16_t path = p.AddMaterial(MakeMaterial({140, 170, 185}, 0.12f, 0.06f, 0.04f, 0.0f));
-  for (const Polyline& line : w.footpaths) p.StrokePolyline(ground, line, 2.0, path);
-  // Car parks.
-  const uint16_t tarmac = p.AddMaterial(MakeMaterial({92, 94, 96}, 0.08f, 0.05f, 0.06f, 0.04f));
-  for (const OrientedBox& park : w.car_parks) p.FillPolygon(ground, park.Corners(), tarmac);
-  // Roads: pavements along town streets, then the carriageway; the roundabout on top.
-  const uint16_t pavement = p.AddMaterial(MakeMaterial({165, 168, 170}, 0.06f, 0.04f, 0.03f, 0.0f));
-  const uint16_t asphalt = p.AddMaterial(MakeMaterial({78, 80, 82}, 0.09f, 0.05f, 0.05f, 0.05f));
-  const uint16_t lane = p.AddMaterial(MakeMaterial({95, 100, 104}, 0.1f, 0.06f, 0.06f, 0.05f));
-  for (const Road& road : w.roads) {
-    if (road.road_class != RoadClass::kCountry)
-      p.StrokePolyline(ground, road.centreline, road.width_m + 3.6, pavement);
-  }
-  for (const Road& road : w.roads) {
-    p.StrokePolyline(ground, road.centreline, road.width_m,
-                     road.road_class == RoadClass::kCountry ? lane : asphalt);
-  }
-  if (w.roundabout_node >= 0) {
-    const RoadNode& node = w.nodes[w.roundabout_node];
-    p.FillCircle(ground, node.position, node.roundabout_radius_m + 1.8, pavement);
-    p.FillCircle(ground, node.position, node.roundabout_radius_m, asphalt);
-    p.FillCircle(ground, node.position, node.roundabout_radius_m * 0.5 + 0.6, pavement);
-    p.FillCircle(ground, node.position, node.roundabout_radius_m * 0.5, lawn);
-  }
-
+  TilePainter p(w, gsd_m_, key.col * kTileSize, key.row * kTileSize, kTileSize);
+  PaintGroundLayer(w, p);
+  // The ground layer in colour; everything else is laid over it, each layer over the last.
   cv::Mat image(kTileSize, kTileSize, CV_8UC3);
-  p.Shade(ground, &image, false);
-
-  // Road markings: dashed centre lines on streets and main roads; bays in car parks.
-  const Eigen::Matrix3d tile_from_ground = p.TileFromGround();
-  const auto stripe = [&](const Vector2d& a, const Vector2d& b, double width, double alpha) {
-    const Vector2d along = (b - a).normalized();
-    const Vector2d n(-along.y() * width / 2, along.x() * width / 2);
-    BlendPolygon(ProjectAll(tile_from_ground, {a + n, b + n, b - n, a - n}),
-                 cv::Scalar(225, 228, 230), alpha, &image);
-  };
-  for (const Road& road : w.roads) {
-    if (road.road_class == RoadClass::kCountry) continue;
-    if (!p.Touches(TilePainter::Bounds(road.centreline), 2)) continue;
-    const double skip = 12.0;
-    for (const auto& [a, b] : Dashes(road.centreline, 3.0, 9.0, skip)) {
-      if (w.roundabout_node >= 0 && (a - w.nodes[w.roundabout_node].position).norm() < 24) continue;
-      stripe(a, b, 0.15, 0.85);
-    }
-  }
-  for (const OrientedBox& park : w.car_parks) {
-    if (!p.Touches(TilePainter::Bounds(park.Corners()), 1)) continue;
-    const double a = park.angle_deg * kDegToRad;
-    const Vector2d ax(std::cos(a), std::sin(a)), ay(-std::sin(a), std::cos(a));
-    const int bays = static_cast<int>((park.size.x() - 2.0) / 2.5);
-    for (int row : {-1, 1}) {
-      for (int k = 0; k <= bays; ++k) {
-        const Vector2d base = park.centre + ax * (-park.size.x() / 2 + 1.0 + k * 2.5) +
-                              ay * (row * (park.size.y() / 2 - 0.4));
-        stripe(base, base - ay * (row * 5.0), 0.12, 0.8);
-      }
-    }
-  }
-
-  // Shadows of buildings, trees and the shops' roof plant, cast away from the sun.
-  const Vector2d shadow_per_m = ShadowPerMetre(w);
-  cv::Mat shadow = cv::Mat::zeros(kTileSize, kTileSize, CV_8U);
-  const auto cast = [&](const Polyline& outline, double height) {
-    std::vector<cv::Point2f> all, hull;
-    for (const Vector2d& q : outline) {
-      all.emplace_back(static_cast<float>(q.x()), static_cast<float>(q.y()));
-      all.emplace_back(static_cast<float>(q.x() + shadow_per_m.x() * height),
-                       static_cast<float>(q.y() + shadow_per_m.y() * height));
-    }
-    cv::convexHull(all, hull);
-    Polyline polygon;
-    for (const cv::Point2f& q : hull) polygon.emplace_back(q.x, q.y);
-    if (!p.Touches(TilePainter::Bounds(polygon), 0)) return;
-    cv::fillPoly(shadow, std::vector<std::vector<cv::Point>>{p.ToPixels(polygon)}, cv::Scalar(255),
-                 cv::LINE_AA, kShift);
-  };
-  for (const Building& b : w.buildings) cast(b.footprint.Corners(), b.height_m);
-  for (const Tree& t : w.trees) {
-    if (!p.Touches({t.centre.x() - 20, t.centre.y() - 20, 40, 40}, 0)) continue;
-    Polyline disc;
-    for (int k = 0; k < 12; ++k) {
-      const double a = 2 * M_PI * k / 12;
-      disc.push_back(t.centre + shadow_per_m * (1.6 * t.radius_m) +
-                     t.radius_m * Vector2d(std::cos(a), std::sin(a)));
-    }
-    cast(disc, 0.8 * t.radius_m);
-  }
-  for (int r = 0; r < kTileSize; ++r) {
-    const uint8_t* s = shadow.ptr<uint8_t>(r);
-    cv::Vec3b* px = image.ptr<cv::Vec3b>(r);
-    for (int c = 0; c < kTileSize; ++c) {
-      if (s[c] == 0) continue;
-      const double f = 1.0 - 0.5 * s[c] / 255.0;
-      px[c] =
-          cv::Vec3b(static_cast<uint8_t>(px[c][0] * f), static_cast<uint8_t>(px[c][1] * f * 0.98),
-                    static_cast<uint8_t>(px[c][2] * f * 0.95));
-    }
-  }
-
-  // Roofs and tree canopies, shaded on their own layer and laid over the ground.
-  for (const Building& b : w.buildings) {
-    const Polyline corners = b.footprint.Corners();
-    if (!p.Touches(TilePainter::Bounds(corners), 0)) continue;
-    Material roof = MakeMaterial(b.roof_bgr, 0.05f, 0.03f, 0.02f, 0.0f);
-    const double a = b.footprint.angle_deg * kDegToRad;
-    roof.stripe_normal = Vector2d(-std::sin(a), std::cos(a));
-    if (b.gabled) {
-      // Two roof planes either side of the ridge; the one facing the sun is brighter. Tile
-      // courses run along the ridge.
-      roof.stripe_amplitude = g < 0.15 ? 0.06f : 0.0f;
-      roof.stripe_spacing_m = 0.5f;
-      const Vector2d mid_a = (corners[0] + corners[3]) / 2, mid_b = (corners[1] + corners[2]) / 2;
-      const double facing = roof.stripe_normal.dot(w.sun_direction);
-      Material lit = roof, dark = roof;
-      lit.bgr *= static_cast<float>(1.0 + 0.18 * std::abs(facing));
-      dark.bgr *= static_cast<float>(1.0 - 0.22 * std::abs(facing));
-      const Polyline half0{corners[0], corners[1], mid_b, mid_a};
-      const Polyline half1{mid_a, mid_b, corners[2], corners[3]};
-      const bool half1_lit = facing > 0;
-      p.FillPolygon(top, half0, p.AddMaterial(half1_lit ? dark : lit));
-      p.FillPolygon(top, half1, p.AddMaterial(half1_lit ? lit : dark));
-    } else {
-      roof.fine = 0.04f, roof.mid = 0.04f;
-      p.FillPolygon(top, corners, p.AddMaterial(roof));
-    }
-  }
-  for (const Tree& t : w.trees) {
-    Random r(HashCombine(w.seed, static_cast<uint64_t>(std::llround(t.centre.x() * 10)) * 31 +
-                                     static_cast<uint64_t>(std::llround(t.centre.y() * 10))));
-    Material canopy =
-        MakeMaterial(cv::Scalar(35, 95, 55) * r.Uniform(0.8, 1.2), 0.18f, 0.22f, 0.0f, 0.0f);
-    p.FillCircle(top, t.centre, t.radius_m, p.AddMaterial(canopy));
-  }
-  cv::Mat top_image(image.size(), CV_8UC3);  // only the pixels under the mask are shaded and used
-  p.Shade(top, &top_image, true);
-  cv::Mat top_mask = top != 0;
-  top_image.copyTo(image, top_mask);
-
-  // Roof edges and ridges, roof plant on the shops, and the parked vehicles.
-  for (const Building& b : w.buildings) {
-    const Polyline corners = b.footprint.Corners();
-    if (!p.Touches(TilePainter::Bounds(corners), 1)) continue;
-    if (b.gabled) {
-      const Vector2d mid_a = (corners[0] + corners[3]) / 2, mid_b = (corners[1] + corners[2]) / 2;
-      cv::line(image, p.ToPixel(mid_a), p.ToPixel(mid_b), b.roof_bgr * 0.7, 1, cv::LINE_AA, kShift);
-    } else if (b.footprint.size.x() * b.footprint.size.y() > 200) {
-      // Air-conditioning plant on the roofs of shops.
-      Random r(
-          HashCombine(w.seed, static_cast<uint64_t>(std::llround(b.footprint.centre.x() * 7))));
-      const double a = b.footprint.angle_deg * kDegToRad;
-      const Vector2d ax(std::cos(a), std::sin(a)), ay(-std::sin(a), std::cos(a));
-      for (int k = 0; k < 4; ++k) {
-        const Vector2d at = b.footprint.centre +
-                            ax * r.Uniform(-0.35, 0.35) * b.footprint.size.x() +
-                            ay * r.Uniform(-0.3, 0.3) * b.footprint.size.y();
-        const OrientedBox unit{
-            at, {r.Uniform(1.5, 3.5), r.Uniform(1.2, 2.5)}, b.footprint.angle_deg};
-        Polyline unit_shadow = unit.Corners();
-        for (Vector2d& q : unit_shadow) q += shadow_per_m * 1.2;
-        BlendPolygon(ProjectAll(tile_from_ground, unit_shadow), cv::Scalar(0, 0, 0), 0.4, &image);
-        BlendPolygon(ProjectAll(tile_from_ground, unit.Corners()), cv::Scalar(200, 202, 205), 1.0,
-                     &image);
-      }
-    }
-    std::vector<cv::Point> outline = p.ToPixels(corners);
-    cv::polylines(image, std::vector<std::vector<cv::Point>>{outline}, true, b.roof_bgr * 0.6, 1,
-                  cv::LINE_AA, kShift);
-  }
-  for (const ParkedVehicle& v : w.parked) {
-    if (!p.Touches({v.position.x() - 4, v.position.y() - 4, 8, 8}, 0)) continue;
-    DrawVehicle(tile_from_ground, v.position, v.heading_deg, v.look, shadow_per_m, &image);
-  }
+  p.Shade(p.ground(), &image, false);
+  DrawRoadMarkings(w, p, &image);
+  DarkenShadows(w, p, &image);
+  LayRoofsAndCanopies(w, p, &image);
+  DrawRoofDetailsAndParkedVehicles(w, p, &image);
   return image;
 }
 
