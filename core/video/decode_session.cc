@@ -7,6 +7,7 @@ extern "C" {
 #include "core/video/mpegts_pmt.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
@@ -23,6 +24,9 @@ constexpr int kMaxConsecutiveFailures = 10000;
 
 // Size of the AVIOContext buffer for in-memory input (FFmpeg's own default for files).
 constexpr int kMemoryIoBufferSize = 32768;
+
+// Calls of DecodeSession::Open, for InputsOpened().
+std::atomic<int64_t> inputs_opened{0};
 
 // "file:x.ts" -> "x.ts"; empty for URLs of other protocols.
 std::string LocalPath(const std::string& path) {
@@ -198,6 +202,7 @@ int64_t SeekMemory(void* opaque, int64_t offset, int whence) {
 
 StatusOr<std::unique_ptr<DecodeSession>> DecodeSession::Open(const std::string& path,
                                                              const SessionConfig& config) {
+  inputs_opened.fetch_add(1, std::memory_order_relaxed);
   std::unique_ptr<DecodeSession> session(new DecodeSession());
   SAKER_RETURN_IF_ERROR(session->OpenImpl(path, config));
   return session;
@@ -664,5 +669,7 @@ namespace saker::video {
 void SetFfmpegLogVerbose(bool verbose) {
   av_log_set_level(verbose ? AV_LOG_WARNING : AV_LOG_QUIET);
 }
+
+int64_t InputsOpened() { return internal::inputs_opened.load(std::memory_order_relaxed); }
 
 }  // namespace saker::video
