@@ -82,20 +82,37 @@ std::vector<std::pair<int64_t, int64_t>> Sightings(const sim::TargetTruth& targe
   return sightings;
 }
 
-DetectionAccuracy EvaluateTargets(const frontend::FrontEndResult& result, const sim::Truth& truth,
-                                  const FrontEndEvaluationOptions& options, Classes classes) {
-  DetectionAccuracy a;
-  const size_t frames = truth.frames.size();
+// The truth targets of `classes`.
+std::vector<const sim::TargetTruth*> TruthTargets(const sim::Truth& truth, Classes classes) {
   std::vector<const sim::TargetTruth*> considered;
   for (const sim::TargetTruth& t : truth.targets) {
     const bool person = t.target_class == "person";
     if (classes == Classes::kAll || (classes == Classes::kPeople) == person)
       considered.push_back(&t);
   }
-  const auto is_mover = [&](const sim::TargetTruth& t, size_t frame) {
-    const sim::TargetSampleTruth& s = t.samples[frame];
-    return s.visible && s.velocity_mps.norm() >= options.min_speed_mps;
-  };
+  return considered;
+}
+
+// Whether a truth target is a mover in `frame`: in view, at least options.min_speed_mps.
+bool IsMover(const sim::TargetTruth& t, size_t frame, const FrontEndEvaluationOptions& options) {
+  const sim::TargetSampleTruth& s = t.samples[frame];
+  return s.visible && s.velocity_mps.norm() >= options.min_speed_mps;
+}
+
+// Which target tracks were paired with which truth targets, and in how many frames.
+struct Pairing {
+  // (track, truth) -> the frames they were paired in, increasing.
+  std::map<std::pair<size_t, size_t>, std::vector<int64_t>> track_truth_pairs;
+  std::vector<int> track_paired_frames;  // per track
+};
+
+// Greedy pairing per frame, nearest first, against every considered truth target in view; a
+// pair with a non-mover still makes a detection correct (a car that has just stopped). The
+// detections, the pairs with movers and the movers' frames are counted into `a`.
+Pairing PairDetections(const frontend::FrontEndResult& result, const sim::Truth& truth,
+                       const std::vector<const sim::TargetTruth*>& considered,
+                       const FrontEndEvaluationOptions& options, DetectionAccuracy* a) {
+  const size_t frames = truth.frames.size();
   // Detections per frame: (track index, observation index).
   std::vector<std::vector<std::pair<size_t, size_t>>> detections(frames);
   for (size_t k = 0; k < result.targets.size(); ++k) {
@@ -105,11 +122,8 @@ DetectionAccuracy EvaluateTargets(const frontend::FrontEndResult& result, const 
         detections[static_cast<size_t>(f)].emplace_back(k, o);
     }
   }
-  // Greedy pairing per frame, nearest first, against every considered truth target in view; a
-  // pair with a non-mover still makes a detection correct (a car that has just stopped).
-  // (track, truth) -> the frames they were paired in, increasing.
-  std::map<std::pair<size_t, size_t>, std::vector<int64_t>> track_truth_pairs;
-  std::vector<int> track_paired_frames(result.targets.size(), 0);
+  Pairing pairing;
+  pairing.track_paired_frames.assign(result.targets.size(), 0);
   for (size_t f = 0; f < frames; ++f) {
     struct Candidate {
       double distance;
@@ -135,34 +149,41 @@ DetectionAccuracy EvaluateTargets(const frontend::FrontEndResult& result, const 
       if (detection_used[c.detection] || truth_used[c.truth]) continue;
       detection_used[c.detection] = truth_used[c.truth] = true;
       const size_t k = detections[f][c.detection].first;
-      ++track_paired_frames[k];
-      track_truth_pairs[{k, c.truth}].push_back(static_cast<int64_t>(f));
-      if (is_mover(*considered[c.truth], f)) ++a.paired;
+      ++pairing.track_paired_frames[k];
+      pairing.track_truth_pairs[{k, c.truth}].push_back(static_cast<int64_t>(f));
+      if (IsMover(*considered[c.truth], f, options)) ++a->paired;
     }
-    a.detections += static_cast<int64_t>(detections[f].size());
+    a->detections += static_cast<int64_t>(detections[f].size());
     for (size_t t = 0; t < considered.size(); ++t)
-      a.truth_mover_frames += is_mover(*considered[t], f);
+      a->truth_mover_frames += IsMover(*considered[t], f, options);
   }
-  // Track-level figures, per sighting.
-  std::vector<double> latencies;
+  return pairing;
+}
+
+// Track-level figures, per sighting of a considered truth target long enough to count: whether
+// a track found it, and how late (appended to `latencies`).
+void ScoreSightings(const frontend::FrontEndResult& result, const sim::Truth& truth,
+                    const std::vector<const sim::TargetTruth*>& considered, const Pairing& pairing,
+                    const FrontEndEvaluationOptions& options, DetectionAccuracy* a,
+                    std::vector<double>* latencies) {
   const double fps = truth.fps > 0 ? truth.fps : 25;
   for (size_t t = 0; t < considered.size(); ++t) {
     for (const auto& [begin, end] : Sightings(*considered[t], options.max_sighting_gap_frames)) {
       int mover_frames = 0;
       int64_t first_mover = -1;
       for (int64_t f = begin; f < end; ++f) {
-        if (is_mover(*considered[t], static_cast<size_t>(f))) {
+        if (IsMover(*considered[t], static_cast<size_t>(f), options)) {
           ++mover_frames;
           if (first_mover < 0) first_mover = f;
         }
       }
       if (mover_frames < options.min_mover_frames) continue;
-      ++a.truth_targets;
+      ++a->truth_targets;
       SightingOutcome outcome{considered[t]->id, considered[t]->target_class, begin, end,
                               mover_frames};
       for (size_t k = 0; k < result.targets.size(); ++k) {
-        const auto it = track_truth_pairs.find({k, t});
-        if (it == track_truth_pairs.end()) continue;
+        const auto it = pairing.track_truth_pairs.find({k, t});
+        if (it == pairing.track_truth_pairs.end()) continue;
         const std::vector<int64_t>& paired = it->second;
         const auto first = std::lower_bound(paired.begin(), paired.end(), begin);
         const auto last = std::lower_bound(paired.begin(), paired.end(), end);
@@ -175,32 +196,50 @@ DetectionAccuracy EvaluateTargets(const frontend::FrontEndResult& result, const 
         if (!outcome.found && 2 * (last - first) >= mover_frames) {
           outcome.found = true;
           outcome.latency_s = static_cast<double>(std::max<int64_t>(0, *first - first_mover)) / fps;
-          ++a.found_targets;
-          latencies.push_back(outcome.latency_s);
+          ++a->found_targets;
+          latencies->push_back(outcome.latency_s);
         }
       }
-      a.sightings.push_back(std::move(outcome));
+      a->sightings.push_back(std::move(outcome));
     }
   }
+}
+
+// Per target track: correct when paired in at least half of its observations, and the truth
+// target it was paired with most.
+void ScoreTracks(const frontend::FrontEndResult& result,
+                 const std::vector<const sim::TargetTruth*>& considered, const Pairing& pairing,
+                 DetectionAccuracy* a) {
   for (size_t k = 0; k < result.targets.size(); ++k) {
     const track::TargetTrack& track = result.targets[k];
-    ++a.detected_tracks;
+    ++a->detected_tracks;
     TrackOutcome outcome;
     outcome.track_id = static_cast<int64_t>(track.id);
     outcome.first_frame = track.observations.front().frame;
     outcome.last_frame = track.observations.back().frame;
     outcome.observations = static_cast<int64_t>(track.observations.size());
     outcome.from_features = track.max_features > 0;
-    outcome.correct = 2 * track_paired_frames[k] >= static_cast<int>(track.observations.size());
-    for (const auto& [key, frames_paired] : track_truth_pairs) {
+    outcome.correct =
+        2 * pairing.track_paired_frames[k] >= static_cast<int>(track.observations.size());
+    for (const auto& [key, frames_paired] : pairing.track_truth_pairs) {
       if (key.first == k && static_cast<int>(frames_paired.size()) > outcome.best_target_frames) {
         outcome.best_target_frames = static_cast<int>(frames_paired.size());
         outcome.best_target = considered[key.second]->id;
       }
     }
-    if (outcome.correct) ++a.correct_tracks;
-    a.tracks.push_back(outcome);
+    if (outcome.correct) ++a->correct_tracks;
+    a->tracks.push_back(outcome);
   }
+}
+
+DetectionAccuracy EvaluateTargets(const frontend::FrontEndResult& result, const sim::Truth& truth,
+                                  const FrontEndEvaluationOptions& options, Classes classes) {
+  DetectionAccuracy a;
+  const std::vector<const sim::TargetTruth*> considered = TruthTargets(truth, classes);
+  const Pairing pairing = PairDetections(result, truth, considered, options, &a);
+  std::vector<double> latencies;
+  ScoreSightings(result, truth, considered, pairing, options, &a, &latencies);
+  ScoreTracks(result, considered, pairing, &a);
   a.track_recall = a.truth_targets > 0
                        ? static_cast<double>(a.found_targets) / static_cast<double>(a.truth_targets)
                        : 1.0;
@@ -210,7 +249,7 @@ DetectionAccuracy EvaluateTargets(const frontend::FrontEndResult& result, const 
   a.frame_recall = a.truth_mover_frames > 0
                        ? static_cast<double>(a.paired) / static_cast<double>(a.truth_mover_frames)
                        : 1.0;
-  for (int n : track_paired_frames) a.paired_detections += n;
+  for (int n : pairing.track_paired_frames) a.paired_detections += n;
   a.frame_precision = a.detections > 0 ? static_cast<double>(a.paired_detections) /
                                              static_cast<double>(a.detections)
                                        : 1.0;

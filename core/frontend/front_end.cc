@@ -32,27 +32,18 @@ constexpr int64_t kChangeLagFrames = 8;
 // How often the memory limit is checked: reading /proc costs about 10 us.
 constexpr int64_t kMemoryCheckFrames = 25;
 
-// The scan decodes every frame and every KLV packet in one pass; grey frames only.
-ingest::ScanOptions ScanOptionsFor(const FrontEndOptions& options) {
-  ingest::ScanOptions scan_options;
-  scan_options.reader.want_bgr = false;
-  scan_options.reader.want_grey = true;
-  scan_options.reader.decoder_threads = options.decoder_threads;
-  return scan_options;
-}
-
-// Decoding on a thread of its own: ingest::ScanVideo reads every frame and KLV packet in one pass
-// and queues the frames for the calling thread; the metadata is tied to the frames when the scan
-// ends. Frames before `pixels_from` are only decoded, for the scan, and come without pixels. The
-// destructor stops and joins the thread, whatever happened.
+// Decoding on a thread of its own: ingest::ScanVideo reads every frame and KLV packet of the
+// opened `reader` in one pass (the frames as the reader decodes them: FrontEndOptions::
+// EffectiveReader) and queues the frames for the calling thread; the metadata is tied to the
+// frames when the scan ends. Frames before `pixels_from` are only decoded, for the scan, and come
+// without pixels. The destructor stops and joins the thread, whatever happened.
 class DecodeThread {
  public:
-  DecodeThread(const std::string& path, const ingest::ScanOptions& options, size_t queue_frames,
-               int64_t pixels_from)
+  DecodeThread(std::unique_ptr<video::VideoReader> reader, size_t queue_frames, int64_t pixels_from)
       : queue_(queue_frames) {
-    thread_ = std::thread([this, path, options, pixels_from] {
+    thread_ = std::thread([this, reader = std::move(reader), pixels_from]() mutable {
       Stopwatch watch;
-      scan_ = ingest::ScanVideo(path, options, &job_, [&](const video::Frame& frame) {
+      scan_ = ingest::ScanVideo(std::move(reader), {}, &job_, [&](const video::Frame& frame) {
         video::Frame copy = frame;
         // The reader reuses its buffers; a frame that is only decoded needs no pixels.
         copy.grey = frame.index >= pixels_from ? frame.grey.clone() : cv::Mat();
@@ -144,15 +135,15 @@ std::vector<track::TargetTrack> CombineTargets(std::vector<track::TargetTrack> b
 // finishes the targets. What the trackers follow and what the run has found are members.
 class FrontEnd {
  public:
-  FrontEnd(const std::string& path, const FrontEndOptions& options, JobContext* job,
-           const FrontEndCheckpoint* resume);
+  // `reader`: the video, opened with options.EffectiveReader() and not yet read from.
+  FrontEnd(std::unique_ptr<video::VideoReader> reader, const FrontEndOptions& options,
+           JobContext* job, const FrontEndCheckpoint* resume);
   FrontEnd(const FrontEnd&) = delete;
   FrontEnd& operator=(const FrontEnd&) = delete;
 
   StatusOr<FrontEndResult> Run();
 
  private:
-  Status Open();
   void StartFromCheckpoint();
   void ReportProgress(double frames_done) const;
   Status CheckMemory(const video::Frame& frame) const;
@@ -173,6 +164,7 @@ class FrontEnd {
   StatusOr<FrontEndResult> Finish(ingest::VideoScan scan, double decode_ms);
   void FinishTargets();
 
+  std::unique_ptr<video::VideoReader> reader_;  // until Run() hands it to the decode thread
   const std::string path_;
   const FrontEndOptions options_;  // the run's own copy, callbacks included
   JobContext* const job_;
@@ -205,9 +197,10 @@ class FrontEnd {
   int64_t change_through_;     // the latest frame whose change answer was applied
 };
 
-FrontEnd::FrontEnd(const std::string& path, const FrontEndOptions& options, JobContext* job,
-                   const FrontEndCheckpoint* resume)
-    : path_(path),
+FrontEnd::FrontEnd(std::unique_ptr<video::VideoReader> reader, const FrontEndOptions& options,
+                   JobContext* job, const FrontEndCheckpoint* resume)
+    : reader_(std::move(reader)),
+      path_(reader_->info().path),
       options_(options),
       job_(job),
       resume_(resume),
@@ -222,12 +215,16 @@ FrontEnd::FrontEnd(const std::string& path, const FrontEndOptions& options, JobC
   if (start_.resuming && !start_.complete) {
     target_seam_.emplace(*resume, start_.warm_from, options.EffectiveTargets());
   }
+  result_.video = reader_->info();
+  // For progress only: the declared count, else duration x rate.
+  expected_frames_ = static_cast<double>(result_.video.declared_frame_count);
+  if (expected_frames_ <= 0) expected_frames_ = result_.video.duration_s * result_.video.fps;
+  expected_frames_ = std::max(1.0, expected_frames_);
 }
 
 StatusOr<FrontEndResult> FrontEnd::Run() {
-  SAKER_RETURN_IF_ERROR(Open());
   StartFromCheckpoint();
-  DecodeThread decode(path_, ScanOptionsFor(options_), static_cast<size_t>(options_.queue_frames),
+  DecodeThread decode(std::move(reader_), static_cast<size_t>(options_.queue_frames),
                       start_.warm_from);
   const Stopwatch wall;
   since_checkpoint_.Restart();
@@ -248,18 +245,6 @@ StatusOr<FrontEndResult> FrontEnd::Run() {
   StatusOr<FrontEndResult> result = Finish(std::move(scan), decode.decode_ms());
   if (result.ok()) result->timing.wall_s = wall.ElapsedSeconds();
   return result;
-}
-
-// Opened here first so that a bad file fails at once, with the reader's message.
-Status FrontEnd::Open() {
-  SAKER_ASSIGN_OR_RETURN(std::unique_ptr<video::VideoReader> probe,
-                         video::VideoReader::Open(path_, ScanOptionsFor(options_).reader));
-  result_.video = probe->info();
-  // For progress only: the declared count, else duration x rate.
-  expected_frames_ = static_cast<double>(result_.video.declared_frame_count);
-  if (expected_frames_ <= 0) expected_frames_ = result_.video.duration_s * result_.video.fps;
-  expected_frames_ = std::max(1.0, expected_frames_);
-  return Status::Ok();
 }
 
 // Resuming: the checkpoint is the start of this run's result. What it holds counts as handed out;
@@ -565,7 +550,26 @@ void FrontEnd::FinishTargets() {
                                    result_.frames, options_);
 }
 
+// The options and the checkpoint of a run on `path`.
+Status ValidateRun(const std::string& path, const FrontEndOptions& options,
+                   const FrontEndCheckpoint* resume) {
+  SAKER_RETURN_IF_ERROR(options.Validate());
+  if (resume != nullptr) {
+    const Status valid = resume->Validate();
+    if (!valid.ok()) return InvalidArgumentError(path + ": cannot resume: " + valid.message());
+  }
+  return Status::Ok();
+}
+
 }  // namespace
+
+video::ReaderOptions FrontEndOptions::EffectiveReader() const {
+  video::ReaderOptions reader;
+  reader.want_bgr = false;
+  reader.want_grey = true;
+  reader.decoder_threads = decoder_threads;
+  return reader;
+}
 
 track::TrackerOptions FrontEndOptions::EffectiveTracker() const {
   track::TrackerOptions effective = tracker;
@@ -615,12 +619,25 @@ Status FrontEndOptions::Validate() const {
 
 StatusOr<FrontEndResult> RunFrontEnd(const std::string& path, const FrontEndOptions& options,
                                      JobContext* job, const FrontEndCheckpoint* resume) {
-  SAKER_RETURN_IF_ERROR(options.Validate());
-  if (resume != nullptr) {
-    const Status valid = resume->Validate();
-    if (!valid.ok()) return InvalidArgumentError(path + ": cannot resume: " + valid.message());
-  }
-  FrontEnd front_end(path, options, job, resume);
+  SAKER_RETURN_IF_ERROR(ValidateRun(path, options, resume));
+  // Opened before anything runs, so that a file that is not a video fails at once with the
+  // reader's message.
+  SAKER_ASSIGN_OR_RETURN(std::unique_ptr<video::VideoReader> reader,
+                         video::VideoReader::Open(path, options.EffectiveReader()));
+  return RunFrontEnd(std::move(reader), options, job, resume);
+}
+
+StatusOr<FrontEndResult> RunFrontEnd(std::unique_ptr<video::VideoReader> reader,
+                                     const FrontEndOptions& options, JobContext* job,
+                                     const FrontEndCheckpoint* resume) {
+  SAKER_CHECK(reader != nullptr) << "RunFrontEnd needs an opened reader";
+  // Checked here rather than on the decode thread, which could not report it.
+  SAKER_CHECK(reader->options().want_grey && reader->stats().frames_decoded == 0)
+      << reader->info().path
+      << ": the front end needs a reader opened with FrontEndOptions::EffectiveReader() and not "
+         "yet read from";
+  SAKER_RETURN_IF_ERROR(ValidateRun(reader->info().path, options, resume));
+  FrontEnd front_end(std::move(reader), options, job, resume);
   return front_end.Run();
 }
 

@@ -27,6 +27,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -82,10 +83,12 @@ struct FrontEndOptions {
   int resume_warmup_frames = 100;
   Status Validate() const;
 
-  // What the trackers run with, derived from the fields above rather than set by the caller. The
-  // feature tracker keeps live tracks only, each with its latest two positions (all the front end
-  // looks at); a target that ends waits for the change evidence of its last frames when change
-  // detection is on (that evidence comes late, docs/front-end.md "Threads").
+  // What the reader and the trackers run with, derived from the fields above rather than set by
+  // the caller. The reader decodes grey frames only, with `decoder_threads`. The feature tracker
+  // keeps live tracks only, each with its latest two positions (all the front end looks at); a
+  // target that ends waits for the change evidence of its last frames when change detection is on
+  // (that evidence comes late, docs/front-end.md "Threads").
+  video::ReaderOptions EffectiveReader() const;
   track::TrackerOptions EffectiveTracker() const;
   track::TargetTrackOptions EffectiveTargets() const;
 };
@@ -168,6 +171,13 @@ struct FrontEndCheckpoint {
 // one run, up to the seam at the checkpoint's key frame (docs/reliability.md).
 StatusOr<FrontEndResult> RunFrontEnd(const std::string& path, const FrontEndOptions& options,
                                      JobContext* job = nullptr,
+                                     const FrontEndCheckpoint* resume = nullptr);
+
+// The same on a video the caller has opened already, with options.EffectiveReader(), and not yet
+// read from (a job that read its size and rate first does not open it again): the front end takes
+// the reader and decodes with it. Errors name the reader's path.
+StatusOr<FrontEndResult> RunFrontEnd(std::unique_ptr<video::VideoReader> reader,
+                                     const FrontEndOptions& options, JobContext* job = nullptr,
                                      const FrontEndCheckpoint* resume = nullptr);
 
 }  // namespace saker::frontend

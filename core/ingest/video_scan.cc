@@ -1,9 +1,12 @@
 #include "core/ingest/video_scan.h"
 
+#include "core/util/check.h"
+
 #include <algorithm>
 #include <cmath>
 #include <map>
 #include <sstream>
+#include <utility>
 
 namespace saker::ingest {
 
@@ -233,18 +236,28 @@ StatusOr<VideoScan> ScanReader(video::VideoReader& reader, const std::string& pa
 StatusOr<VideoScan> ScanVideo(const std::string& path, const ScanOptions& options,
                               JobContext* context, const FrameCallback& on_frame) {
   SAKER_RETURN_IF_ERROR(options.Validate());
-  auto opened = video::VideoReader::Open(path, options.reader);
-  if (!opened.ok()) return opened.status();
-  return ScanReader(**opened, path, options, context, on_frame);
+  SAKER_ASSIGN_OR_RETURN(std::unique_ptr<video::VideoReader> reader,
+                         video::VideoReader::Open(path, options.reader));
+  return ScanVideo(std::move(reader), options, context, on_frame);
+}
+
+StatusOr<VideoScan> ScanVideo(std::unique_ptr<video::VideoReader> reader,
+                              const ScanOptions& options, JobContext* context,
+                              const FrameCallback& on_frame) {
+  SAKER_CHECK(reader != nullptr) << "ScanVideo needs an opened reader";
+  SAKER_CHECK(reader->stats().frames_decoded == 0)
+      << reader->info().path << ": the scan needs a reader that has not been read from";
+  SAKER_RETURN_IF_ERROR(options.Validate());
+  return ScanReader(*reader, reader->info().path, options, context, on_frame);
 }
 
 StatusOr<VideoScan> ScanVideoMemory(std::vector<uint8_t> bytes, const std::string& name,
                                     const ScanOptions& options, JobContext* context,
                                     const FrameCallback& on_frame) {
   SAKER_RETURN_IF_ERROR(options.Validate());
-  auto opened = video::VideoReader::OpenMemory(std::move(bytes), name, options.reader);
-  if (!opened.ok()) return opened.status();
-  return ScanReader(**opened, (*opened)->info().path, options, context, on_frame);
+  SAKER_ASSIGN_OR_RETURN(std::unique_ptr<video::VideoReader> reader,
+                         video::VideoReader::OpenMemory(std::move(bytes), name, options.reader));
+  return ScanVideo(std::move(reader), options, context, on_frame);
 }
 
 }  // namespace saker::ingest

@@ -13,6 +13,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -105,6 +106,14 @@ using FrameCallback = std::function<void(const video::Frame& frame)>;
 // warnings. Cancelling through `context` returns a Cancelled status.
 StatusOr<VideoScan> ScanVideo(const std::string& path, const ScanOptions& options,
                               JobContext* context = nullptr,
+                              const FrameCallback& on_frame = nullptr);
+
+// The same on a video already opened and not yet read from, so that a caller that looked at it
+// first (its size and rate) does not open it again: the scan takes the reader and reads it to the
+// end. Frames are decoded as the reader was opened to (options.reader is not used); messages
+// name the reader's path.
+StatusOr<VideoScan> ScanVideo(std::unique_ptr<video::VideoReader> reader,
+                              const ScanOptions& options, JobContext* context = nullptr,
                               const FrameCallback& on_frame = nullptr);
 
 // The same for a whole video file held in memory (video::VideoReader::OpenMemory); `name` stands

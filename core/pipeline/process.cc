@@ -12,6 +12,7 @@
 #include <filesystem>
 #include <map>
 #include <sstream>
+#include <utility>
 
 namespace saker::pipeline {
 namespace {
@@ -40,11 +41,8 @@ std::string OptionsJson(const ProcessOptions& options) {
   return j.dump();
 }
 
-// The source record of `video`, which must open as a video: size, rate, duration, fingerprint.
-StatusOr<mission::SourceVideo> SourceOf(const std::string& video) {
-  SAKER_ASSIGN_OR_RETURN(std::unique_ptr<video::VideoReader> reader,
-                         video::VideoReader::Open(video));
-  const video::VideoInfo& info = reader->info();
+// The source record of `video`, opened as `info`: size, rate, duration, fingerprint.
+StatusOr<mission::SourceVideo> SourceOf(const std::string& video, const video::VideoInfo& info) {
   mission::SourceVideo source;
   std::error_code error;
   source.path = std::filesystem::absolute(video, error).string();
@@ -138,11 +136,14 @@ StatusOr<ProcessSummary> ProcessVideo(const std::string& video, const std::strin
   SAKER_RETURN_IF_ERROR(options.Validate());
   const Stopwatch start;
   ProcessSummary summary;
-  // Open the video first: a file that is not a video must not leave (or replace) a mission.
+  // Open the video first: a file that is not a video must not leave (or replace) a mission. The
+  // one reader gives the source record, then the front end decodes with it.
+  SAKER_ASSIGN_OR_RETURN(std::unique_ptr<video::VideoReader> reader,
+                         video::VideoReader::Open(video, options.front_end.EffectiveReader()));
   MissionRun run;
   run.mission.saker_version = options.saker_version;
   run.mission.options_json = OptionsJson(options);
-  SAKER_ASSIGN_OR_RETURN(run.mission.source, SourceOf(video));
+  SAKER_ASSIGN_OR_RETURN(run.mission.source, SourceOf(video, reader->info()));
   std::unique_ptr<mission::MissionStore> store;
   std::optional<frontend::FrontEndCheckpoint> checkpoint;
   if (options.resume) {
@@ -204,7 +205,7 @@ StatusOr<ProcessSummary> ProcessVideo(const std::string& video, const std::strin
     };
   }
   summary.video_duration_s = run.mission.source.duration_s;
-  const Status ran = RunStages(video, stage_options, hooks, job, &run);
+  const Status ran = RunStages(std::move(reader), stage_options, hooks, job, &run);
   summary.front_end_s = run.seconds[static_cast<int>(Stage::kFrontEnd)];
   summary.mosaic_s = run.seconds[static_cast<int>(Stage::kMosaic)];
   summary.activity_s = run.seconds[static_cast<int>(Stage::kActivity)];

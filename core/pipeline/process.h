@@ -56,7 +56,8 @@ struct ProcessSummary {
 };
 
 // Processes `video` into a new mission file at `mission_path` (or resumes, options.resume).
-// Errors name the file. The front end's checkpoints go into the mission as it runs and are
+// The video is opened once: one reader gives the source record, then the front end decodes with
+// it. Errors name the file. The front end's checkpoints go into the mission as it runs and are
 // dropped when the job completes. When `job` is cancelled the mission keeps the stages that
 // completed and its checkpoint, is marked cancelled, and the result is a Cancelled status saying
 // so. A video in which the front end finds no key frame still gives

@@ -1,6 +1,7 @@
 #include "core/pipeline/stages.h"
 
 #include "core/pipeline/mosaic_input.h"
+#include "core/util/check.h"
 #include "core/util/timer.h"
 
 #include <map>
@@ -46,10 +47,11 @@ void GraphRecords(const mosaic::MosaicResult& result, mission::Mission* m) {
 
 // The stages, each filling its part of `run`. Each returns whether the later stages can run.
 
-StatusOr<bool> FrontEndStage(const std::string& video, const StageOptions& options,
-                             const StageHooks& hooks, JobContext* job, MissionRun* run) {
-  SAKER_ASSIGN_OR_RETURN(run->front,
-                         frontend::RunFrontEnd(video, options.front_end, job, hooks.resume));
+StatusOr<bool> FrontEndStage(std::unique_ptr<video::VideoReader> reader,
+                             const StageOptions& options, const StageHooks& hooks, JobContext* job,
+                             MissionRun* run) {
+  SAKER_ASSIGN_OR_RETURN(
+      run->front, frontend::RunFrontEnd(std::move(reader), options.front_end, job, hooks.resume));
   mission::Mission& m = run->mission;
   if (m.source.width == 0) {  // the caller recorded no source: the front end's view of it
     m.source.path = run->front.video.path;
@@ -160,6 +162,20 @@ Status StageOptions::Validate() const {
 Status RunStages(const std::string& video, const StageOptions& options, const StageHooks& hooks,
                  JobContext* job, MissionRun* run) {
   SAKER_RETURN_IF_ERROR(options.Validate());
+  StatusOr<std::unique_ptr<video::VideoReader>> reader =
+      video::VideoReader::Open(video, options.front_end.EffectiveReader());
+  if (!reader.ok()) {
+    run->failed = Stage::kFrontEnd;
+    return reader.status();
+  }
+  return RunStages(std::move(reader).value(), options, hooks, job, run);
+}
+
+Status RunStages(std::unique_ptr<video::VideoReader> reader, const StageOptions& options,
+                 const StageHooks& hooks, JobContext* job, MissionRun* run) {
+  SAKER_CHECK(reader != nullptr) << "RunStages needs an opened reader";
+  SAKER_RETURN_IF_ERROR(options.Validate());
+  const std::string video = reader->info().path;
   for (const Stage stage : {Stage::kFrontEnd, Stage::kMosaic, Stage::kActivity, Stage::kTiles}) {
     if (static_cast<int>(stage) > static_cast<int>(hooks.last)) break;
     if (stage == Stage::kTiles && !hooks.write_tiles) break;
@@ -167,7 +183,7 @@ Status RunStages(const std::string& video, const StageOptions& options, const St
     StatusOr<bool> go_on = false;
     switch (stage) {
       case Stage::kFrontEnd:
-        go_on = FrontEndStage(video, options, hooks, job, run);
+        go_on = FrontEndStage(std::move(reader), options, hooks, job, run);
         break;
       case Stage::kMosaic:
         go_on = MosaicStage(video, options, job, run);

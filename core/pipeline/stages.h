@@ -15,8 +15,10 @@
 #include "core/tiles/pyramid.h"
 #include "core/util/job_context.h"
 #include "core/util/status.h"
+#include "core/video/video_reader.h"
 
 #include <functional>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -73,12 +75,19 @@ struct StageHooks {
 };
 
 // Runs the stages on `video` up to hooks.last, filling `run` (its mission's source record is the
-// caller's). Options are validated first. Errors name the video or the stage; Cancelled through
-// `job`, with what completed left in `run`. A video in which the front end finds no key frame is
-// not an error: the mosaic and later stages are skipped and a warning says so; likewise a mosaic
-// with no picture for the tiles.
+// caller's). Options are validated first, then the video is opened, once: the front end decodes
+// with that reader. Errors name the video or the stage (a video that cannot be opened fails the
+// front end stage); Cancelled through `job`, with what completed left in `run`. A video in which
+// the front end finds no key frame is not an error: the mosaic and later stages are skipped and a
+// warning says so; likewise a mosaic with no picture for the tiles.
 Status RunStages(const std::string& video, const StageOptions& options, const StageHooks& hooks,
                  JobContext* job, MissionRun* run);
+
+// The same on a video the caller has opened already, with options.front_end.EffectiveReader(),
+// and not yet read from (ProcessVideo reads the source record from it first): the front end takes
+// the reader. Errors name the reader's path.
+Status RunStages(std::unique_ptr<video::VideoReader> reader, const StageOptions& options,
+                 const StageHooks& hooks, JobContext* job, MissionRun* run);
 
 // The plain mission records of an engine run (exposed for tests). `input` and `mosaic` (both or
 // neither) place the frames and their metadata corners on the map.

@@ -78,6 +78,49 @@ double PiecesApart(const TargetTrackOptions& options, double speed_a, double spe
   return options.group_distance_px * std::clamp(std::max(speed_a, speed_b) / 1.5 * 1.3, 0.35, 1.3);
 }
 
+// The moving features of `frame` grouped into observations (features alike in place and motion,
+// Alike), in a deterministic order.
+std::vector<TargetObservation> GroupMoving(int64_t frame, const std::vector<MovingPoint>& moving,
+                                           const TargetTrackOptions& options) {
+  const size_t n = moving.size();
+  Groups groups(n);
+  for (size_t i = 0; i < n; ++i) {
+    for (size_t j = i + 1; j < n; ++j) {
+      if (Alike(moving[i].position, moving[i].residual_velocity, moving[j].position,
+                moving[j].residual_velocity, options)) {
+        groups.Join(i, j);
+      }
+    }
+  }
+  std::unordered_map<size_t, std::vector<size_t>> members;
+  for (size_t i = 0; i < n; ++i) members[groups.Find(i)].push_back(i);
+  std::vector<TargetObservation> observations;
+  for (auto& [root, indices] : members) {
+    TargetObservation o;
+    o.frame = frame;
+    o.box_min = o.box_max = moving[indices[0]].position;
+    for (size_t i : indices) {
+      o.position += moving[i].position;
+      o.velocity += moving[i].residual_velocity;
+      o.box_min = o.box_min.cwiseMin(moving[i].position);
+      o.box_max = o.box_max.cwiseMax(moving[i].position);
+      o.features.push_back(moving[i].id);
+    }
+    o.position /= static_cast<double>(indices.size());
+    o.velocity /= static_cast<double>(indices.size());
+    o.box_min -= Eigen::Vector2d::Constant(options.box_margin_px);
+    o.box_max += Eigen::Vector2d::Constant(options.box_margin_px);
+    std::sort(o.features.begin(), o.features.end());
+    observations.push_back(std::move(o));
+  }
+  // Deterministic order whatever the hash map did.
+  std::sort(observations.begin(), observations.end(),
+            [](const TargetObservation& a, const TargetObservation& b) {
+              return a.features[0] < b.features[0];
+            });
+  return observations;
+}
+
 }  // namespace
 
 Status TargetTrackOptions::Validate() const {
@@ -99,45 +142,16 @@ Status TargetTrackOptions::Validate() const {
 TargetTracker::TargetTracker(const TargetTrackOptions& options) : options_(options) {}
 
 void TargetTracker::AddFrame(int64_t frame, const std::vector<MovingPoint>& moving) {
-  // 1. Group the moving features of this frame.
-  const size_t n = moving.size();
-  Groups groups(n);
-  for (size_t i = 0; i < n; ++i) {
-    for (size_t j = i + 1; j < n; ++j) {
-      if (Alike(moving[i].position, moving[i].residual_velocity, moving[j].position,
-                moving[j].residual_velocity, options_)) {
-        groups.Join(i, j);
-      }
-    }
-  }
-  std::unordered_map<size_t, std::vector<size_t>> members;
-  for (size_t i = 0; i < n; ++i) members[groups.Find(i)].push_back(i);
-  std::vector<TargetObservation> observations;
-  for (auto& [root, indices] : members) {
-    TargetObservation o;
-    o.frame = frame;
-    o.box_min = o.box_max = moving[indices[0]].position;
-    for (size_t i : indices) {
-      o.position += moving[i].position;
-      o.velocity += moving[i].residual_velocity;
-      o.box_min = o.box_min.cwiseMin(moving[i].position);
-      o.box_max = o.box_max.cwiseMax(moving[i].position);
-      o.features.push_back(moving[i].id);
-    }
-    o.position /= static_cast<double>(indices.size());
-    o.velocity /= static_cast<double>(indices.size());
-    o.box_min -= Eigen::Vector2d::Constant(options_.box_margin_px);
-    o.box_max += Eigen::Vector2d::Constant(options_.box_margin_px);
-    std::sort(o.features.begin(), o.features.end());
-    observations.push_back(std::move(o));
-  }
-  // Deterministic order whatever the hash map did.
-  std::sort(observations.begin(), observations.end(),
-            [](const TargetObservation& a, const TargetObservation& b) {
-              return a.features[0] < b.features[0];
-            });
+  std::vector<TargetObservation> observations = GroupMoving(frame, moving, options_);
+  const std::vector<int> assigned = Assign(frame, observations);
+  Extend(frame, std::move(observations), assigned);
+  MergeAlike(frame);
+  Confirm();
+  EndUnseen(frame);
+}
 
-  // 2. Tie each group to a target: most shared features first, then the nearest prediction.
+std::vector<int> TargetTracker::Assign(int64_t frame,
+                                       const std::vector<TargetObservation>& observations) const {
   std::unordered_map<int64_t, size_t> owner;  // feature id -> active target index
   for (size_t t = 0; t < active_.size(); ++t) {
     for (FeatureTrackId f : active_[t].observations.back().features)
@@ -183,6 +197,11 @@ void TargetTracker::AddFrame(int64_t frame, const std::vector<MovingPoint>& movi
     }
     if (assigned[g] >= 0) target_taken[static_cast<size_t>(assigned[g])] = true;
   }
+  return assigned;
+}
+
+void TargetTracker::Extend(int64_t frame, std::vector<TargetObservation> observations,
+                           const std::vector<int>& assigned) {
   for (size_t g = 0; g < observations.size(); ++g) {
     if (assigned[g] >= 0) {
       TargetTrack& target = active_[static_cast<size_t>(assigned[g])];
@@ -202,7 +221,9 @@ void TargetTracker::AddFrame(int64_t frame, const std::vector<MovingPoint>& movi
       active_.push_back(std::move(target));
     }
   }
-  MergeAlike(frame);
+}
+
+void TargetTracker::Confirm() {
   for (TargetTrack& target : active_) {
     const int needed = target.max_features >= 2 ? options_.min_frames : options_.min_frames_single;
     double travel = 0;
@@ -210,8 +231,9 @@ void TargetTracker::AddFrame(int64_t frame, const std::vector<MovingPoint>& movi
     target.confirmed |=
         static_cast<int>(target.observations.size()) >= needed && travel >= options_.min_travel_px;
   }
+}
 
-  // 3. End targets unseen for too long.
+void TargetTracker::EndUnseen(int64_t frame) {
   std::vector<TargetTrack> still;
   for (TargetTrack& target : active_) {
     if (frame - target.last_frame() > options_.max_gap_frames) {

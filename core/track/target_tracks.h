@@ -108,7 +108,19 @@ class TargetTracker {
   void FinishAll();
 
  private:
+  // The steps of AddFrame, after grouping the frame's moving features into observations. Ties
+  // each observation to an active target, most shared features first, then the nearest
+  // prediction within the gate: the target's index, or -1.
+  std::vector<int> Assign(int64_t frame, const std::vector<TargetObservation>& observations) const;
+  // Adds each observation to its target (smoothing the target's image velocity), or starts a
+  // target with it.
+  void Extend(int64_t frame, std::vector<TargetObservation> observations,
+              const std::vector<int>& assigned);
   void MergeAlike(int64_t frame);
+  // Confirms the targets seen often enough that have travelled far enough.
+  void Confirm();
+  // Ends the targets unseen for more than max_gap_frames.
+  void EndUnseen(int64_t frame);
   // A confirmed target that ended: finished, or waiting for its change evidence.
   void End(TargetTrack&& target);
 

@@ -7,6 +7,7 @@ extern "C" {
 #include "core/video/mpegts_pmt.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
@@ -23,6 +24,9 @@ constexpr int kMaxConsecutiveFailures = 10000;
 
 // Size of the AVIOContext buffer for in-memory input (FFmpeg's own default for files).
 constexpr int kMemoryIoBufferSize = 32768;
+
+// Calls of DecodeSession::Open, for InputsOpened().
+std::atomic<int64_t> inputs_opened{0};
 
 // "file:x.ts" -> "x.ts"; empty for URLs of other protocols.
 std::string LocalPath(const std::string& path) {
@@ -89,6 +93,27 @@ double FrameRate(const AVStream& stream) {
     if (rate.num > 0 && rate.den > 0) return av_q2d(rate);
   }
   return 0;
+}
+
+// The elementary stream_type of each PID, from the program map tables at the start of a
+// transport stream with KLV (SessionConfig::probe_klv_sync: FFmpeg 5.1 does not tell synchronous
+// KLV from asynchronous); empty for other inputs and for URLs.
+std::map<int, int> PmtStreamTypes(const AVFormatContext& format, bool is_mpegts,
+                                  const std::string& path, const SessionConfig& config) {
+  bool klv_present = false;
+  for (unsigned i = 0; i < format.nb_streams; ++i) {
+    klv_present |= format.streams[i]->codecpar->codec_id == AV_CODEC_ID_SMPTE_KLV;
+  }
+  if (!config.probe_klv_sync || !is_mpegts || !klv_present) return {};
+  if (config.memory) {
+    // As ScanPmtStreamTypesInFile does for a file: the PMTs are at the start.
+    return ScanPmtStreamTypes(config.memory->data(),
+                              std::min<size_t>(config.memory->size(), 4 << 20));
+  }
+  const std::string local = LocalPath(path);
+  if (local.empty()) return {};
+  StatusOr<std::map<int, int>> types = ScanPmtStreamTypesInFile(local);
+  return types.ok() ? std::move(types).value() : std::map<int, int>();
 }
 
 // The YUV matrix swscale should use for this picture.
@@ -198,6 +223,7 @@ int64_t SeekMemory(void* opaque, int64_t offset, int whence) {
 
 StatusOr<std::unique_ptr<DecodeSession>> DecodeSession::Open(const std::string& path,
                                                              const SessionConfig& config) {
+  inputs_opened.fetch_add(1, std::memory_order_relaxed);
   std::unique_ptr<DecodeSession> session(new DecodeSession());
   SAKER_RETURN_IF_ERROR(session->OpenImpl(path, config));
   return session;
@@ -215,15 +241,22 @@ Status DecodeSession::OpenImpl(const std::string& path, const SessionConfig& con
   } else {
     SAKER_RETURN_IF_ERROR(CheckLocalFile(path));
   }
+  SAKER_RETURN_IF_ERROR(OpenContainer());
+  const AVCodec* codec = nullptr;
+  SAKER_RETURN_IF_ERROR(FindVideoStream(&codec));
+  DescribeStreams();
+  return OpenDecoder(codec);
+}
 
+Status DecodeSession::OpenContainer() {
   AVFormatContext* raw_format = nullptr;
   int ret = OpenInput(&raw_format);
-  if (ret < 0) return OpenError(path, ret);
+  if (ret < 0) return OpenError(path_, ret);
   format_.reset(raw_format);
   // Probing decodes a few pictures: FFmpeg's own limit keeps a stream that declares an absurd
-  // size from allocating it before the check below can refuse it.
+  // size from allocating it before FindVideoStream can refuse it.
   std::vector<AVDictionary*> probe_options(format_->nb_streams, nullptr);
-  const std::string max_pixels = std::to_string(DecoderMaxPixels(config.max_pixels));
+  const std::string max_pixels = std::to_string(DecoderMaxPixels(config_.max_pixels));
   for (AVDictionary*& options : probe_options) {
     av_dict_set(&options, "max_pixels", max_pixels.c_str(), 0);
   }
@@ -231,34 +264,37 @@ Status DecodeSession::OpenImpl(const std::string& path, const SessionConfig& con
                                   probe_options.empty() ? nullptr : probe_options.data());
   for (AVDictionary*& options : probe_options) av_dict_free(&options);
   if (ret < 0) {
-    return InvalidDataError(path + ": cannot read the stream layout (FFmpeg: " + AvErrorText(ret) +
+    return InvalidDataError(path_ + ": cannot read the stream layout (FFmpeg: " + AvErrorText(ret) +
                             ")");
   }
-  AVFormatContext* format = format_.get();
-  info_.container = format->iformat->name ? format->iformat->name : "";
-  info_.container_long = format->iformat->long_name ? format->iformat->long_name : "";
+  const AVFormatContext& format = *format_;
+  info_.container = format.iformat->name ? format.iformat->name : "";
+  info_.container_long = format.iformat->long_name ? format.iformat->long_name : "";
   info_.duration_s =
-      format->duration != AV_NOPTS_VALUE ? static_cast<double>(format->duration) / AV_TIME_BASE : 0;
+      format.duration != AV_NOPTS_VALUE ? static_cast<double>(format.duration) / AV_TIME_BASE : 0;
+  return Status::Ok();
+}
 
-  const AVCodec* codec = nullptr;
-  ret = av_find_best_stream(format, AVMEDIA_TYPE_VIDEO, -1, -1, &codec, 0);
+Status DecodeSession::FindVideoStream(const AVCodec** codec) {
+  const AVFormatContext& format = *format_;
+  const int ret = av_find_best_stream(format_.get(), AVMEDIA_TYPE_VIDEO, -1, -1, codec, 0);
   if (ret == AVERROR_DECODER_NOT_FOUND) {
     // Name the codec of the first video stream: that is the one the user expected.
     std::string name = "unknown";
-    for (unsigned i = 0; i < format->nb_streams; ++i) {
-      if (format->streams[i]->codecpar->codec_type == AVMEDIA_TYPE_VIDEO) {
-        name = avcodec_get_name(format->streams[i]->codecpar->codec_id);
+    for (unsigned i = 0; i < format.nb_streams; ++i) {
+      if (format.streams[i]->codecpar->codec_type == AVMEDIA_TYPE_VIDEO) {
+        name = avcodec_get_name(format.streams[i]->codecpar->codec_id);
         break;
       }
     }
-    return UnsupportedError(path + ": no decoder for video codec '" + name +
+    return UnsupportedError(path_ + ": no decoder for video codec '" + name +
                             "' in this FFmpeg build");
   }
   if (ret < 0) {
-    return InvalidDataError(path + " has no video stream (container " + info_.container + ", " +
-                            std::to_string(format->nb_streams) + " streams)");
+    return InvalidDataError(path_ + " has no video stream (container " + info_.container + ", " +
+                            std::to_string(format.nb_streams) + " streams)");
   }
-  video_ = format->streams[ret];
+  video_ = format.streams[ret];
   const AVCodecParameters& parameters = *video_->codecpar;
   info_.video_stream = video_->index;
   info_.video_codec = avcodec_get_name(parameters.codec_id);
@@ -267,22 +303,23 @@ Status DecodeSession::OpenImpl(const std::string& path, const SessionConfig& con
   // FFmpeg opens a single picture (PNG, JPEG, ... through its image demuxers) as a video of one
   // frame. No recording is one picture: refuse it plainly rather than make an empty mission.
   if (info_.container == "image2" || info_.container.ends_with("_pipe")) {
-    return InvalidDataError(path + ": is a still picture (" + info_.video_codec + "), not a video");
+    return InvalidDataError(path_ + ": is a still picture (" + info_.video_codec +
+                            "), not a video");
   }
   if (info_.width <= 0 || info_.height <= 0) {
     // FFmpeg also leaves the size unset when the header declares one it refuses (beyond its own
     // limits or max_pixels), so say both.
-    return InvalidDataError(path + " has no video stream that can be decoded: its " +
+    return InvalidDataError(path_ + " has no video stream that can be decoded: its " +
                             info_.video_codec +
                             " stream has no valid picture size (no picture header, a damaged "
                             "one, or a declared picture size beyond max_pixels = " +
-                            std::to_string(config.max_pixels) + ")");
+                            std::to_string(config_.max_pixels) + ")");
   }
   const int64_t pixels = static_cast<int64_t>(info_.width) * info_.height;
-  if (pixels > config.max_pixels) {
-    return InvalidDataError(path + ": declared picture size " + std::to_string(info_.width) + "x" +
+  if (pixels > config_.max_pixels) {
+    return InvalidDataError(path_ + ": declared picture size " + std::to_string(info_.width) + "x" +
                             std::to_string(info_.height) + " exceeds max_pixels (" +
-                            std::to_string(config.max_pixels) + ")");
+                            std::to_string(config_.max_pixels) + ")");
   }
   info_.fps = FrameRate(*video_);
   info_.declared_frame_count = video_->nb_frames > 0 ? video_->nb_frames : 0;
@@ -290,23 +327,14 @@ Status DecodeSession::OpenImpl(const std::string& path, const SessionConfig& con
   info_.start_time_s = static_cast<double>(start_pts_) * av_q2d(video_->time_base);
   const double fps = info_.fps > 0 ? info_.fps : 25.0;
   frame_step_ = std::max<int64_t>(1, std::llround(1.0 / (fps * av_q2d(video_->time_base))));
+  return Status::Ok();
+}
 
-  // Streams. PIDs are only meaningful for transport streams.
+void DecodeSession::DescribeStreams() {
+  AVFormatContext* format = format_.get();
+  // PIDs are only meaningful for transport streams.
   const bool is_mpegts = info_.container == "mpegts";
-  std::map<int, int> pmt_stream_types;
-  const std::string local = config.memory ? std::string() : LocalPath(path);
-  bool klv_present = false;
-  for (unsigned i = 0; i < format->nb_streams; ++i) {
-    klv_present |= format->streams[i]->codecpar->codec_id == AV_CODEC_ID_SMPTE_KLV;
-  }
-  if (config.probe_klv_sync && is_mpegts && klv_present && config.memory) {
-    // As ScanPmtStreamTypesInFile does for a file: the PMTs are at the start.
-    pmt_stream_types =
-        ScanPmtStreamTypes(config.memory->data(), std::min<size_t>(config.memory->size(), 4 << 20));
-  } else if (config.probe_klv_sync && is_mpegts && klv_present && !local.empty()) {
-    auto types = ScanPmtStreamTypesInFile(local);
-    if (types.ok()) pmt_stream_types = std::move(types).value();
-  }
+  const std::map<int, int> pmt_stream_types = PmtStreamTypes(*format, is_mpegts, path_, config_);
   is_klv_.assign(format->nb_streams, false);
   for (unsigned i = 0; i < format->nb_streams; ++i) {
     AVStream* stream = format->streams[i];
@@ -326,30 +354,31 @@ Status DecodeSession::OpenImpl(const std::string& path, const SessionConfig& con
             found != pmt_stream_types.end() && found->second == kStreamTypeMetadata;
       }
     }
-    const bool keep = stream == video_ || (config.keep_klv && is_klv_[i]);
+    const bool keep = stream == video_ || (config_.keep_klv && is_klv_[i]);
     stream->discard = keep ? AVDISCARD_DEFAULT : AVDISCARD_ALL;
     info_.streams.push_back(std::move(stream_info));
   }
+}
 
-  // Decoder.
+Status DecodeSession::OpenDecoder(const AVCodec* codec) {
   decoder_.reset(avcodec_alloc_context3(codec));
   packet_.reset(av_packet_alloc());
   pending_.reset(av_packet_alloc());
   frame_.reset(av_frame_alloc());
   if (!decoder_ || !packet_ || !pending_ || !frame_) {
-    return IoError(path + ": out of memory opening the decoder");
+    return IoError(path_ + ": out of memory opening the decoder");
   }
-  ret = avcodec_parameters_to_context(decoder_.get(), video_->codecpar);
+  int ret = avcodec_parameters_to_context(decoder_.get(), video_->codecpar);
   if (ret < 0) {
-    return InvalidDataError(path + ": bad " + info_.video_codec +
+    return InvalidDataError(path_ + ": bad " + info_.video_codec +
                             " stream parameters (FFmpeg: " + AvErrorText(ret) + ")");
   }
   decoder_->pkt_timebase = video_->time_base;
-  decoder_->thread_count = config.decoder_threads;
-  decoder_->max_pixels = DecoderMaxPixels(config.max_pixels);  // a size change mid-stream too
+  decoder_->thread_count = config_.decoder_threads;
+  decoder_->max_pixels = DecoderMaxPixels(config_.max_pixels);  // a size change mid-stream too
   ret = avcodec_open2(decoder_.get(), codec, nullptr);
   if (ret < 0) {
-    return UnsupportedError(path + ": cannot open the " + info_.video_codec +
+    return UnsupportedError(path_ + ": cannot open the " + info_.video_codec +
                             " decoder (FFmpeg: " + AvErrorText(ret) + ")");
   }
   return Status::Ok();
@@ -664,5 +693,7 @@ namespace saker::video {
 void SetFfmpegLogVerbose(bool verbose) {
   av_log_set_level(verbose ? AV_LOG_WARNING : AV_LOG_QUIET);
 }
+
+int64_t InputsOpened() { return internal::inputs_opened.load(std::memory_order_relaxed); }
 
 }  // namespace saker::video

@@ -95,6 +95,17 @@ class DecodeSession {
  private:
   DecodeSession() = default;
   Status OpenImpl(const std::string& path, const SessionConfig& config);
+  // The steps of OpenImpl, in order. The container opened and its stream layout probed (within
+  // max_pixels), what it declares in info_.
+  Status OpenContainer();
+  // The video stream to decode and its decoder (`codec`): refused when there is none, it is a
+  // still picture or its picture size is invalid or beyond max_pixels; its size, rate, frame count
+  // and time origin in info_.
+  Status FindVideoStream(const AVCodec** codec);
+  // Every stream in info_.streams, KLV streams marked and told synchronous or not; the demuxer
+  // discards all but the video and (keep_klv) the KLV streams.
+  void DescribeStreams();
+  Status OpenDecoder(const AVCodec* codec);
   // avformat_open_input on the file or URL, or on config_.memory.
   int OpenInput(AVFormatContext** format);
 

@@ -357,6 +357,8 @@ StatusOr<std::unique_ptr<VideoReader>> VideoReader::OpenMemory(std::vector<uint8
 
 const VideoInfo& VideoReader::info() const { return impl_->info; }
 
+const ReaderOptions& VideoReader::options() const { return impl_->options; }
+
 StatusOr<bool> VideoReader::ReadNext(Frame* frame, std::vector<DataPacket>* data) {
   return impl_->ReadNext(frame, data);
 }

@@ -131,6 +131,7 @@ class VideoReader {
   VideoReader& operator=(const VideoReader&) = delete;
 
   const VideoInfo& info() const;
+  const ReaderOptions& options() const;  // as opened
 
   // Sequential pass. Decodes the next frame in presentation order; every KLV data packet the
   // demuxer meets before that frame is output is appended to *data (may be null; same pass, no
@@ -181,5 +182,10 @@ StatusOr<std::unique_ptr<VideoReader>> OpenWithIndex(const std::string& path,
 // by default that output is off; `verbose` turns FFmpeg's warnings back on for
 // troubleshooting. Process-wide, since FFmpeg's log level is.
 void SetFfmpegLogVerbose(bool verbose);
+
+// How many times this process has opened a video input, failed attempts included: the
+// sequential pass of every Open, OpenMemory, OpenWithIndex and Rewind, and each reader's
+// random-access pass when first used. For tests that check how often a job opens its video.
+int64_t InputsOpened();
 
 }  // namespace saker::video

@@ -6,6 +6,8 @@
 #include "core/eval/front_end_accuracy.h"
 #include "core/sim/simulator.h"
 #include "core/sim/truth.h"
+#include "core/util/check.h"
+#include "core/video/video_reader.h"
 #include "tests/testing/test_data.h"
 
 #include <Eigen/Geometry>
@@ -14,6 +16,7 @@
 #include <algorithm>
 #include <iostream>
 #include <string>
+#include <utility>
 
 namespace saker::frontend {
 namespace {
@@ -392,6 +395,40 @@ TEST(FrontEndRunTest, RealClipEndToEnd) {
   for (const FrameResult& f : result->frames) estimated += f.homography_ok;
   EXPECT_GE(estimated, 40);
   EXPECT_GE(result->key_frames.size(), 1u);
+}
+
+// A video the caller opened (ProcessVideo reads its size and rate first) runs as its path does:
+// the front end decodes with that reader and opens nothing more.
+TEST(FrontEndRunTest, AnOpenedReaderRunsAsThePath) {
+  const std::filesystem::path dir = saker::testing::MakeTempDir("saker-frontend-reader");
+  const sim::SimulationOptions options = SmallOptions(dir / "r.ts", 3);
+  ASSERT_TRUE(sim::Simulate(options).ok());
+  const std::string video = options.output.string();
+  int64_t opened = video::InputsOpened();
+  StatusOr<FrontEndResult> from_path = RunFrontEnd(video, {});
+  ASSERT_TRUE(from_path.ok()) << from_path.status().ToString();
+  EXPECT_EQ(video::InputsOpened() - opened, 1);
+
+  auto reader = video::VideoReader::Open(video, FrontEndOptions().EffectiveReader());
+  ASSERT_TRUE(reader.ok()) << reader.status().ToString();
+  opened = video::InputsOpened();
+  StatusOr<FrontEndResult> from_reader = RunFrontEnd(std::move(reader).value(), {});
+  ASSERT_TRUE(from_reader.ok()) << from_reader.status().ToString();
+  EXPECT_EQ(video::InputsOpened(), opened);
+  EXPECT_EQ(from_reader->video.path, video);
+  ASSERT_EQ(from_reader->frames.size(), from_path->frames.size());
+  for (size_t i = 0; i < from_path->frames.size(); ++i) {
+    EXPECT_EQ(from_reader->frames[i].current_from_previous,
+              from_path->frames[i].current_from_previous);
+  }
+  EXPECT_EQ(from_reader->key_frames.size(), from_path->key_frames.size());
+  EXPECT_EQ(from_reader->targets.size(), from_path->targets.size());
+  EXPECT_EQ(from_reader->scan.FramesWithMetadata(), from_path->scan.FramesWithMetadata());
+
+  // A reader that gives no grey frames is a bug of the caller's.
+  auto bgr = video::VideoReader::Open(video);
+  ASSERT_TRUE(bgr.ok());
+  EXPECT_THROW((void)RunFrontEnd(std::move(bgr).value(), {}), CheckError);
 }
 
 TEST(FrontEndRunTest, ErrorsAndCancel) {

@@ -1,5 +1,6 @@
-// ScanVideoMemory (a whole video in memory) against ScanVideo on the same bytes as a file, and the
-// frame cap (ScanOptions::max_frames) that bounds the work on untrusted input.
+// ScanVideoMemory (a whole video in memory) and ScanVideo on an opened reader against ScanVideo on
+// the same bytes as a file, and the frame cap (ScanOptions::max_frames) that bounds the work on
+// untrusted input.
 
 #include "core/ingest/report.h"
 #include "core/ingest/video_scan.h"
@@ -11,6 +12,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <utility>
 #include <vector>
 
 namespace saker::ingest {
@@ -30,7 +32,7 @@ fs::path WriteSynthetic(const saker::testing::SyntheticTsOptions& options) {
   return path;
 }
 
-TEST(VideoScanMemoryTest, SameScanAsTheFile) {
+TEST(VideoScanMemoryTest, SameScanAsTheFileFromMemoryOrAnOpenedReader) {
   saker::testing::SyntheticTsOptions options;
   options.frames = 12;
   const fs::path path = WriteSynthetic(options);
@@ -51,6 +53,17 @@ TEST(VideoScanMemoryTest, SameScanAsTheFile) {
   // Same reports, byte for byte (the name given is the file's path).
   EXPECT_EQ(KlvDumpToJson(*from_memory).dump(), KlvDumpToJson(*from_file).dump());
   EXPECT_EQ(ProbeToJson(*from_memory).dump(), ProbeToJson(*from_file).dump());
+
+  // A reader the caller opened (to look at the video first) scans as the path does, and nothing
+  // is opened again.
+  auto reader = video::VideoReader::Open(path.string(), ScanOptions().reader);
+  ASSERT_TRUE(reader.ok()) << reader.status().ToString();
+  const int64_t opened = video::InputsOpened();
+  auto from_reader = ScanVideo(std::move(reader).value(), {});
+  ASSERT_TRUE(from_reader.ok()) << from_reader.status().ToString();
+  EXPECT_EQ(video::InputsOpened(), opened);
+  EXPECT_EQ(KlvDumpToJson(*from_reader).dump(), KlvDumpToJson(*from_file).dump());
+  EXPECT_EQ(ProbeToJson(*from_reader).dump(), ProbeToJson(*from_file).dump());
 }
 
 TEST(VideoScanMemoryTest, MaxFramesStopsTheScanAndSaysSo) {

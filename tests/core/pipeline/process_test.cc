@@ -5,6 +5,7 @@
 #include "core/pipeline/checkpoint.h"
 #include "core/pipeline/export_mission.h"
 #include "core/sim/simulator.h"
+#include "core/video/video_reader.h"
 #include "tests/testing/small_loop.h"
 #include "tests/testing/test_data.h"
 
@@ -59,9 +60,12 @@ TEST_F(ProcessTest, ProcessesIntoAMissionThatReopensWithTheTruthsActivity) {
     EXPECT_TRUE(commits == std::vector<std::string>{"source"}) << "a preview after the front end";
     previews.push_back(preview);
   };
+  const int64_t opened = video::InputsOpened();
   const auto summary = ProcessVideo(Video(), path, options);
   ASSERT_TRUE(summary.ok()) << summary.status().ToString();
   std::cout << summary->ToText();
+  // One reader gives the source record and the front end's frames and metadata.
+  EXPECT_EQ(video::InputsOpened() - opened, 1) << "the job opens its video once";
   EXPECT_EQ(commits,
             (std::vector<std::string>{"source", "front end", "mosaic", "activity", "tiles"}));
   ASSERT_EQ(static_cast<int64_t>(previews.size()), summary->key_frames);
@@ -156,8 +160,10 @@ TEST_F(ProcessTest, CheckpointsRoundTripThroughTheMissionFile) {
     EXPECT_EQ((*read)->open_targets.size(), merged.open_targets.size());
     return Status::Ok();
   };
+  const int64_t opened = video::InputsOpened();
   StatusOr<frontend::FrontEndResult> result = frontend::RunFrontEnd(Video(), options);
   ASSERT_TRUE(result.ok()) << result.status().ToString();
+  EXPECT_EQ(video::InputsOpened() - opened, 1) << "the front end opens its video once";
   ASSERT_GE(deliveries, 5);
   StatusOr<std::optional<frontend::FrontEndCheckpoint>> read = ReadCheckpoint(**store);
   ASSERT_TRUE(read.ok()) << read.status().ToString();
@@ -264,9 +270,12 @@ TEST_F(ProcessTest, AnInterruptedJobResumesFromItsCheckpoint) {
             std::string::npos)
       << refused.status().message();
 
+  const int64_t opened = video::InputsOpened();
   const auto resumed = ProcessVideo(Video(), path, options);
   ASSERT_TRUE(resumed.ok()) << resumed.status().ToString();
   std::cout << resumed->ToText();
+  // The scan decodes the frames before the checkpoint with the same reader.
+  EXPECT_EQ(video::InputsOpened() - opened, 1) << "the resumed job opens its video once";
   EXPECT_EQ(resumed->resumed_from_frame, stopped_at);
   EXPECT_LT(resumed->front_end_s, baseline->front_end_s);
   auto store = mission::MissionStore::Open(path);
@@ -358,10 +367,18 @@ TEST_F(ProcessTest, NotAVideoLeavesNoMission) {
   const std::filesystem::path text = *dir_ / "notes.ts";
   std::ofstream(text) << "this is not a video\n";
   const std::string path = (*dir_ / "never.saker").string();
+  const int64_t opened = video::InputsOpened();
   const auto summary = ProcessVideo(text.string(), path, {});
   ASSERT_FALSE(summary.ok());
   EXPECT_NE(summary.status().message().find("notes.ts"), std::string::npos);
   EXPECT_FALSE(std::filesystem::exists(path));
+  EXPECT_EQ(video::InputsOpened() - opened, 1);
+  // The stages on a path (the evaluation, saker-cli mosaic): the front end fails, naming the file.
+  MissionRun run;
+  const Status ran = RunStages(text.string(), {}, {}, nullptr, &run);
+  EXPECT_EQ(ran.code(), summary.status().code());
+  EXPECT_NE(ran.message().find("notes.ts"), std::string::npos) << ran.message();
+  EXPECT_EQ(run.failed, Stage::kFrontEnd);
 }
 
 // kill -9 of `saker-cli process` at random moments: the mission, when there is one, always
