@@ -42,10 +42,9 @@ int MatchTarget(const mission::ActivityTrack& track, const sim::Truth& truth) {
   return -1;
 }
 
-}  // namespace
-
-StatusOr<ActivityAccuracy> EvaluateActivity(const mission::Mission& mission,
-                                            const sim::Truth& truth, double visit_gap_s) {
+// InvalidArgument unless `truth` describes the mission's video: its frames, its size and a sample
+// of every target in every frame.
+Status CheckTruthFits(const mission::Mission& mission, const sim::Truth& truth) {
   if (truth.frames.size() != mission.frames.size() || truth.width != mission.source.width ||
       truth.height != mission.source.height) {
     return InvalidArgumentError("evaluate: the truth does not describe this mission's video (" +
@@ -61,7 +60,11 @@ StatusOr<ActivityAccuracy> EvaluateActivity(const mission::Mission& mission,
                                   " does not have a sample per frame");
     }
   }
-  // The truth's coverage: every frame's footprint on the truth ground, for the truth's visits.
+  return Status::Ok();
+}
+
+// The truth as a mission of frames only: every frame's footprint on the truth ground.
+mission::Mission TruthCoverMission(const sim::Truth& truth) {
   mission::Mission truth_cover;
   truth_cover.source.width = truth.width;
   truth_cover.source.height = truth.height;
@@ -72,6 +75,27 @@ StatusOr<ActivityAccuracy> EvaluateActivity(const mission::Mission& mission,
     if (!f.blank) record.map_from_frame = f.frame_from_ground.inverse();
     truth_cover.frames.push_back(record);
   }
+  return truth_cover;
+}
+
+// The 1-based number of the visit nearest in time to `time_s`.
+int NearestVisit(const std::vector<activity::CoverageIndex::Interval>& visits, double time_s) {
+  int truth_visit = 1;
+  double best = std::numeric_limits<double>::infinity();
+  for (size_t v = 0; v < visits.size(); ++v) {
+    const double off = std::max({0.0, visits[v].start_s - time_s, time_s - visits[v].end_s});
+    if (off < best) best = off, truth_visit = static_cast<int>(v) + 1;
+  }
+  return truth_visit;
+}
+
+}  // namespace
+
+StatusOr<ActivityAccuracy> EvaluateActivity(const mission::Mission& mission,
+                                            const sim::Truth& truth, double visit_gap_s) {
+  SAKER_RETURN_IF_ERROR(CheckTruthFits(mission, truth));
+  // The truth's coverage: every frame's footprint on the truth ground, for the truth's visits.
+  const mission::Mission truth_cover = TruthCoverMission(truth);
   const activity::CoverageIndex truth_coverage(truth_cover, 5);
 
   ActivityAccuracy a;
@@ -122,14 +146,7 @@ StatusOr<ActivityAccuracy> EvaluateActivity(const mission::Mission& mission,
         truth_coverage.Visits(samples[static_cast<size_t>(middle.frame)].ground_m, visit_gap_s);
     if (!visits.empty()) {
       ++a.compared_visit;
-      int truth_visit = 1;
-      double best = std::numeric_limits<double>::infinity();
-      for (size_t v = 0; v < visits.size(); ++v) {
-        const double off =
-            std::max({0.0, visits[v].start_s - middle.time_s, middle.time_s - visits[v].end_s});
-        if (off < best) best = off, truth_visit = static_cast<int>(v) + 1;
-      }
-      visits_agree += truth_visit == track.visit;
+      visits_agree += NearestVisit(visits, middle.time_s) == track.visit;
     }
     // Pick where the mosaic shows the truth's position of the middle observation: the truth's
     // image position through the frame's own homography (the mosaic's absolute accuracy is

@@ -499,6 +499,90 @@ Status CheckTile(const cv::Mat& tile, int level, int tx, int ty, int inside_w, i
   return InvalidDataError(message.str());
 }
 
+// The GTiff creation options: tiled in `block`-pixel blocks, DEFLATE with the horizontal
+// predictor, RGBA with an unassociated alpha, BigTIFF when it may be needed. CSLDestroy it.
+char** GeoTiffCreationOptions(int block_px) {
+  const std::string block = std::to_string(block_px);
+  char** options = nullptr;
+  options = CSLSetNameValue(options, "TILED", "YES");
+  options = CSLSetNameValue(options, "BLOCKXSIZE", block.c_str());
+  options = CSLSetNameValue(options, "BLOCKYSIZE", block.c_str());
+  options = CSLSetNameValue(options, "COMPRESS", "DEFLATE");
+  options = CSLSetNameValue(options, "PREDICTOR", "2");
+  options = CSLSetNameValue(options, "PHOTOMETRIC", "RGB");
+  options = CSLSetNameValue(options, "ALPHA", "UNASSOCIATED");
+  options = CSLSetNameValue(options, "INTERLEAVE", "PIXEL");
+  options = CSLSetNameValue(options, "BIGTIFF", "IF_SAFER");
+  return options;
+}
+
+// Sets the bands' colour interpretation (RGBA) and, for a geo-referenced map, the geotransform
+// and the CRS.
+Status DescribeBands(GDALDatasetH ds, const std::optional<GeoFit>& fit, const std::string& path,
+                     const GdalErrors& errors) {
+  constexpr std::array<GDALColorInterp, 4> kInterp = {GCI_RedBand, GCI_GreenBand, GCI_BlueBand,
+                                                      GCI_AlphaBand};
+  for (int b = 0; b < 4; ++b) {
+    if (GDALSetRasterColorInterpretation(GDALGetRasterBand(ds, b + 1), kInterp[b]) != CE_None) {
+      return IoError(path + ": cannot set the colour interpretation of band " +
+                     std::to_string(b + 1) + " (" + errors.message("no reason") + ")");
+    }
+  }
+  if (!fit) return Status::Ok();
+  std::array<double, 6> geotransform = fit->geotransform;  // GDAL takes it non-const
+  if (GDALSetGeoTransform(ds, geotransform.data()) != CE_None) {
+    return IoError(path + ": cannot set the geotransform (" + errors.message("no reason") + ")");
+  }
+  SrsPtr srs(OSRNewSpatialReference(nullptr));
+  if (!srs || OSRImportFromEPSG(srs.get(), fit->epsg) != OGRERR_NONE) {
+    return IoError(path + ": cannot set up " + fit->crs + " (is PROJ's database installed?) (" +
+                   errors.message("no reason") + ")");
+  }
+  if (GDALSetSpatialRef(ds, srs.get()) != CE_None) {
+    return IoError(path + ": cannot set the CRS (" + errors.message("no reason") + ")");
+  }
+  return Status::Ok();
+}
+
+// Copies the pyramid level's tiles (`ts` pixels) into the dataset, row by row; with
+// `flush_rows` (file blocks equal to the tiles) each finished row is flushed, so memory holds one
+// row of tiles at most.
+Status WriteTiles(GDALDatasetH ds, const TileReader& read_tile, int level,
+                  const GeoTiffReport& report, int ts, bool flush_rows, const std::string& path,
+                  const GdalErrors& errors) {
+  // The reader's BGRA goes to the file's bands 3, 2, 1, 4 (RGBA).
+  std::array<int, 4> band_map = {3, 2, 1, 4};
+  const cv::Mat transparent(ts, ts, CV_8UC4, cv::Scalar::all(0));
+  const int tiles_x = (report.width + ts - 1) / ts;
+  const int tiles_y = (report.height + ts - 1) / ts;
+  for (int ty = 0; ty < tiles_y; ++ty) {
+    for (int tx = 0; tx < tiles_x; ++tx) {
+      const int x0 = tx * ts, y0 = ty * ts;
+      const int w = std::min(ts, report.width - x0), h = std::min(ts, report.height - y0);
+      StatusOr<cv::Mat> tile = read_tile(level, tx, ty);
+      if (!tile.ok()) {
+        return Status(tile.status().code(), path + ": reading tile (level " +
+                                                std::to_string(level) + ", x " +
+                                                std::to_string(tx) + ", y " + std::to_string(ty) +
+                                                ") failed: " + tile.status().message());
+      }
+      const cv::Mat& pixels = tile->empty() ? transparent : *tile;
+      if (!tile->empty()) {
+        SAKER_RETURN_IF_ERROR(CheckTile(pixels, level, tx, ty, w, h, ts, path));
+      }
+      const CPLErr written = GDALDatasetRasterIOEx(
+          ds, GF_Write, x0, y0, w, h, const_cast<uchar*>(pixels.data), w, h, GDT_Byte, 4,
+          band_map.data(), 4, static_cast<GSpacing>(pixels.step[0]), 1, nullptr);
+      if (written != CE_None || errors.failed()) {
+        return IoError(path + ": writing tile (" + std::to_string(tx) + ", " + std::to_string(ty) +
+                       ") failed (" + errors.message("no reason") + ")");
+      }
+    }
+    if (flush_rows) GDALFlushCache(ds);
+  }
+  return Status::Ok();
+}
+
 StatusOr<GeoTiffReport> WriteGeoTiff(const mission::MapFrame& map,
                                      const mission::PyramidInfo& pyramid, int level,
                                      const TileReader& read_tile, const std::string& path) {
@@ -530,17 +614,7 @@ StatusOr<GeoTiffReport> WriteGeoTiff(const mission::MapFrame& map,
   // file block is written once, whole, and flushed after each row of tiles.
   const int ts = pyramid.tile_size;
   const bool aligned_blocks = ts % 16 == 0;
-  const std::string block = std::to_string(aligned_blocks ? ts : 256);
-  char** options = nullptr;
-  options = CSLSetNameValue(options, "TILED", "YES");
-  options = CSLSetNameValue(options, "BLOCKXSIZE", block.c_str());
-  options = CSLSetNameValue(options, "BLOCKYSIZE", block.c_str());
-  options = CSLSetNameValue(options, "COMPRESS", "DEFLATE");
-  options = CSLSetNameValue(options, "PREDICTOR", "2");
-  options = CSLSetNameValue(options, "PHOTOMETRIC", "RGB");
-  options = CSLSetNameValue(options, "ALPHA", "UNASSOCIATED");
-  options = CSLSetNameValue(options, "INTERLEAVE", "PIXEL");
-  options = CSLSetNameValue(options, "BIGTIFF", "IF_SAFER");
+  char** options = GeoTiffCreationOptions(aligned_blocks ? ts : 256);
   // GDAL may write an ".aux.xml" beside the file for what TIFF tags cannot hold.
   FileReplacement replacement(path, {.side_suffixes = {".aux.xml"}});
   const std::string& partial = replacement.temporary();
@@ -558,62 +632,12 @@ StatusOr<GeoTiffReport> WriteGeoTiff(const mission::MapFrame& map,
         IoError(path + ": cannot create the file (" + errors.message("GDAL gave no reason") + ")"));
   }
   GDALDatasetH ds = dataset.get();
-  constexpr std::array<GDALColorInterp, 4> kInterp = {GCI_RedBand, GCI_GreenBand, GCI_BlueBand,
-                                                      GCI_AlphaBand};
-  for (int b = 0; b < 4; ++b) {
-    if (GDALSetRasterColorInterpretation(GDALGetRasterBand(ds, b + 1), kInterp[b]) != CE_None) {
-      return fail(IoError(path + ": cannot set the colour interpretation of band " +
-                          std::to_string(b + 1) + " (" + errors.message("no reason") + ")"));
-    }
+  if (Status described = DescribeBands(ds, fit, path, errors); !described.ok()) {
+    return fail(described);
   }
-  if (fit) {
-    if (GDALSetGeoTransform(ds, fit->geotransform.data()) != CE_None) {
-      return fail(
-          IoError(path + ": cannot set the geotransform (" + errors.message("no reason") + ")"));
-    }
-    SrsPtr srs(OSRNewSpatialReference(nullptr));
-    if (!srs || OSRImportFromEPSG(srs.get(), fit->epsg) != OGRERR_NONE) {
-      return fail(IoError(path + ": cannot set up " + fit->crs +
-                          " (is PROJ's database installed?) (" + errors.message("no reason") +
-                          ")"));
-    }
-    if (GDALSetSpatialRef(ds, srs.get()) != CE_None) {
-      return fail(IoError(path + ": cannot set the CRS (" + errors.message("no reason") + ")"));
-    }
-  }
-
-  // The reader's BGRA goes to the file's bands 3, 2, 1, 4 (RGBA).
-  std::array<int, 4> band_map = {3, 2, 1, 4};
-  const cv::Mat transparent(ts, ts, CV_8UC4, cv::Scalar::all(0));
-  const int tiles_x = (report.width + ts - 1) / ts;
-  const int tiles_y = (report.height + ts - 1) / ts;
-  for (int ty = 0; ty < tiles_y; ++ty) {
-    for (int tx = 0; tx < tiles_x; ++tx) {
-      const int x0 = tx * ts, y0 = ty * ts;
-      const int w = std::min(ts, report.width - x0), h = std::min(ts, report.height - y0);
-      StatusOr<cv::Mat> tile = read_tile(level, tx, ty);
-      if (!tile.ok()) {
-        return fail(Status(tile.status().code(),
-                           path + ": reading tile (level " + std::to_string(level) + ", x " +
-                               std::to_string(tx) + ", y " + std::to_string(ty) +
-                               ") failed: " + tile.status().message()));
-      }
-      const cv::Mat& pixels = tile->empty() ? transparent : *tile;
-      if (!tile->empty()) {
-        if (Status checked = CheckTile(pixels, level, tx, ty, w, h, ts, path); !checked.ok()) {
-          return fail(checked);
-        }
-      }
-      const CPLErr written = GDALDatasetRasterIOEx(
-          ds, GF_Write, x0, y0, w, h, const_cast<uchar*>(pixels.data), w, h, GDT_Byte, 4,
-          band_map.data(), 4, static_cast<GSpacing>(pixels.step[0]), 1, nullptr);
-      if (written != CE_None || errors.failed()) {
-        return fail(IoError(path + ": writing tile (" + std::to_string(tx) + ", " +
-                            std::to_string(ty) + ") failed (" + errors.message("no reason") + ")"));
-      }
-    }
-    // The row's blocks are complete: write them out so memory holds one row of tiles at most.
-    if (aligned_blocks) GDALFlushCache(ds);
+  if (Status written = WriteTiles(ds, read_tile, level, report, ts, aligned_blocks, path, errors);
+      !written.ok()) {
+    return fail(written);
   }
   dataset.reset();  // closes the file, writing what remains
   if (errors.failed()) {

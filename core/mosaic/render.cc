@@ -43,17 +43,12 @@ Status RenderOptions::Validate() const {
   return Status::Ok();
 }
 
-StatusOr<MosaicImage> RenderMosaic(const LinkGraph& graph,
-                                   const std::vector<track::KeyFrameImage>& images,
-                                   const RenderOptions& options,
-                                   const std::vector<track::HomographyCovariance>& covariances) {
-  SAKER_RETURN_IF_ERROR(options.Validate());
-  SAKER_RETURN_IF_ERROR(graph.Validate());
-  std::map<int, const track::KeyFrameImage*> by_id;
-  for (const track::KeyFrameImage& image : images) {
-    if (!image.grey.empty()) by_id[static_cast<int>(image.id)] = &image;
-  }
-  // Extent and resolution from the key frames' footprints.
+namespace {
+
+// The picture's frame: its map units per pixel and image_from_map, chosen from the key frames'
+// footprints; `size` is the picture's size in pixels.
+StatusOr<MosaicImage> PictureFrame(const LinkGraph& graph, const RenderOptions& options,
+                                   cv::Size* size) {
   const auto corners = track::ImageCorners(graph.image_width, graph.image_height);
   double x0 = std::numeric_limits<double>::infinity(), y0 = x0, x1 = -x0, y1 = -x0;
   std::vector<double> resolutions;
@@ -76,8 +71,8 @@ StatusOr<MosaicImage> RenderMosaic(const LinkGraph& graph,
       options.map_units_per_px > 0 ? options.map_units_per_px : Median(std::move(resolutions));
   if (!(units > 0)) return InvalidDataError("mosaic picture: degenerate key frame homographies");
   units = std::max(units, std::max(x1 - x0, y1 - y0) / options.max_side_px);
-  const int width = std::max(1, static_cast<int>(std::ceil((x1 - x0) / units)) + 1);
-  const int height = std::max(1, static_cast<int>(std::ceil((y1 - y0) / units)) + 1);
+  size->width = std::max(1, static_cast<int>(std::ceil((x1 - x0) / units)) + 1);
+  size->height = std::max(1, static_cast<int>(std::ceil((y1 - y0) / units)) + 1);
 
   MosaicImage out;
   out.map_units_per_px = units;
@@ -87,8 +82,18 @@ StatusOr<MosaicImage> RenderMosaic(const LinkGraph& graph,
   } else {
     out.image_from_map << 1 / units, 0, -x0 / units, 0, 1 / units, -y0 / units, 0, 0, 1;
   }
+  return out;
+}
 
-  cv::Mat sum(height, width, CV_32F, cv::Scalar(0)), weight(height, width, CV_32F, cv::Scalar(0));
+// Blends the key frames that have an image into out->bgr (of `size`), each weighted by its
+// distance to the image border so that overlapping frames fade into each other.
+Status BlendKeyFrames(const LinkGraph& graph, const std::vector<track::KeyFrameImage>& images,
+                      cv::Size size, MosaicImage* out) {
+  std::map<int, const track::KeyFrameImage*> by_id;
+  for (const track::KeyFrameImage& image : images) {
+    if (!image.grey.empty()) by_id[static_cast<int>(image.id)] = &image;
+  }
+  cv::Mat sum(size, CV_32F, cv::Scalar(0)), weight(size, CV_32F, cv::Scalar(0));
   cv::Mat warped, warped_weight, feather;
   cv::Size feather_size;
   int drawn = 0;
@@ -97,7 +102,6 @@ StatusOr<MosaicImage> RenderMosaic(const LinkGraph& graph,
     if (it == by_id.end()) continue;
     const track::KeyFrameImage& image = *it->second;
     if (image.grey.size() != feather_size) {
-      // Weight: distance to the border, so that overlapping frames fade into each other.
       cv::Mat inside(image.grey.size(), CV_8U, cv::Scalar(255));
       cv::rectangle(inside, cv::Rect(0, 0, inside.cols, inside.rows), cv::Scalar(0), 1);
       cv::distanceTransform(inside, feather, cv::DIST_L2, 3, CV_32F);
@@ -109,7 +113,7 @@ StatusOr<MosaicImage> RenderMosaic(const LinkGraph& graph,
     full_from_grey << image.scale, 0, 0.5 * image.scale - 0.5, 0, image.scale,
         0.5 * image.scale - 0.5, 0, 0, 1;
     const Eigen::Matrix3d picture_from_grey =
-        out.image_from_map * node.map_from_frame * full_from_grey;
+        out->image_from_map * node.map_from_frame * full_from_grey;
     cv::Mat h;
     cv::eigen2cv(picture_from_grey, h);
     cv::Mat grey_float;
@@ -127,10 +131,17 @@ StatusOr<MosaicImage> RenderMosaic(const LinkGraph& graph,
   cv::divide(sum, weight, grey);
   grey.setTo(0, weight <= 0);
   grey.convertTo(grey, CV_8U);
-  cv::cvtColor(grey, out.bgr, cv::COLOR_GRAY2BGR);
+  cv::cvtColor(grey, out->bgr, cv::COLOR_GRAY2BGR);
   // No-data stays a neutral dark blue-grey, not black, so the footprint reads as such.
-  out.bgr.setTo(cv::Scalar(48, 40, 36), weight <= 0);
+  out->bgr.setTo(cv::Scalar(48, 40, 36), weight <= 0);
+  return Status::Ok();
+}
 
+// Draws what `options` asks for over the picture: links, key frame outlines, and the uncertainty
+// ellipses of the key frames' corners (in map units, through the picture's similarity).
+void DrawGraph(const LinkGraph& graph, const std::vector<track::HomographyCovariance>& covariances,
+               const RenderOptions& options, MosaicImage* out) {
+  const auto corners = track::ImageCorners(graph.image_width, graph.image_height);
   const Eigen::Vector2d centre((graph.image_width - 1) / 2.0, (graph.image_height - 1) / 2.0);
   if (options.links) {
     for (const Link& link : graph.links) {
@@ -138,21 +149,21 @@ StatusOr<MosaicImage> RenderMosaic(const LinkGraph& graph,
       const Node& b = graph.nodes[static_cast<size_t>(link.to)];
       const cv::Scalar colour =
           link.kind == LinkKind::kSequential ? cv::Scalar(255, 255, 255) : cv::Scalar(0, 0, 255);
-      cv::line(out.bgr, ToPoint(out.image_from_map * a.map_from_frame, centre),
-               ToPoint(out.image_from_map * b.map_from_frame, centre), colour,
+      cv::line(out->bgr, ToPoint(out->image_from_map * a.map_from_frame, centre),
+               ToPoint(out->image_from_map * b.map_from_frame, centre), colour,
                link.kind == LinkKind::kSequential ? 1 : 2, cv::LINE_AA);
     }
   }
   if (options.outlines) {
     for (const Node& node : graph.nodes) {
       std::vector<cv::Point> outline;
-      for (const Eigen::Vector2d& c : corners)
-        outline.push_back(ToPoint(out.image_from_map * node.map_from_frame, c));
-      cv::polylines(out.bgr, outline, true, SegmentColour(node.segment), 1, cv::LINE_AA);
+      for (const Eigen::Vector2d& c : corners) {
+        outline.push_back(ToPoint(out->image_from_map * node.map_from_frame, c));
+      }
+      cv::polylines(out->bgr, outline, true, SegmentColour(node.segment), 1, cv::LINE_AA);
     }
   }
   if (options.ellipse_confidence > 0 && covariances.size() == graph.nodes.size()) {
-    // Ellipses in map units, drawn through the picture's (similarity) transform.
     for (size_t i = 0; i < graph.nodes.size(); ++i) {
       const Node& node = graph.nodes[i];
       for (const Eigen::Vector2d& c : corners) {
@@ -162,12 +173,26 @@ StatusOr<MosaicImage> RenderMosaic(const LinkGraph& graph,
                                                           cov, options.ellipse_confidence);
         std::vector<cv::Point> polygon;
         for (const Eigen::Vector2d& p : track::EllipsePolygon(e, 48)) {
-          polygon.push_back(ToPoint(out.image_from_map, p));
+          polygon.push_back(ToPoint(out->image_from_map, p));
         }
-        cv::polylines(out.bgr, polygon, true, cv::Scalar(0, 255, 255), 1, cv::LINE_AA);
+        cv::polylines(out->bgr, polygon, true, cv::Scalar(0, 255, 255), 1, cv::LINE_AA);
       }
     }
   }
+}
+
+}  // namespace
+
+StatusOr<MosaicImage> RenderMosaic(const LinkGraph& graph,
+                                   const std::vector<track::KeyFrameImage>& images,
+                                   const RenderOptions& options,
+                                   const std::vector<track::HomographyCovariance>& covariances) {
+  SAKER_RETURN_IF_ERROR(options.Validate());
+  SAKER_RETURN_IF_ERROR(graph.Validate());
+  cv::Size size;
+  SAKER_ASSIGN_OR_RETURN(MosaicImage out, PictureFrame(graph, options, &size));
+  SAKER_RETURN_IF_ERROR(BlendKeyFrames(graph, images, size, &out));
+  DrawGraph(graph, covariances, options, &out);
   return out;
 }
 
