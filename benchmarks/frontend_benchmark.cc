@@ -104,7 +104,7 @@ int MeasureMemory(double clip_minutes, int height, int repeat) {
   malloc_trim(0);
   std::ofstream clear_refs("/proc/self/clear_refs");
   clear_refs << "5" << std::flush;
-  const bool peak_reset = bool(clear_refs);
+  const bool peak_reset = clear_refs.good();
   const double rss_start = ResidentMb();
   std::printf("before the front end: RSS %.0f MB%s\n", rss_start,
               peak_reset ? "" : " (the peak could not be reset: it includes the simulation)");

@@ -226,7 +226,7 @@ void MosaicView::addPreviewKeyFrame(const frontend::KeyFramePreview& preview) {
     canvas_bounds_ = wanted;
   }
   {
-    const QImage image(grey.data, grey.cols, grey.rows, qsizetype(grey.step),
+    const QImage image(grey.data, grey.cols, grey.rows, static_cast<qsizetype>(grey.step),
                        QImage::Format_Grayscale8);
     QPainter painter(&preview_canvas_);
     painter.setRenderHint(QPainter::SmoothPixmapTransform);

@@ -58,7 +58,7 @@ class PatchSampler {
     const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y));
     const float fx = x - static_cast<float>(x0), fy = y - static_cast<float>(y0);
     const float w00 = (1 - fx) * (1 - fy), w01 = fx * (1 - fy), w10 = (1 - fx) * fy, w11 = fx * fy;
-    const ptrdiff_t step = ptrdiff_t(image_.step);
+    const ptrdiff_t step = static_cast<ptrdiff_t>(image_.step);
     const uchar* top =
         image_.data + static_cast<ptrdiff_t>(y0 - kPatchHalf) * step + (x0 - kPatchHalf);
     float sum = 0;
