@@ -1,11 +1,38 @@
 #include "core/geo/local_tangent_plane.h"
 
+#include "core/util/check.h"
+
 #include <GeographicLib/LocalCartesian.hpp>
 
 #include <cmath>
 #include <sstream>
 
 namespace saker::geo {
+
+double WrapLongitude(double longitude_deg) {
+  if (longitude_deg >= -180.0 && longitude_deg <= 180.0) return longitude_deg;
+  return std::remainder(longitude_deg, 360.0);
+}
+
+double UnwrapLongitude(double longitude_deg, double reference_deg) {
+  const double difference = longitude_deg - reference_deg;
+  if (difference >= -180.0 && difference <= 180.0) return longitude_deg;
+  return reference_deg + std::remainder(difference, 360.0);
+}
+
+Wgs84 CentreOf(const std::vector<Wgs84>& points) {
+  SAKER_CHECK(!points.empty()) << "CentreOf needs at least one position";
+  const double reference = points.front().longitude_deg;
+  const double n = static_cast<double>(points.size());
+  Wgs84 centre;
+  for (const Wgs84& p : points) {
+    centre.latitude_deg += p.latitude_deg / n;
+    centre.longitude_deg += UnwrapLongitude(p.longitude_deg, reference) / n;
+    centre.height_m += p.height_m / n;
+  }
+  centre.longitude_deg = WrapLongitude(centre.longitude_deg);
+  return centre;
+}
 
 struct LocalTangentPlane::Impl {
   explicit Impl(const Wgs84& o) : projection(o.latitude_deg, o.longitude_deg, o.height_m) {}
@@ -20,6 +47,15 @@ StatusOr<LocalTangentPlane> LocalTangentPlane::Create(const Wgs84& origin) {
     std::ostringstream message;
     message << "map origin is not a position on Earth: latitude " << origin.latitude_deg
             << ", longitude " << origin.longitude_deg << ", height " << origin.height_m << " m";
+    return InvalidArgumentError(message.str());
+  }
+  if (std::abs(origin.latitude_deg) > kMaxMapLatitudeDeg) {
+    std::ostringstream message;
+    message << "map origin at latitude " << origin.latitude_deg << " is "
+            << std::lround((90 - std::abs(origin.latitude_deg)) * 111.2)
+            << " km from the pole: a local tangent plane cannot serve as the map there (beyond "
+            << kMaxMapLatitudeDeg << " degrees its north turns away from true north within "
+            << "a few kilometres); process the video without its metadata";
     return InvalidArgumentError(message.str());
   }
   return LocalTangentPlane(origin);

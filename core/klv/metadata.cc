@@ -16,6 +16,13 @@ double Wrap360(double deg) {
   return wrapped >= 360.0 ? 0.0 : wrapped;
 }
 
+// A longitude in [-180, 180]: a frame centre near the antimeridian plus an offset (tags 26-33)
+// can pass it. The value is kept bit for bit when already in range.
+double WrapLongitude(double deg) {
+  if (deg >= -180.0 && deg <= 180.0) return deg;
+  return std::remainder(deg, 360.0);
+}
+
 // A position when both coordinates are present.
 std::optional<LatLon> MakeLatLon(std::optional<double> lat, std::optional<double> lon) {
   if (!lat || !lon) return std::nullopt;
@@ -94,7 +101,7 @@ FrameMetadata ToFrameMetadata(const St0601Set& set) {
       auto offset = MakeLatLon(set.GetDouble(26 + 2 * i), set.GetDouble(27 + 2 * i));
       if (offset) {
         corners[i] = {m.frame_center->latitude_deg + offset->latitude_deg,
-                      m.frame_center->longitude_deg + offset->longitude_deg};
+                      WrapLongitude(m.frame_center->longitude_deg + offset->longitude_deg)};
       } else {
         offsets = false;
       }

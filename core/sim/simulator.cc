@@ -464,18 +464,21 @@ StatusOr<std::vector<uint8_t>> EncodeFrameKlv(
   const double target_width = (corners_m[2] - corners_m[3]).norm();
   if (target_width <= 10000) e.Add(22, target_width);
   std::array<geo::Wgs84, 4> corners;
+  std::array<double, 4> longitude_offsets{};  // across the antimeridian the short way round
   bool offsets_fit = true;
   for (int k = 0; k < 4; ++k) {
     corners[k] = plane.LatLonFromMap(corners_m[k]);
+    longitude_offsets[k] =
+        geo::UnwrapLongitude(corners[k].longitude_deg, centre.longitude_deg) - centre.longitude_deg;
     offsets_fit &= std::abs(corners[k].latitude_deg - centre.latitude_deg) <= 0.075 &&
-                   std::abs(corners[k].longitude_deg - centre.longitude_deg) <= 0.075;
+                   std::abs(longitude_offsets[k]) <= 0.075;
   }
   // Offset corners (26-33) only reach 0.075 degrees from the centre; wider footprints carry only
   // the full corners.
   if (offsets_fit) {
     for (int k = 0; k < 4; ++k) {
       e.Add(26 + 2 * k, corners[k].latitude_deg - centre.latitude_deg)
-          .Add(27 + 2 * k, corners[k].longitude_deg - centre.longitude_deg);
+          .Add(27 + 2 * k, longitude_offsets[k]);
     }
   }
   for (int k = 0; k < 4; ++k) {

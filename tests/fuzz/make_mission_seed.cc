@@ -1,5 +1,7 @@
 // Writes a small but complete mission file (every table filled, every link kind, tracks with and
-// without points, a few tiles) as a seed for fuzz_mission: `make_mission_seed OUT.saker`.
+// without points, a few tiles) as a seed for fuzz_mission: `make_mission_seed OUT.saker
+// [ANTIMERIDIAN.saker]`; the second, when named, is the same mission flown over the antimeridian
+// (its map origin and sensor positions either side of 180 degrees).
 // Built from the mission tests' fixture, so the seed follows the schema as it evolves.
 
 #include "core/mission/mission_store.h"
@@ -7,20 +9,30 @@
 
 #include <cstdio>
 #include <filesystem>
+#include <string>
 
-int main(int argc, char** argv) {
-  using namespace saker::mission;
-  if (argc != 2) {
-    std::fprintf(stderr, "usage: %s OUT.saker\n", argv[0]);
-    return 2;
+namespace {
+
+using namespace saker::mission;
+
+// The fixture flown over the antimeridian: the origin on it, the sensor positions either side.
+Mission AtTheAntimeridian(Mission mission) {
+  mission.map.origin = saker::geo::Wgs84{51.15, 179.9999, 100.0};
+  double longitude = 179.9990;
+  for (FrameRecord& f : mission.frames) {
+    if (f.sensor) f.sensor = saker::geo::Wgs84{51.15, longitude, 400.0};
+    longitude += 0.0004;
+    if (longitude > 180.0) longitude -= 360.0;
   }
-  const std::string path = argv[1];
+  return mission;
+}
+
+int WriteSeed(const std::string& path, Mission mission) {
   auto store = MissionStore::Create(path, /*replace=*/true);
   if (!store.ok()) {
     std::fprintf(stderr, "%s\n", store.status().ToString().c_str());
     return 1;
   }
-  Mission mission = testing_support::MakeFullMission();
   if (!mission.pyramid) mission.pyramid = PyramidInfo{};
   mission.pyramid->levels = 2;
   saker::Status saved = (*store)->Save(mission);
@@ -38,4 +50,16 @@ int main(int argc, char** argv) {
   std::filesystem::remove(path + "-wal", ignored);
   std::filesystem::remove(path + "-shm", ignored);
   return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc != 2 && argc != 3) {
+    std::fprintf(stderr, "usage: %s OUT.saker [ANTIMERIDIAN.saker]\n", argv[0]);
+    return 2;
+  }
+  const Mission mission = saker::mission::testing_support::MakeFullMission();
+  if (const int code = WriteSeed(argv[1], mission); code != 0) return code;
+  return argc == 3 ? WriteSeed(argv[2], AtTheAntimeridian(mission)) : 0;
 }

@@ -86,8 +86,9 @@ if [[ -z "$saker_cli" ]]; then
   saker_cli="$build_dir/app/saker-cli"
 fi
 
-# Small simulated clips: a few seconds of 320x240 H.264 with ST 0601 on every frame, and a
-# sparser one (KLV every third frame, 30 fps), plus a short mission processed from the first.
+# Small simulated clips: a few seconds of 320x240 H.264 with ST 0601 on every frame, a sparser
+# one (KLV every third frame, 30 fps) and one over the antimeridian (footprints either side of
+# 180 degrees), plus short missions processed from the first and the last.
 simulate() {  # simulate OUT.ts [extra options]
   local out="$1"
   shift
@@ -96,8 +97,9 @@ simulate() {  # simulate OUT.ts [extra options]
 }
 simulated=()
 if simulate "$seed_tmp/sim-10fps.ts" --fps 10 --duration 2 &&
-  simulate "$seed_tmp/sim-sparse.ts" --fps 30 --duration 1 --klv-every 3 --seed 7; then
-  simulated=("$seed_tmp/sim-10fps.ts" "$seed_tmp/sim-sparse.ts")
+  simulate "$seed_tmp/sim-sparse.ts" --fps 30 --duration 1 --klv-every 3 --seed 7 &&
+  simulate "$seed_tmp/sim-antimeridian.ts" --fps 10 --duration 2 --lat 51.15 --lon 179.9999; then
+  simulated=("$seed_tmp/sim-10fps.ts" "$seed_tmp/sim-sparse.ts" "$seed_tmp/sim-antimeridian.ts")
 else
   echo "   warning: the simulator failed; no simulated seeds" >&2
 fi
@@ -131,7 +133,7 @@ make_seeds() {  # make_seeds HARNESS
       [[ ${#simulated[@]} -gt 0 ]] && cp -f "${simulated[@]}" "$corpus/"
       ;;
     mission)
-      "$fuzz_bin/make_mission_seed" "$corpus/fixture.saker"
+      "$fuzz_bin/make_mission_seed" "$corpus/fixture.saker" "$corpus/fixture-antimeridian.saker"
       # Edit scripts (inputs not starting with the SQLite header; see fuzz_mission.cc): set a
       # cell to an integer, a real, a text, a blob, a small integer; delete and duplicate a row.
       printf '\x01\x02\x03\x00\xff\xff\xff\xff\xff\xff\xff\x7f' >"$corpus/edit-integer"
@@ -139,11 +141,14 @@ make_seeds() {  # make_seeds HARNESS
       printf '\x03\x01\x01\x00\x04abcd\x04\x05\x02\x01\x03\x01\x02' >"$corpus/edit-text-blob"
       printf '\x05\x04\x03\x00\xfb\x06\x05\x00\x01\x07\x06\x00\x02' >"$corpus/edit-rows"
       if [[ ${#simulated[@]} -gt 0 ]]; then
-        ASAN_OPTIONS=detect_leaks=0 "$saker_cli" process "$seed_tmp/sim-10fps.ts" \
-          -o "$corpus/simulated.saker" --replace -q >"$seed_tmp/process.log" 2>&1 || {
-          echo "   warning: saker-cli process failed; no processed-mission seed:" >&2
-          tail -3 "$seed_tmp/process.log" >&2
-        }
+        for clip in sim-10fps sim-antimeridian; do
+          ASAN_OPTIONS=detect_leaks=0 "$saker_cli" process "$seed_tmp/$clip.ts" \
+            -o "$corpus/${clip/sim-10fps/simulated}.saker" --replace -q \
+            >"$seed_tmp/process.log" 2>&1 || {
+            echo "   warning: saker-cli process failed; no processed-mission seed from $clip:" >&2
+            tail -3 "$seed_tmp/process.log" >&2
+          }
+        done
       fi
       rm -f "$corpus"/*.saker-wal "$corpus"/*.saker-shm
       ;;

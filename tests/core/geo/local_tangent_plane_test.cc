@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <vector>
 
 namespace saker::geo {
 namespace {
@@ -63,6 +64,61 @@ TEST(LocalTangentPlaneTest, RejectsOriginsOffEarth) {
   EXPECT_FALSE(LocalTangentPlane::Create({0.0, 0.0, 1e9}).ok());
   auto status = LocalTangentPlane::Create({91.0, 0.0, 0.0}).status();
   EXPECT_NE(status.message().find("latitude 91"), std::string::npos) << status.message();
+}
+
+// A footprint 30 m across the antimeridian at 51.15 N (its corners 179.9998 E and 179.9998 W):
+// its centre is on the antimeridian, not at 0 (the plain mean of the longitudes), and the map,
+// the projection and its inverse go across it the short way round.
+TEST(LocalTangentPlaneTest, AntimeridianFootprintsStayWhereTheyAre) {
+  const std::vector<Wgs84> corners = {{51.1501, 179.9998, 0},
+                                      {51.1501, -179.9998, 0},
+                                      {51.1499, -179.9998, 0},
+                                      {51.1499, 179.9998, 0}};
+  const Wgs84 centre = CentreOf(corners);
+  EXPECT_NEAR(centre.latitude_deg, 51.15, 1e-9);
+  EXPECT_NEAR(std::abs(centre.longitude_deg), 180.0, 1e-9);
+  EXPECT_LE(std::abs(centre.longitude_deg), 180.0);
+
+  auto plane = LocalTangentPlane::Create(centre);
+  ASSERT_TRUE(plane.ok()) << plane.status().ToString();
+  for (const Wgs84& c : corners) {
+    const Eigen::Vector2d map = plane->MapFromLatLon(c.latitude_deg, c.longitude_deg);
+    EXPECT_LT(map.norm(), 20.0) << c.longitude_deg;  // about 14 m east or west, 11 m north or south
+    const Wgs84 back = plane->LatLonFromMap(map);
+    EXPECT_NEAR(back.latitude_deg, c.latitude_deg, 1e-9);
+    EXPECT_NEAR(back.longitude_deg, c.longitude_deg, 1e-9);
+  }
+  // Either spelling of a meridian near 180 is the same place.
+  EXPECT_NEAR(
+      (plane->MapFromLatLon(51.15, 180.0001) - plane->MapFromLatLon(51.15, -179.9999)).norm(), 0.0,
+      1e-6);
+}
+
+TEST(LocalTangentPlaneTest, LongitudesWrapAndUnwrap) {
+  EXPECT_EQ(WrapLongitude(179.25), 179.25);  // in range: unchanged, bit for bit
+  EXPECT_NEAR(WrapLongitude(180.5), -179.5, 1e-12);
+  EXPECT_NEAR(WrapLongitude(-540.25), 179.75, 1e-12);
+  EXPECT_EQ(UnwrapLongitude(-1.747, -1.8), -1.747);
+  EXPECT_NEAR(UnwrapLongitude(-179.9, 179.9), 180.1, 1e-12);
+  EXPECT_NEAR(UnwrapLongitude(179.9, -179.9), -180.1, 1e-12);
+  // Away from the antimeridian the centre is the plain mean.
+  const Wgs84 centre = CentreOf({{51.0, -1.5, 10}, {51.2, -1.7, 30}});
+  EXPECT_NEAR(centre.latitude_deg, 51.1, 1e-12);
+  EXPECT_NEAR(centre.longitude_deg, -1.6, 1e-12);
+  EXPECT_NEAR(centre.height_m, 20.0, 1e-12);
+}
+
+// Near a pole the plane's north is not north a few km away: refused, saying why.
+TEST(LocalTangentPlaneTest, RefusesOriginsNearThePoles) {
+  EXPECT_TRUE(LocalTangentPlane::Create({kMaxMapLatitudeDeg, 10.0, 0.0}).ok());
+  EXPECT_TRUE(LocalTangentPlane::Create({-kMaxMapLatitudeDeg, 10.0, 0.0}).ok());
+  for (const double latitude : {89.5, -89.99, 90.0, -90.0}) {
+    const Status status = LocalTangentPlane::Create({latitude, 10.0, 0.0}).status();
+    ASSERT_FALSE(status.ok()) << latitude;
+    EXPECT_EQ(status.code(), StatusCode::kInvalidArgument);
+    EXPECT_NE(status.message().find("km from the pole"), std::string::npos) << status.message();
+    EXPECT_NE(status.message().find("without its metadata"), std::string::npos) << status.message();
+  }
 }
 
 TEST(LocalTangentPlaneTest, CopiesAreIndependent) {
