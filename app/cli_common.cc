@@ -37,4 +37,12 @@ CLI::Option* AddAdjustOption(CLI::App* command, std::string* mode) {
       ->check(CLI::IsMember({"full", "decomposed"}));
 }
 
+CLI::Option* AddAcceptBadChecksumsFlag(CLI::App* command, bool* accept) {
+  return command->add_flag(
+      "--accept-bad-checksums", *accept,
+      "Use KLV packets that failed their checksum for frames' times, positions and footprints "
+      "(by default they are counted and shown, never used: one flipped bit can move a frame by "
+      "hours or kilometres)");
+}
+
 }  // namespace saker::app

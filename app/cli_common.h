@@ -34,4 +34,8 @@ void ClearProgressLine(bool shown);
 // that build a mosaic.
 CLI::Option* AddAdjustOption(CLI::App* command, std::string* mode);
 
+// `--accept-bad-checksums` (ingest::AlignmentOptions::accept_bad_checksums), shared by the
+// subcommands that tie KLV metadata to frames.
+CLI::Option* AddAcceptBadChecksumsFlag(CLI::App* command, bool* accept);
+
 }  // namespace saker::app

@@ -32,9 +32,11 @@ using saker::app::kExitOk;
 using saker::app::kExitUsage;
 constexpr int kExitInputError = saker::app::kExitFailed;  // the file could not be read as a video
 
-int RunScan(const std::string& file, bool json, bool dump_klv, double tolerance_s) {
+int RunScan(const std::string& file, bool json, bool dump_klv, double tolerance_s,
+            bool accept_bad_checksums) {
   saker::ingest::ScanOptions options;
   options.alignment.async_tolerance_s = tolerance_s;
+  options.alignment.accept_bad_checksums = accept_bad_checksums;
   auto scan = saker::ingest::ScanVideo(file, options);
   if (!scan.ok()) {
     std::cerr << "saker-cli: " << scan.status().message() << "\n";
@@ -94,6 +96,7 @@ int main(int argc, char** argv) {
   bool verbose = false;
   app.add_flag("-v,--verbose", verbose, "Also show FFmpeg's own decoder warnings on stderr");
   double tolerance_s = 0.5;
+  bool accept_bad_checksums = false;
 
   auto* probe = app.add_subcommand(
       "probe",
@@ -106,6 +109,7 @@ int main(int argc, char** argv) {
                    "Seconds within which an asynchronous KLV packet is tied to a frame")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 60.0));
+  saker::app::AddAcceptBadChecksumsFlag(probe, &accept_bad_checksums);
 
   auto* klv = app.add_subcommand(
       "klv",
@@ -118,6 +122,7 @@ int main(int argc, char** argv) {
                   "Seconds within which an asynchronous KLV packet is tied to a frame")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 60.0));
+  saker::app::AddAcceptBadChecksumsFlag(klv, &accept_bad_checksums);
 
   saker::app::SimulateCommand simulate(app);
   saker::app::DemoCommand demo(app);
@@ -138,8 +143,10 @@ int main(int argc, char** argv) {
   saker::video::SetFfmpegLogVerbose(verbose);
 
   try {
-    if (probe->parsed()) return RunScan(file, json, /*dump_klv=*/false, tolerance_s);
-    if (klv->parsed()) return RunScan(file, json, /*dump_klv=*/true, tolerance_s);
+    if (probe->parsed())
+      return RunScan(file, json, /*dump_klv=*/false, tolerance_s, accept_bad_checksums);
+    if (klv->parsed())
+      return RunScan(file, json, /*dump_klv=*/true, tolerance_s, accept_bad_checksums);
     if (simulate.parsed()) return simulate.Run();
     if (evaluate.parsed()) return evaluate.Run();
     if (mosaic.parsed()) return mosaic.Run();

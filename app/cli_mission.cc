@@ -66,6 +66,7 @@ ProcessCommand::ProcessCommand(CLI::App& app) : state_(std::make_unique<State>()
   s.command->add_flag("--no-metadata", s.no_metadata,
                       "Ignore the metadata corners (map frame = the first key frame's pixels)");
   s.command->add_flag("--no-tiles", s.no_tiles, "Do not render the mosaic's tile pyramid");
+  AddAcceptBadChecksumsFlag(s.command, &s.options.front_end.metadata.accept_bad_checksums);
   AddAdjustOption(s.command, &s.adjust);
   s.command
       ->add_option("--visit-gap", s.options.activity.visit_gap_s,
@@ -333,6 +334,8 @@ int InfoCommand::Run() const {
                         {"observations", observations},
                         {"tracks_by_visit", visit_json},
                         {"geo_referenced", m->map.geo_referenced},
+                        {"map_frame", pipeline::DescribeMapFrame(*m)},
+                        {"frames_with_metadata", pipeline::FramesWithMetadata(*m)},
                         {"tiles", *tiles},
                         {"completed",
                          {{"front_end", p.front_end},
@@ -344,6 +347,11 @@ int InfoCommand::Run() const {
       j["checkpoint"] = {{"through_frame", checkpoint->through_frame},
                          {"complete", checkpoint->complete},
                          {"key_frames", checkpoint->key_frames}};
+    }
+    if (m->klv) {
+      j["klv"] = {{"packets", m->klv->packets},
+                  {"checksum_failures", m->klv->checksum_failures},
+                  {"bad_checksums_used", m->klv->bad_checksums_used}};
     }
     if (m->map.origin) {
       j["origin"] = {{"latitude_deg", m->map.origin->latitude_deg},
@@ -369,16 +377,11 @@ int InfoCommand::Run() const {
     }
     std::cout << "; carry on with: saker-cli process VIDEO -o " << s.mission << " --resume\n";
   }
-  std::cout << "  map: ";
-  if (m->map.geo_referenced && m->map.origin) {
-    char origin[128];
-    std::snprintf(origin, sizeof(origin), "east-north-up metres around %.6f, %.6f (%.1f m)\n",
-                  m->map.origin->latitude_deg, m->map.origin->longitude_deg,
-                  m->map.origin->height_m);
-    std::cout << origin;
-  } else {
-    std::cout << "the first key frame's pixels (no metadata)\n";
-  }
+  std::cout << "  map: " << pipeline::DescribeMapFrame(*m) << "\n";
+  std::cout << "  metadata: " << pipeline::FramesWithMetadata(*m) << " of " << m->frames.size()
+            << " frames";
+  if (const std::string klv = pipeline::DescribeKlv(*m); !klv.empty()) std::cout << "; KLV " << klv;
+  std::cout << "\n";
   std::cout << "  frames placed on the map: " << placed << " of " << m->frames.size() << "\n";
   std::cout << "  key frames: " << m->key_frames.size() << "; links:";
   for (const auto& [kind, n] : links) std::cout << " " << n << " " << kind;

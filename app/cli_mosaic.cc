@@ -25,6 +25,7 @@ struct MosaicCommand::State {
   bool json = false;
   bool quiet = false;
   bool no_metadata = false;
+  bool accept_bad_checksums = false;
   bool outlines = false;
   bool unadjusted = false;
   std::string adjust = "decomposed";
@@ -53,6 +54,7 @@ MosaicCommand::MosaicCommand(CLI::App& app) : state_(std::make_unique<State>()) 
                    "Stated accuracy of the metadata corners, metres (1 sigma)")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
+  AddAcceptBadChecksumsFlag(s.command, &s.accept_bad_checksums);
   AddAdjustOption(s.command, &s.adjust);
   s.command->add_flag("--outlines", s.outlines,
                       "Draw key frame outlines (by chain segment) and links (cross-links in red)");
@@ -88,6 +90,7 @@ int MosaicCommand::RunOn(const std::string& video, const std::string& output) co
   options.mosaic = s.mosaic;
   options.mosaic.use_metadata = !s.no_metadata;
   options.mosaic.adjust_mode = *mosaic::ParseAdjustmentMode(s.adjust);
+  options.front_end.metadata.accept_bad_checksums = s.accept_bad_checksums;
   pipeline::StageHooks hooks;
   hooks.last = pipeline::Stage::kMosaic;
   pipeline::MissionRun run;

@@ -949,7 +949,7 @@ void MainWindow::updateMissionFacts() {
               m.map.geo_referenced && m.map.origin
                   ? tr("geo-referenced at %1")
                         .arg(LatLonText(m.map.origin->latitude_deg, m.map.origin->longitude_deg))
-                  : tr("image pixels (no metadata)"));
+                  : QString::fromStdString(pipeline::DescribeMapFrame(m)));
   if (checkpoint_frame_ && !jobs_->isRunning()) {
     html += row(tr("Checkpoint"), checkpoint_complete_
                                       ? tr("front end finished")

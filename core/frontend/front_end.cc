@@ -39,18 +39,22 @@ constexpr int64_t kMemoryCheckFrames = 25;
 // without pixels. The destructor stops and joins the thread, whatever happened.
 class DecodeThread {
  public:
-  DecodeThread(std::unique_ptr<video::VideoReader> reader, size_t queue_frames, int64_t pixels_from)
+  DecodeThread(std::unique_ptr<video::VideoReader> reader, size_t queue_frames, int64_t pixels_from,
+               const ingest::AlignmentOptions& alignment)
       : queue_(queue_frames) {
-    thread_ = std::thread([this, reader = std::move(reader), pixels_from]() mutable {
+    ingest::ScanOptions scan_options;
+    scan_options.alignment = alignment;
+    thread_ = std::thread([this, reader = std::move(reader), pixels_from, scan_options]() mutable {
       Stopwatch watch;
-      scan_ = ingest::ScanVideo(std::move(reader), {}, &job_, [&](const video::Frame& frame) {
-        video::Frame copy = frame;
-        // The reader reuses its buffers; a frame that is only decoded needs no pixels.
-        copy.grey = frame.index >= pixels_from ? frame.grey.clone() : cv::Mat();
-        decode_ms_ += watch.ElapsedMs();
-        if (!queue_.Push(std::move(copy))) job_.RequestCancel();
-        watch.Restart();
-      });
+      scan_ =
+          ingest::ScanVideo(std::move(reader), scan_options, &job_, [&](const video::Frame& frame) {
+            video::Frame copy = frame;
+            // The reader reuses its buffers; a frame that is only decoded needs no pixels.
+            copy.grey = frame.index >= pixels_from ? frame.grey.clone() : cv::Mat();
+            decode_ms_ += watch.ElapsedMs();
+            if (!queue_.Push(std::move(copy))) job_.RequestCancel();
+            watch.Restart();
+          });
       queue_.Close(scan_.ok() ? Status::Ok() : scan_.status());
     });
   }
@@ -225,7 +229,7 @@ FrontEnd::FrontEnd(std::unique_ptr<video::VideoReader> reader, const FrontEndOpt
 StatusOr<FrontEndResult> FrontEnd::Run() {
   StartFromCheckpoint();
   DecodeThread decode(std::move(reader_), static_cast<size_t>(options_.queue_frames),
-                      start_.warm_from);
+                      start_.warm_from, options_.metadata);
   const Stopwatch wall;
   since_checkpoint_.Restart();
   if (options_.change.enabled) {
@@ -593,6 +597,7 @@ Status FrontEndOptions::Validate() const {
   SAKER_RETURN_IF_ERROR(change.Validate());
   SAKER_RETURN_IF_ERROR(change_tracks.Validate());
   SAKER_RETURN_IF_ERROR(change_echoes.Validate());
+  SAKER_RETURN_IF_ERROR(metadata.Validate());
   if (!(min_change_support >= 0 && min_change_support <= 1)) {
     return InvalidArgumentError("front end: the change support fraction must be in [0, 1]");
   }

@@ -65,6 +65,9 @@ struct FrontEndOptions {
                                  // answers are taken 8 frames late: more than 8 changes nothing)
   int key_frame_image_width = 640;  // width of the grey copy kept per key frame (0: none)
   int decoder_threads = 0;          // 0 = automatic
+  // How frames are tied to their KLV metadata: the tolerances, and whether packets that failed
+  // their checksum may be used (not by default).
+  ingest::AlignmentOptions metadata;
   // The process's resident memory allowed while the front end runs, MiB (0: no limit; the
   // pipeline and saker-cli default to util's DefaultMemoryLimitMiB). Beyond it the front end stops
   // with a ResourceExhausted error that names the video and the frame, rather than let the

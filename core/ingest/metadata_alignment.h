@@ -25,6 +25,10 @@ struct AlignmentOptions {
   // Largest timestamp difference for a synchronous match, in seconds. One
   // 90 kHz tick is 11 us; 1 ms absorbs rounding between time bases.
   double sync_tolerance_s = 0.001;
+  // Packets whose checksum failed (ST 0601 BCC-16) are kept for display (`saker-cli klv`) but
+  // give no frame its time, sensor position or footprint, and no UTC span, unless this is set
+  // (`--accept-bad-checksums`): one flipped bit can move a frame by hours or kilometres.
+  bool accept_bad_checksums = false;
 
   Status Validate() const;
 };

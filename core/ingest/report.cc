@@ -157,6 +157,7 @@ nlohmann::json KlvDumpToJson(const VideoScan& scan) {
     j["stream"] = p.stream_index;
     j["time_s"] = OptionalTime(p.time_s);
     j["time_inferred"] = p.time_inferred;
+    j["used"] = p.trusted;  // false: undecodable, or failed its checksum (not accepted)
     auto it = frames_by_packet.find(i);
     j["frames"] = it == frames_by_packet.end() ? json::array() : json(it->second);
     packets.push_back(std::move(j));
@@ -177,6 +178,9 @@ std::string KlvDumpToText(const VideoScan& scan) {
       if (it->second.size() > 1) s << "-" << it->second.back();
     }
     if (!p.decoded.status.ok()) s << ", ERROR " << p.decoded.status.message();
+    if (p.decoded.st0601 && !p.decoded.st0601->checksum_ok) {
+      s << ", checksum FAILED" << (p.trusted ? " (used: accepted)" : " (not used)");
+    }
     s << "\n";
     // The per-tag dump is the JSON form, one item per line, which keeps the
     // text and JSON outputs from disagreeing.

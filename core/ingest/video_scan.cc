@@ -42,10 +42,16 @@ int64_t VideoScan::FramesWithCorners() const {
   return n;
 }
 
+int64_t VideoScan::ChecksumFailures() const {
+  int64_t n = 0;
+  for (const KlvStreamSummary& s : klv_streams) n += s.checksum_failures;
+  return n;
+}
+
 std::optional<VideoScan::UtcRange> VideoScan::UtcSpan() const {
   std::optional<UtcRange> range;
   for (const auto& p : packets) {
-    if (!p.decoded.metadata || !p.decoded.metadata->unix_time_us) continue;
+    if (!p.trusted || !p.decoded.metadata || !p.decoded.metadata->unix_time_us) continue;
     const uint64_t t = *p.decoded.metadata->unix_time_us;
     if (!range) {
       range = UtcRange{t, t};
@@ -70,8 +76,8 @@ void AddWarning(VideoScan* scan, int64_t* suppressed, std::string text) {
   }
 }
 
-void DecodeDataPacket(const video::DataPacket& data, KlvStreamSummary* summary, VideoScan* scan,
-                      int64_t* suppressed) {
+void DecodeDataPacket(const video::DataPacket& data, bool accept_bad_checksums,
+                      KlvStreamSummary* summary, VideoScan* scan, int64_t* suppressed) {
   ++summary->demuxed_packets;
   const klv::KlvSplitResult split = klv::SplitKlvPackets(data.bytes);
   if (!split.errors.empty()) {
@@ -107,7 +113,9 @@ void DecodeDataPacket(const video::DataPacket& data, KlvStreamSummary* summary, 
         << " s: " << decoded.status.message();
       AddWarning(scan, suppressed, m.str());
     }
-    if (decoded.st0601 && !decoded.st0601->checksum_ok) ++summary->checksum_failures;
+    const bool checksum_failed = decoded.st0601 && !decoded.st0601->checksum_ok;
+    if (checksum_failed) ++summary->checksum_failures;
+    received.trusted = decoded.metadata.has_value() && (accept_bad_checksums || !checksum_failed);
     scan->packets.push_back(std::move(received));
   }
 }
@@ -165,7 +173,7 @@ StatusOr<VideoScan> ScanReader(video::VideoReader& reader, const std::string& pa
     for (const auto& d : data) {
       auto it = summaries.find(d.stream_index);
       if (it == summaries.end()) continue;  // a data stream that is not KLV
-      DecodeDataPacket(d, &it->second, &scan, &suppressed);
+      DecodeDataPacket(d, options.alignment.accept_bad_checksums, &it->second, &scan, &suppressed);
     }
     if (!*more) break;
     if (options.max_frames > 0 && static_cast<int64_t>(scan.frames.size()) >= options.max_frames) {
@@ -198,7 +206,7 @@ StatusOr<VideoScan> ScanReader(video::VideoReader& reader, const std::string& pa
   for (const auto& p : scan.packets) {
     const auto& m = p.decoded.metadata;
     alignable.push_back(
-        {p.stream_index, p.time_s, m && m->HasCorners(), m.has_value(), p.time_inferred});
+        {p.stream_index, p.time_s, m && m->HasCorners(), p.trusted, p.time_inferred});
   }
   const auto timing = ClassifyStreams(frame_times, alignable, declared, options.alignment);
   for (const auto& t : timing) {
@@ -222,6 +230,16 @@ StatusOr<VideoScan> ScanReader(video::VideoReader& reader, const std::string& pa
       << (scan.stats.timestamp_discontinuities == 1 ? " time" : " times")
       << " (a spliced or restarted recording); the frames and metadata after each jump are timed "
          "to follow on";
+    scan.warnings.push_back(m.str());
+  }
+  if (const int64_t failed = scan.ChecksumFailures(); failed > 0) {
+    std::ostringstream m;
+    m << path << ": " << failed << " KLV packet" << (failed == 1 ? "" : "s")
+      << " failed the checksum: "
+      << (options.alignment.accept_bad_checksums
+              ? "used all the same (accept_bad_checksums)"
+              : "kept for display, not used for time, position or the map "
+                "(--accept-bad-checksums uses them)");
     scan.warnings.push_back(m.str());
   }
   if (suppressed > 0) {

@@ -49,6 +49,10 @@ struct MetadataPacket {
   bool time_inferred = false;
   int64_t byte_pos = -1;  // offset in the file, -1 when unknown
   klv::DecodedPacket decoded;
+  // Whether the packet may time, place or geo-reference frames: it decoded to metadata and its
+  // checksum verified, or AlignmentOptions::accept_bad_checksums let it in. Every packet is kept
+  // in VideoScan::packets for display either way.
+  bool trusted = false;
 };
 
 // What we know about one frame after the scan.
@@ -70,7 +74,8 @@ struct KlvStreamSummary {
   int64_t st0601_packets = 0;
   int64_t eg0104_packets = 0;
   int64_t other_packets = 0;      // other or unknown universal keys (e.g. ST 0903 alone)
-  int64_t checksum_failures = 0;  // ST 0601 packets whose BCC-16 did not verify
+  int64_t checksum_failures = 0;  // ST 0601 packets whose BCC-16 did not verify (not used for
+                                  // timing or geometry unless accepted: AlignmentOptions)
   int64_t decode_errors = 0;      // packets that could not be decoded at all
   int64_t framing_errors = 0;     // bytes that were not valid KLV framing
 };
@@ -87,8 +92,10 @@ struct VideoScan {
   const klv::FrameMetadata* MetadataOf(size_t frame) const;
   int64_t FramesWithMetadata() const;
   int64_t FramesWithCorners() const;
+  // ST 0601 packets whose checksum failed, over every stream.
+  int64_t ChecksumFailures() const;
   // Earliest and latest metadata UTC time stamps (microseconds), when any
-  // packet had one.
+  // trusted packet (MetadataPacket::trusted) had one.
   struct UtcRange {
     uint64_t first_us = 0;
     uint64_t last_us = 0;

@@ -124,6 +124,15 @@ struct PyramidInfo {
   double step_y = 1;  // along rows (negative when the map's y axis points north)
 };
 
+// What the video's KLV held, counted when the front end scanned it (absent in missions written
+// before Saker counted it). Packets that failed their checksum are never used for a frame's time,
+// position or footprint unless the job accepted them.
+struct KlvSummary {
+  int64_t packets = 0;              // KLV packets found
+  int64_t checksum_failures = 0;    // of them, ST 0601 packets whose checksum failed
+  bool bad_checksums_used = false;  // the job was told to use them (--accept-bad-checksums)
+};
+
 // Which processing stages have completed (and been saved).
 struct Progress {
   bool front_end = false;
@@ -144,6 +153,7 @@ struct Mission {
   std::vector<LinkRecord> links;
   std::vector<ActivityTrack> tracks;
   std::optional<PyramidInfo> pyramid;
+  std::optional<KlvSummary> klv;  // set by the front end stage
   Progress progress;
 };
 

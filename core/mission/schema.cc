@@ -150,9 +150,16 @@ constexpr const char* kKeyMosaic = "progress_mosaic";
 constexpr const char* kKeyActivity = "progress_activity";
 constexpr const char* kKeyTiles = "progress_tiles";
 constexpr const char* kKeyCancelled = "progress_cancelled";
+// Optional (absent in files written before they were counted); readers of older versions ignore
+// them, so the schema version is unchanged.
+constexpr const char* kKeyKlvPackets = "klv_packets";
+constexpr const char* kKeyKlvChecksumFailures = "klv_checksum_failures";
+constexpr const char* kKeyKlvBadChecksumsUsed = "klv_bad_checksums_used";
 
 constexpr std::initializer_list<const char*> kOriginKeys = {kKeyOriginLatitude, kKeyOriginLongitude,
                                                             kKeyOriginHeight};
+constexpr std::initializer_list<const char*> kKlvKeys = {kKeyKlvPackets, kKeyKlvChecksumFailures,
+                                                         kKeyKlvBadChecksumsUsed};
 constexpr std::initializer_list<const char*> kPyramidKeys = {
     kKeyTileSize,   kKeyLevels,     kKeyWidth, kKeyHeight,
     kKeyMapOriginX, kKeyMapOriginY, kKeyStepX, kKeyStepY};
@@ -352,6 +359,11 @@ Status WriteHeader(const sqlite::Database& db, const Mission& m) {
     SAKER_RETURN_IF_ERROR(put_real(kKeyMapOriginY, p.map_origin.y()));
     SAKER_RETURN_IF_ERROR(put_real(kKeyStepX, p.step_x));
     SAKER_RETURN_IF_ERROR(put_real(kKeyStepY, p.step_y));
+  }
+  if (m.klv) {
+    SAKER_RETURN_IF_ERROR(put_int(kKeyKlvPackets, m.klv->packets));
+    SAKER_RETURN_IF_ERROR(put_int(kKeyKlvChecksumFailures, m.klv->checksum_failures));
+    SAKER_RETURN_IF_ERROR(put_int(kKeyKlvBadChecksumsUsed, m.klv->bad_checksums_used ? 1 : 0));
   }
   SAKER_RETURN_IF_ERROR(put_int(kKeyFrontEnd, m.progress.front_end));
   SAKER_RETURN_IF_ERROR(put_int(kKeyMosaic, m.progress.mosaic));
@@ -606,6 +618,13 @@ Status LoadMeta(const sqlite::Database& db, Mission* m) {
     p.step_x = meta.Real(kKeyStepX);
     p.step_y = meta.Real(kKeyStepY);
     m->pyramid = p;
+  }
+  if (meta.HasGroup(kKlvKeys, "KLV summary")) {
+    KlvSummary klv;
+    klv.packets = meta.Int(kKeyKlvPackets, 0, std::numeric_limits<int64_t>::max());
+    klv.checksum_failures = meta.Int(kKeyKlvChecksumFailures, 0, klv.packets);
+    klv.bad_checksums_used = meta.Bool(kKeyKlvBadChecksumsUsed);
+    m->klv = klv;
   }
   m->progress.front_end = meta.Bool(kKeyFrontEnd);
   m->progress.mosaic = meta.Bool(kKeyMosaic);

@@ -2,7 +2,10 @@
 
 #include "core/mission/mission_store.h"
 
+#include <nlohmann/json.hpp>
+
 #include <algorithm>
+#include <cstdio>
 #include <filesystem>
 #include <memory>
 #include <system_error>
@@ -63,6 +66,62 @@ StatusOr<OpenedMission> OpenMission(const std::string& path, const OpenMissionOp
   }
   opened.video = LocateVideo(opened.mission.source, path, options);
   return opened;
+}
+
+int64_t FramesWithMetadata(const mission::Mission& mission) {
+  int64_t n = 0;
+  for (const mission::FrameRecord& f : mission.frames) {
+    n += f.utc_us.has_value() || f.sensor.has_value() || f.metadata_corners.has_value();
+  }
+  return n;
+}
+
+namespace {
+
+// Whether the job was told to ignore the metadata (--no-metadata), from its recorded options.
+bool MetadataIgnored(const mission::Mission& mission) {
+  const nlohmann::json options = nlohmann::json::parse(mission.options_json, nullptr, false);
+  if (!options.is_object()) return false;
+  const auto mosaic = options.find("mosaic");
+  if (mosaic == options.end() || !mosaic->is_object()) return false;
+  const auto use = mosaic->find("use_metadata");
+  return use != mosaic->end() && use->is_boolean() && !use->get<bool>();
+}
+
+}  // namespace
+
+std::string DescribeMapFrame(const mission::Mission& mission) {
+  if (mission.map.geo_referenced && mission.map.origin) {
+    char text[128];
+    std::snprintf(text, sizeof(text), "east-north-up metres around %.6f, %.6f (%.1f m)",
+                  mission.map.origin->latitude_deg, mission.map.origin->longitude_deg,
+                  mission.map.origin->height_m);
+    return text;
+  }
+  const int64_t with_metadata = FramesWithMetadata(mission);
+  const std::string frames_with = with_metadata == 0 ? std::string("no frame has metadata")
+                                                     : std::to_string(with_metadata) + " of " +
+                                                           std::to_string(mission.frames.size()) +
+                                                           " frames have metadata";
+  if (!mission.progress.mosaic) return "none: no mosaic was made (" + frames_with + ")";
+  if (with_metadata > 0 && MetadataIgnored(mission)) {
+    return "the first key frame's pixels (" + frames_with + ", ignored on request: --no-metadata)";
+  }
+  if (with_metadata > 0) {
+    return "the first key frame's pixels (" + frames_with +
+           ", but no key frame's image corners gave a map origin)";
+  }
+  return "the first key frame's pixels (" + frames_with + ")";
+}
+
+std::string DescribeKlv(const mission::Mission& mission) {
+  if (!mission.klv) return {};
+  std::string text = std::to_string(mission.klv->packets) + " packets, " +
+                     std::to_string(mission.klv->checksum_failures) + " failed the checksum";
+  if (mission.klv->checksum_failures > 0) {
+    text += mission.klv->bad_checksums_used ? " (used: --accept-bad-checksums)" : " (not used)";
+  }
+  return text;
 }
 
 }  // namespace saker::pipeline

@@ -45,6 +45,21 @@ struct OpenedMission {
   VideoLocation video;
 };
 
+// Frames of `mission` that carry metadata: a KLV time stamp or a sensor position (only from
+// packets that passed their checksum, unless the job accepted bad ones).
+int64_t FramesWithMetadata(const mission::Mission& mission);
+
+// What the mission's map frame is, in words, for `saker-cli info`, the process summary and the
+// GUI: "east-north-up metres around LAT, LON (H m)" when geo-referenced, otherwise what the map
+// is (the first key frame's pixels, or none when no mosaic was made) and why the metadata did not
+// place it (there was none, it was ignored on request, or none of it gave a map origin). Never
+// "no metadata" for a mission whose frames carry some.
+std::string DescribeMapFrame(const mission::Mission& mission);
+
+// The video's KLV as the mission counted it: "P packets, C failed the checksum (not used)";
+// empty for missions written before Saker counted it.
+std::string DescribeKlv(const mission::Mission& mission);
+
 // Opens the mission file at `path` read-only and locates its video: at the recorded path, at the
 // remembered place, then beside the mission file under the recorded name. Errors (the file is
 // missing, not a mission, damaged) name the file; a missing video is not an error.

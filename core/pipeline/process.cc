@@ -2,6 +2,7 @@
 
 #include "core/mission/mission_store.h"
 #include "core/pipeline/checkpoint.h"
+#include "core/pipeline/open_mission.h"
 #include "core/pipeline/stages.h"
 #include "core/util/timer.h"
 #include "core/video/video_reader.h"
@@ -29,7 +30,8 @@ std::string OptionsJson(const ProcessOptions& options) {
         {"place_in_between", options.mosaic.place_in_between}}},
       {"front_end",
        {{"key_frame_image_width", options.front_end.key_frame_image_width},
-        {"change_detection", options.front_end.change.enabled}}},
+        {"change_detection", options.front_end.change.enabled},
+        {"accept_bad_checksums", options.front_end.metadata.accept_bad_checksums}}},
       {"activity",
        {{"smoothing_s", options.activity.smoothing_s},
         {"speed_interval_s", options.activity.speed_interval_s},
@@ -107,12 +109,13 @@ std::string ProcessSummary::ToText() const {
   char line[256];
   std::snprintf(line, sizeof(line),
                 "%lld frames (%lld placed on the map), %lld key frames, %lld cross-links, %lld "
-                "moving-target tracks, %lld tiles; %s\n",
+                "moving-target tracks, %lld tiles; ",
                 static_cast<long long>(frames), static_cast<long long>(frames_placed),
                 static_cast<long long>(key_frames), static_cast<long long>(cross_links),
-                static_cast<long long>(tracks), static_cast<long long>(tiles),
-                geo_referenced ? "geo-referenced (metadata)" : "not geo-referenced (no metadata)");
+                static_cast<long long>(tracks), static_cast<long long>(tiles));
   out << line;
+  out << (geo_referenced ? "geo-referenced (metadata)" : "not geo-referenced; map: " + map_frame)
+      << "\n";
   std::snprintf(line, sizeof(line),
                 "time: front end %.1f s, mosaic %.1f s, activity %.2f s, tiles %.1f s, saving %.2f "
                 "s; total %.1f s for %.1f s of video (%.2fx real time)\n",
@@ -219,6 +222,7 @@ StatusOr<ProcessSummary> ProcessVideo(const std::string& video, const std::strin
   const mission::Mission& m = run.mission;
   summary.frames = static_cast<int64_t>(m.frames.size());
   summary.geo_referenced = m.map.geo_referenced;
+  summary.map_frame = DescribeMapFrame(m);
   summary.key_frames = static_cast<int64_t>(m.key_frames.size());
   for (const mission::LinkRecord& l : m.links) {
     summary.cross_links += l.kind != mission::LinkKind::kSequential;

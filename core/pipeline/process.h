@@ -47,6 +47,7 @@ struct ProcessSummary {
   int64_t tracks = 0;
   int64_t tiles = 0;
   bool geo_referenced = false;
+  std::string map_frame;  // DescribeMapFrame (open_mission.h): what the map is, and why
   double front_end_s = 0, mosaic_s = 0, activity_s = 0, tiles_s = 0, save_s = 0, total_s = 0;
   double video_duration_s = 0;
   int64_t resumed_from_frame = -1;    // the checkpoint's last frame a resumed job went on from

@@ -60,6 +60,9 @@ StatusOr<bool> FrontEndStage(std::unique_ptr<video::VideoReader> reader,
     m.source.frame_rate = run->front.video.fps;
   }
   m.source.frame_count = static_cast<int64_t>(run->front.frames.size());
+  m.klv = mission::KlvSummary{static_cast<int64_t>(run->front.scan.packets.size()),
+                              run->front.scan.ChecksumFailures(),
+                              options.front_end.metadata.accept_bad_checksums};
   m.frames = FrameRecords(run->front, nullptr, nullptr);
   m.progress.front_end = true;
   return true;
@@ -67,7 +70,7 @@ StatusOr<bool> FrontEndStage(std::unique_ptr<video::VideoReader> reader,
 
 StatusOr<bool> MosaicStage(const std::string& video, const StageOptions& options, JobContext* job,
                            MissionRun* run) {
-  run->mosaic_input = MosaicInputOf(run->front);
+  run->mosaic_input = MosaicInputOf(run->front, &run->warnings);
   StatusOr<mosaic::MosaicResult> built =
       mosaic::BuildMosaic(run->mosaic_input, options.mosaic, job);
   if (!built.ok()) {

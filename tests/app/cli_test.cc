@@ -221,4 +221,33 @@ TEST(CliMissionTest, CopyMakesTheSameMissionAndRefusesWhatItMustNot) {
   std::filesystem::remove_all(dir);
 }
 
+// A video too small to track (16x16 pixels) but with metadata on every frame: no key frame, so
+// no mosaic and no map. `process` and `info` say that, and that the frames have metadata, not
+// "no metadata" (what they said before, inferring it from the map not being geo-referenced).
+TEST(CliMissionTest, InfoSaysWhatTheMapIsAndThatTheFramesHaveMetadata) {
+  const std::filesystem::path dir = saker::testing::MakeTempDir("saker-cli-tiny");
+  const std::string video = (dir / "tiny.ts").string();
+  ASSERT_EQ(RunCli("simulate -q -o '" + video + "' --duration 1 --width 16 --height 16").exit_code,
+            0);
+  const std::string mission = (dir / "tiny.saker").string();
+  CliRun run = RunCli("process -q --no-tiles '" + video + "' -o '" + mission + "'");
+  ASSERT_EQ(run.exit_code, 0) << run.out;
+  EXPECT_EQ(run.out.find("no metadata"), std::string::npos) << run.out;
+  EXPECT_NE(run.out.find("no mosaic was made (25 of 25 frames have metadata)"), std::string::npos)
+      << run.out;
+  run = RunCli("info '" + mission + "'");
+  ASSERT_EQ(run.exit_code, 0) << run.out;
+  EXPECT_EQ(run.out.find("no metadata"), std::string::npos) << run.out;
+  EXPECT_NE(run.out.find("map: none: no mosaic was made"), std::string::npos) << run.out;
+  EXPECT_NE(run.out.find("metadata: 25 of 25 frames; KLV 25 packets, 0 failed the checksum"),
+            std::string::npos)
+      << run.out;
+  run = RunCli("info --json '" + mission + "'");
+  const nlohmann::json info = nlohmann::json::parse(run.out, nullptr, false);
+  ASSERT_FALSE(info.is_discarded()) << run.out;
+  EXPECT_EQ(info["frames_with_metadata"], 25);
+  EXPECT_EQ(info["klv"]["checksum_failures"], 0);
+  std::filesystem::remove_all(dir);
+}
+
 }  // namespace

@@ -162,6 +162,11 @@ inline bool MissionsEqual(const Mission& a, const Mission& b, std::string* why) 
       return differ("pyramid");
     }
   }
+  const auto same_klv = [](const KlvSummary& x, const KlvSummary& y) {
+    return x.packets == y.packets && x.checksum_failures == y.checksum_failures &&
+           x.bad_checksums_used == y.bad_checksums_used;
+  };
+  if (!SameOptional(a.klv, b.klv, same_klv)) return differ("klv");
   const Progress& pa = a.progress;
   const Progress& pb = b.progress;
   if (pa.front_end != pb.front_end || pa.mosaic != pb.mosaic || pa.activity != pb.activity ||
@@ -200,6 +205,7 @@ inline Mission MakeFullMission() {
   m.options_json = R"({"key_frame_spacing": 15, "name": "ünïcödé", "nested": {"a": [1, 2]}})";
   m.map.geo_referenced = true;
   m.map.origin = geo::Wgs84{51.501234567, -1.254321, 123.45};
+  m.klv = KlvSummary{5400, 3, true};
 
   const int64_t indices[] = {0, 1, 2, 5, 9, 1000000007};
   for (int i = 0; i < 6; ++i) {

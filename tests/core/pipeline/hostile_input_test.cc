@@ -3,26 +3,32 @@
 // damage, frames without metadata, a chain break, processing that goes on). Videos are tiny
 // (320x180, 2-4 s) so each test runs in seconds. docs/reliability.md, "Hostile inputs".
 
+#include "core/export/export.h"
 #include "core/frontend/front_end.h"
+#include "core/geo/local_tangent_plane.h"
 #include "core/ingest/video_scan.h"
 #include "core/mission/mission_store.h"
 #include "core/pipeline/process.h"
 #include "core/sim/simulator.h"
+#include "core/sim/truth.h"
 #include "core/video/ts_writer.h"
 #include "core/video/video_reader.h"
 #include "tests/testing/test_data.h"
 
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <sys/resource.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <iterator>
+#include <memory>
 #include <optional>
 #include <random>
 #include <string>
@@ -750,6 +756,191 @@ TEST_F(HostileInputTest, AbruptCutBetweenTwoClipsKeepsEachFramesOwnMetadata) {
   ASSERT_TRUE(summary.ok()) << summary.status().ToString();
   EXPECT_EQ(summary->frames, static_cast<int64_t>(scan->frames.size()));
   EXPECT_TRUE(summary->progress.mosaic);
+}
+
+// --- KLV that failed its checksum ------------------------------------------------------------
+
+// Flips bits in the time stamp (tag 2) and the sensor latitude (tag 13) of the ST 0601 packets
+// that start in the KLV transport packets numbered `ordinals` (counting those that start a PES
+// packet), leaving the checksum as it was: the packets still decode, but fail their checksum.
+// Returns how many packets were damaged.
+int DamageKlvPackets(Bytes* ts, const std::vector<int>& ordinals) {
+  int ordinal = -1, damaged = 0;
+  for (size_t at = 0; at + kTsPacket <= ts->size(); at += kTsPacket) {
+    Bytes& b = *ts;
+    if (b[at] != 0x47 || PidOf(b, at) != kKlvPid || (b[at + 1] & 0x40) == 0) continue;
+    ++ordinal;
+    if (std::find(ordinals.begin(), ordinals.end(), ordinal) == ordinals.end()) continue;
+    const size_t end = at + kTsPacket;
+    size_t p = at + 4;
+    if (((b[at + 3] >> 4) & 0x3) == 3) p += 1 + b[at + 4];
+    p += 9 + b[p + 8];  // the PES header
+    if (p + 18 > end || b[p] != 0x06 || b[p + 1] != 0x0e || b[p + 2] != 0x2b) continue;
+    p += 16;                                     // the ST 0601 key
+    p += (b[p] & 0x80) ? 1 + (b[p] & 0x7f) : 1;  // its BER length
+    bool time = false, latitude = false;
+    while (p + 2 <= end && !(time && latitude)) {
+      const int tag = b[p], length = b[p + 1];
+      if (p + 2 + static_cast<size_t>(length) > end || (length & 0x80) != 0) break;
+      if (tag == 2 && length == 8) {
+        b[p + 4] ^= 0x04;  // 2^42 us: 51 days
+        time = true;
+      }
+      if (tag == 13 && length == 4) {
+        b[p + 2] ^= 0x10;  // 11 degrees of latitude
+        latitude = true;
+      }
+      p += 2 + static_cast<size_t>(length);
+    }
+    damaged += time && latitude;
+  }
+  return damaged;
+}
+
+// Processes `video` (no tiles) into `mission_path` and reads the mission back.
+StatusOr<mission::Mission> ProcessAndLoad(const fs::path& video, const fs::path& mission_path) {
+  ProcessOptions options;
+  options.render_tiles = false;
+  SAKER_RETURN_IF_ERROR(ProcessVideo(video.string(), mission_path.string(), options).status());
+  SAKER_ASSIGN_OR_RETURN(const std::unique_ptr<mission::MissionStore> store,
+                         mission::MissionStore::Open(mission_path.string()));
+  return store->Load();
+}
+
+// Flipped bits in a few packets mid-clip: their checksum fails, so they time and place nothing
+// (the UTC span and the sensor positions are the clean clip's), they are counted (probe, the
+// mission for `info`), and --accept-bad-checksums lets them in again.
+TEST_F(HostileInputTest, KlvPacketsFailingTheirChecksumNeverTimeOrPlaceFrames) {
+  Bytes ts = ReadBytes(Clip());
+  const int damaged = DamageKlvPackets(&ts, {10, 20, 30, 40, 50});
+  ASSERT_EQ(damaged, 5) << "the clip's KLV packets are not laid out as expected";
+  const fs::path file = *dir_ / "bad-checksums.ts";
+  WriteBytes(file, ts);
+
+  const StatusOr<ingest::VideoScan> original = ingest::ScanVideo(Clip().string(), {});
+  ASSERT_TRUE(original.ok()) << original.status().ToString();
+  ASSERT_TRUE(original->UtcSpan().has_value());
+  const StatusOr<ingest::VideoScan> scan = ingest::ScanVideo(file.string(), {});
+  ASSERT_TRUE(scan.ok()) << scan.status().ToString();
+  EXPECT_EQ(scan->ChecksumFailures(), damaged);
+  ASSERT_TRUE(scan->UtcSpan().has_value());
+  EXPECT_EQ(scan->UtcSpan()->first_us, original->UtcSpan()->first_us);
+  EXPECT_EQ(scan->UtcSpan()->last_us, original->UtcSpan()->last_us);
+  EXPECT_NEAR(scan->UtcSpan()->SpanSeconds(), original->UtcSpan()->SpanSeconds(), 1e-9);
+  ASSERT_EQ(scan->frames.size(), original->frames.size());
+  EXPECT_GE(scan->FramesWithMetadata(), original->FramesWithMetadata() - damaged);
+  for (size_t f = 0; f < scan->frames.size(); ++f) {
+    const klv::FrameMetadata* m = scan->MetadataOf(f);
+    if (m == nullptr) continue;
+    EXPECT_TRUE(m->checksum_ok) << "frame " << f << " took a packet that failed its checksum";
+    ASSERT_TRUE(m->sensor_latitude_deg && m->unix_time_us) << "frame " << f;
+    ASSERT_NE(original->MetadataOf(f), nullptr) << "frame " << f;
+    EXPECT_NEAR(*m->sensor_latitude_deg, *original->MetadataOf(f)->sensor_latitude_deg, 1e-3)
+        << "frame " << f;
+    EXPECT_NEAR(static_cast<double>(*m->unix_time_us),
+                static_cast<double>(*original->MetadataOf(f)->unix_time_us), 0.5e6)
+        << "frame " << f;
+  }
+  bool warned = false;
+  for (const std::string& w : scan->warnings) warned |= w.find("failed the checksum") != w.npos;
+  EXPECT_TRUE(warned) << "no warning about the packets that failed their checksum";
+
+  // Asked for, the damaged packets are used: 51 days of "flight" in 3 s of video.
+  ingest::ScanOptions accept;
+  accept.alignment.accept_bad_checksums = true;
+  const StatusOr<ingest::VideoScan> accepted = ingest::ScanVideo(file.string(), accept);
+  ASSERT_TRUE(accepted.ok()) << accepted.status().ToString();
+  ASSERT_TRUE(accepted->UtcSpan().has_value());
+  EXPECT_GT(accepted->UtcSpan()->SpanSeconds(), 86400.0);
+
+  // The mission: every frame's time and sensor position from good packets, the failures counted.
+  const StatusOr<mission::Mission> m = ProcessAndLoad(file, *dir_ / "bad-checksums.saker");
+  ASSERT_TRUE(m.ok()) << m.status().ToString();
+  ASSERT_TRUE(m->klv.has_value());
+  EXPECT_EQ(m->klv->checksum_failures, damaged);
+  EXPECT_EQ(m->klv->packets, static_cast<int64_t>(scan->packets.size()));
+  EXPECT_FALSE(m->klv->bad_checksums_used);
+  for (const mission::FrameRecord& f : m->frames) {
+    if (f.utc_us) {
+      EXPECT_GE(static_cast<uint64_t>(*f.utc_us), original->UtcSpan()->first_us) << f.index;
+      EXPECT_LE(static_cast<uint64_t>(*f.utc_us), original->UtcSpan()->last_us) << f.index;
+    }
+    if (f.sensor) {
+      EXPECT_NEAR(f.sensor->latitude_deg, 51.152, 0.01) << f.index;
+    }
+  }
+}
+
+// --- The antimeridian ------------------------------------------------------------------------
+
+// Where the truth puts image pixel `pixel` of frame `frame` on the ground (map metres).
+Eigen::Vector2d GroundOfPixel(const sim::FrameTruth& frame, const Eigen::Vector2d& pixel) {
+  const Eigen::Vector3d g = frame.frame_from_ground.inverse() * pixel.homogeneous();
+  return g.hnormalized();
+}
+
+// A flight over the antimeridian at 51.15 N, its first footprint straddling it: the map origin
+// is where the flight is (not at longitude 0, the plain mean of 179.9998 and -179.9998), and the
+// exported tracks lie on the simulated targets, longitudes in [-180, 180] and continuous.
+TEST_F(HostileInputTest, FlightAcrossTheAntimeridianIsExportedWhereItFlew) {
+  sim::SimulationOptions sim_options = TinyOptions(*dir_ / "antimeridian.ts", 4);
+  sim_options.origin = {51.15, 179.9999, 100.0};
+  ASSERT_TRUE(sim::Simulate(sim_options).ok());
+  const StatusOr<sim::Truth> truth = sim::ReadTruth(sim_options.TruthPath());
+  ASSERT_TRUE(truth.ok()) << truth.status().ToString();
+  const StatusOr<geo::LocalTangentPlane> truth_plane = geo::LocalTangentPlane::Create(
+      {truth->origin_latitude_deg, truth->origin_longitude_deg, truth->origin_height_m});
+  ASSERT_TRUE(truth_plane.ok());
+  // The test is about a footprint across the antimeridian: check that the first one is.
+  int east = 0, west = 0;
+  for (const Eigen::Vector2d& corner : {Eigen::Vector2d(0, 0), Eigen::Vector2d(319, 0),
+                                        Eigen::Vector2d(319, 179), Eigen::Vector2d(0, 179)}) {
+    const geo::Wgs84 p = truth_plane->LatLonFromMap(GroundOfPixel(truth->frames[0], corner));
+    (p.longitude_deg > 0 ? east : west) += 1;
+  }
+  ASSERT_TRUE(east > 0 && west > 0) << "the first footprint does not straddle the antimeridian";
+
+  const StatusOr<mission::Mission> m =
+      ProcessAndLoad(sim_options.output, *dir_ / "antimeridian.saker");
+  ASSERT_TRUE(m.ok()) << m.status().ToString();
+  ASSERT_TRUE(m->map.geo_referenced && m->map.origin);
+  EXPECT_LE(std::abs(m->map.origin->longitude_deg), 180.0);
+  EXPECT_LT(
+      truth_plane->MapFromLatLon(m->map.origin->latitude_deg, m->map.origin->longitude_deg).norm(),
+      50.0)
+      << "map origin " << m->map.origin->latitude_deg << ", " << m->map.origin->longitude_deg;
+
+  const fs::path geojson = *dir_ / "antimeridian.geojson";
+  ASSERT_TRUE(exporting::ExportGeoJson(*m, geojson.string()).ok());
+  std::ifstream in(geojson);
+  const nlohmann::json tracks = nlohmann::json::parse(in);
+  ASSERT_FALSE(tracks["features"].empty()) << "no track to check";
+  int points = 0;
+  for (const nlohmann::json& feature : tracks["features"]) {
+    nlohmann::json coordinates = feature["geometry"]["coordinates"];
+    if (feature["geometry"]["type"] == "Point") coordinates = nlohmann::json::array({coordinates});
+    const nlohmann::json& observed = feature["properties"]["points"];
+    ASSERT_EQ(coordinates.size(), observed.size());
+    for (size_t i = 0; i < coordinates.size(); ++i) {
+      const double lon = coordinates[i][0], lat = coordinates[i][1];
+      EXPECT_LE(std::abs(lon), 180.0);
+      if (i > 0) {
+        const double step = std::remainder(lon - coordinates[i - 1][0].get<double>(), 360.0);
+        EXPECT_LT(std::abs(step), 1e-3) << "a jump along track " << feature["id"];
+      }
+      // On a simulated target (the nearest one in that frame).
+      const size_t frame = observed[i]["frame"].get<size_t>();
+      const Eigen::Vector2d at = truth_plane->MapFromLatLon(lat, lon);
+      double nearest = 1e300;
+      for (const sim::TargetTruth& target : truth->targets) {
+        nearest = std::min(nearest, (target.samples[frame].ground_m - at).norm());
+      }
+      EXPECT_LT(nearest, 6.0) << "track " << feature["id"] << " at frame " << frame << ": " << lat
+                              << ", " << lon;
+      ++points;
+    }
+  }
+  EXPECT_GT(points, 10);
 }
 
 }  // namespace
