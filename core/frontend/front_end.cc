@@ -3,6 +3,7 @@
 #include "core/frontend/change_thread.h"
 #include "core/frontend/resume.h"
 #include "core/util/bounded_queue.h"
+#include "core/util/byte_io.h"
 #include "core/util/check.h"
 #include "core/util/memory.h"
 #include "core/util/timer.h"
@@ -31,6 +32,16 @@ namespace {
 constexpr int64_t kChangeLagFrames = 8;
 // How often the memory limit is checked: reading /proc costs about 10 us.
 constexpr int64_t kMemoryCheckFrames = 25;
+// The layout of the trackers' state in a checkpoint (FrontEndCheckpoint::state).
+constexpr uint32_t kStateLayout = 1;
+
+// The frames an exact resume gives the change detector again before the checkpoint's key frame:
+// its answers not yet applied there (kChangeLagFrames of them) and the image history each needs.
+int ChangeReplayFrames(const track::ChangeOptions& change) {
+  if (!change.enabled) return 0;
+  return static_cast<int>(kChangeLagFrames) +
+         2 * std::max(change.baseline_frames, change.long_baseline_frames);
+}
 
 // Decoding on a thread of its own: ingest::ScanVideo reads every frame and KLV packet of the
 // opened `reader` in one pass (the frames as the reader decodes them: FrontEndOptions::
@@ -148,7 +159,9 @@ class FrontEnd {
   StatusOr<FrontEndResult> Run();
 
  private:
-  void StartFromCheckpoint();
+  Status StartFromCheckpoint();
+  Status Replay(const video::Frame& frame);
+  std::vector<uint8_t> SaveState() const;
   void ReportProgress(double frames_done) const;
   Status CheckMemory(const video::Frame& frame) const;
   Status ProcessFrame(const video::Frame& frame);
@@ -199,6 +212,10 @@ class FrontEnd {
   std::optional<ChangeThread> change_;
   double change_side_ms_ = 0;  // the calling thread's time for change detection (waits included)
   int64_t change_through_;     // the latest frame whose change answer was applied
+  int64_t change_applied_submitted_ = -1;  // the latest frame submitted whose answer was applied
+  // Resuming exactly: the checkpoint's state from the feature tracker on, which needs the image of
+  // the checkpoint's key frame (Replay).
+  std::optional<ByteReader> tracker_state_;
 };
 
 FrontEnd::FrontEnd(std::unique_ptr<video::VideoReader> reader, const FrontEndOptions& options,
@@ -208,7 +225,8 @@ FrontEnd::FrontEnd(std::unique_ptr<video::VideoReader> reader, const FrontEndOpt
       options_(options),
       job_(job),
       resume_(resume),
-      start_(ResumePointOf(resume, options.resume_warmup_frames)),
+      start_(
+          ResumePointOf(resume, options.resume_warmup_frames, ChangeReplayFrames(options.change))),
       chain_seam_(resume),
       tracker_(options.EffectiveTracker()),
       segmenter_(options.segmentation),
@@ -216,7 +234,7 @@ FrontEnd::FrontEnd(std::unique_ptr<video::VideoReader> reader, const FrontEndOpt
       chain_(options.key_frames),
       change_tracks_(options.change_tracks),
       change_through_(start_.change_through_frame) {
-  if (start_.resuming && !start_.complete) {
+  if (start_.resuming && !start_.complete && !start_.exact) {
     target_seam_.emplace(*resume, start_.warm_from, options.EffectiveTargets());
   }
   result_.video = reader_->info();
@@ -227,7 +245,7 @@ FrontEnd::FrontEnd(std::unique_ptr<video::VideoReader> reader, const FrontEndOpt
 }
 
 StatusOr<FrontEndResult> FrontEnd::Run() {
-  StartFromCheckpoint();
+  SAKER_RETURN_IF_ERROR(StartFromCheckpoint());
   DecodeThread decode(std::move(reader_), static_cast<size_t>(options_.queue_frames),
                       start_.warm_from, options_.metadata);
   const Stopwatch wall;
@@ -242,6 +260,10 @@ StatusOr<FrontEndResult> FrontEnd::Run() {
       ReportProgress(static_cast<double>(frame->index + 1));
       continue;  // done before: only decoded, for the scan
     }
+    if (start_.exact && frame->index <= start_.through_frame) {
+      SAKER_RETURN_IF_ERROR(Replay(*frame));
+      continue;
+    }
     SAKER_RETURN_IF_ERROR(CheckMemory(*frame));
     SAKER_RETURN_IF_ERROR(ProcessFrame(*frame));
   }
@@ -251,9 +273,11 @@ StatusOr<FrontEndResult> FrontEnd::Run() {
   return result;
 }
 
-// Resuming: the checkpoint is the start of this run's result. What it holds counts as handed out;
-// its open targets, finished as far as this run goes, are handed out with the next checkpoint.
-void FrontEnd::StartFromCheckpoint() {
+// Resuming: the checkpoint is the start of this run's result. What it holds counts as handed out.
+// With the trackers' state, the trackers go on from it (the feature tracker at the key frame,
+// Replay); without, the open targets, finished as far as this run goes, are handed out with the
+// next checkpoint.
+Status FrontEnd::StartFromCheckpoint() {
   if (resume_ != nullptr) {
     result_.frames = resume_->frames;
     result_.key_frames = resume_->key_frames;
@@ -268,12 +292,64 @@ void FrontEnd::StartFromCheckpoint() {
     targets_by_change_ = resume_->change_targets;
   }
   delivered_ = CheckpointTail(result_, targets_by_change_.size());
-  if (start_.resuming && !start_.complete) {
+  if (!start_.resuming || start_.complete) return Status::Ok();
+  if (!start_.exact) {
     result_.targets.insert(result_.targets.end(), resume_->open_targets.begin(),
                            resume_->open_targets.end());
     targets_by_change_.insert(targets_by_change_.end(), resume_->open_change_targets.begin(),
                               resume_->open_change_targets.end());
+    return Status::Ok();
   }
+  ByteReader& in = tracker_state_.emplace(resume_->state);
+  uint32_t layout = 0;
+  uint8_t segment_open = 0;
+  if (!in.Get(&layout) || layout != kStateLayout || !in.Get(&segment_open) ||
+      !in.Get(&change_applied_submitted_) || !segmenter_.RestoreState(&in) ||
+      !target_tracker_.RestoreState(&in) || !change_tracks_.RestoreState(&in)) {
+    return InvalidArgumentError(path_ + ": cannot resume: the checkpoint's tracker state is " +
+                                (layout == kStateLayout ? "malformed" : "of another Saker"));
+  }
+  segment_open_ = segment_open != 0;
+  return Status::Ok();
+}
+
+// Resuming exactly, a frame up to the checkpoint's key frame: the change detector takes it again
+// (its answers that the checkpoint had applied are dropped), and at the key frame the feature
+// tracker and the key frame chain go on from the checkpoint's state.
+Status FrontEnd::Replay(const video::Frame& frame) {
+  if (change_) {
+    const FrameResult& done = resume_->frames[static_cast<size_t>(frame.index)];
+    std::optional<Eigen::Matrix3d> motion;
+    if (done.homography_ok) motion = done.current_from_previous;
+    change_->Submit(frame.index, frame.grey, motion);
+    while (change_->NextThrough(change_applied_submitted_)) {
+      // answered and applied before the checkpoint: dropped
+    }
+  }
+  if (frame.index < start_.through_frame) return Status::Ok();
+  if (!tracker_.RestoreState(&*tracker_state_, frame.grey) || !tracker_state_->AtEnd()) {
+    return InvalidArgumentError(path_ +
+                                ": cannot resume: the checkpoint's tracker state is malformed");
+  }
+  chain_.ContinueFrom(resume_->key_frames.back());
+  if (!resume_->key_frame_images.empty()) {
+    preview_from_current_ = resume_->key_frame_images.back().preview_from_frame;
+  }
+  return Status::Ok();
+}
+
+// The trackers' state after the latest frame (FrontEndCheckpoint::state); the feature tracker
+// last, as Replay restores it after the rest.
+std::vector<uint8_t> FrontEnd::SaveState() const {
+  ByteWriter out;
+  out.Put<uint32_t>(kStateLayout);
+  out.Put<uint8_t>(segment_open_);
+  out.Put<int64_t>(change_applied_submitted_);
+  segmenter_.SaveState(&out);
+  target_tracker_.SaveState(&out);
+  change_tracks_.SaveState(&out);
+  tracker_.SaveState(&out);
+  return out.Take();
 }
 
 void FrontEnd::ReportProgress(double frames_done) const {
@@ -405,6 +481,7 @@ void FrontEnd::ApplyChangeThrough(int64_t frame) {
   const Stopwatch watch;
   while (std::optional<ChangeThread::Answer> answer = change_->NextThrough(frame)) {
     ApplyChangeAnswer(*answer);
+    change_applied_submitted_ = answer->submitted;
   }
   change_side_ms_ += watch.ElapsedMs();
 }
@@ -505,6 +582,7 @@ Status FrontEnd::HandOutCheckpoint(int64_t through_frame, bool complete) {
       KeepTarget(std::move(t), start_.change_through_frame, &c.open_change_targets);
     }
     c.change_through_frame = change_through_;
+    c.state = SaveState();
   }
   since_checkpoint_.Restart();
   const Status saved = options_.on_checkpoint(c);

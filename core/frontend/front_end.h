@@ -80,9 +80,9 @@ struct FrontEndOptions {
   // `on_checkpoint` (a full disk) stops the front end with that error.
   double checkpoint_interval_s = 30;
   std::function<Status(const FrontEndCheckpoint&)> on_checkpoint;
-  // A resumed run starts tracking this many frames before the checkpoint's key frame, so that
-  // the feature tracks, the moving-target test and the change detector are as warm there as in
-  // a run that never stopped.
+  // Resuming from a checkpoint without the trackers' state (one of an older Saker), the run starts
+  // tracking this many frames before the checkpoint's key frame, so that the trackers are nearly
+  // as warm there as in a run that never stopped. A checkpoint with the state needs no warm-up.
   int resume_warmup_frames = 100;
   Status Validate() const;
 
@@ -158,6 +158,11 @@ struct FrontEndCheckpoint {
   std::vector<track::TargetTrack> open_targets;
   std::vector<track::TargetTrack> open_change_targets;
   int64_t change_through_frame = -1;
+  // Replaced at every checkpoint: the trackers' state after `through_frame` (feature tracks,
+  // motion labels, targets followed, change tracks), so that a resumed run goes on exactly as the
+  // first would have. Empty in a checkpoint of an older Saker: a run resumed from it warms its
+  // trackers up again before the checkpoint, and its targets may differ near the seam.
+  std::vector<uint8_t> state;
 
   // Appends the next delivery of the same run (or of its resumption).
   void Append(FrontEndCheckpoint next);

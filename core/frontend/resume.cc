@@ -55,6 +55,7 @@ void FrontEndCheckpoint::Append(FrontEndCheckpoint next) {
   open_targets = std::move(next.open_targets);
   open_change_targets = std::move(next.open_change_targets);
   change_through_frame = next.change_through_frame;
+  state = std::move(next.state);
 }
 
 Status FrontEndCheckpoint::Validate() const {
@@ -97,14 +98,17 @@ Status FrontEndCheckpoint::Validate() const {
   return Status::Ok();
 }
 
-ResumePoint ResumePointOf(const FrontEndCheckpoint* checkpoint, int warmup_frames) {
+ResumePoint ResumePointOf(const FrontEndCheckpoint* checkpoint, int warmup_frames,
+                          int replay_frames) {
   ResumePoint point;
   if (checkpoint == nullptr) return point;
   point.resuming = true;
   point.complete = checkpoint->complete;
+  point.exact = !checkpoint->state.empty();
   point.through_frame = checkpoint->through_frame;
+  const int before = point.exact ? replay_frames : warmup_frames;
   point.warm_from = point.complete ? std::numeric_limits<int64_t>::max()
-                                   : std::max<int64_t>(0, point.through_frame - warmup_frames);
+                                   : std::max<int64_t>(0, point.through_frame - before);
   point.change_through_frame = checkpoint->change_through_frame;
   return point;
 }
@@ -144,7 +148,7 @@ std::optional<track::TargetTrack> TargetSeam::Trim(track::TargetTrack target, in
 ChainSeam::ChainSeam(const FrontEndCheckpoint* checkpoint) {
   if (checkpoint == nullptr || checkpoint->complete) return;
   if (!checkpoint->key_frames.empty()) last_ = &checkpoint->key_frames.back();
-  feature_id_offset_ = MaxFeatureId(*checkpoint) + 1;
+  if (checkpoint->state.empty()) feature_id_offset_ = MaxFeatureId(*checkpoint) + 1;
 }
 
 std::optional<track::KeyFrame> ChainSeam::Continue(track::KeyFrame key, bool first,

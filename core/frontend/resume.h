@@ -19,18 +19,25 @@
 
 namespace saker::frontend {
 
-// Where a run starts. Frames before `warm_from` are only decoded (for the KLV scan); from there to
-// the checkpoint's key frame (`through_frame`) they warm the trackers up; the key frame chain
-// starts again at that key frame. A run from the start tracks every frame.
+// Where a run starts. Frames before `warm_from` are only decoded (for the KLV scan). From a
+// checkpoint with the trackers' state (`exact`), the frames from there to the checkpoint's key
+// frame (`through_frame`) go through the change detector again, which builds its image history
+// from them, and the trackers take the state at that key frame: the run goes on as the first one
+// would have. From a checkpoint without it, those frames warm the trackers up. Either way the key
+// frame chain starts again at that key frame. A run from the start tracks every frame.
 struct ResumePoint {
   bool resuming = false;
   bool complete = false;              // the checkpoint has the whole video: nothing is tracked
+  bool exact = false;                 // the checkpoint has the trackers' state
   int64_t through_frame = -1;         // the checkpoint's last frame (its key frame)
-  int64_t warm_from = 0;              // the first frame tracked
+  int64_t warm_from = 0;              // the first frame tracked (or replayed, when exact)
   int64_t change_through_frame = -1;  // the last frame whose change evidence it had applied
 };
-// `checkpoint` may be null (a run from the start).
-ResumePoint ResumePointOf(const FrontEndCheckpoint* checkpoint, int warmup_frames);
+// `checkpoint` may be null (a run from the start). `replay_frames`: the frames an exact resume
+// gives the change detector again before the key frame; `warmup_frames`: those a resume without
+// state tracks before it.
+ResumePoint ResumePointOf(const FrontEndCheckpoint* checkpoint, int warmup_frames,
+                          int replay_frames);
 
 // Where a resumed run's targets meet its checkpoint's. What the resumed run's targets saw up to
 // the seam belongs to the checkpoint's targets (finished there, or cut there and joined again by
@@ -52,7 +59,8 @@ class TargetSeam {
 
 // Where a resumed run's key frame chain meets its checkpoint's: the chain starts again at the
 // checkpoint's last key frame, so its key frames, segments and links are numbered on from the
-// checkpoint's, and its feature track ids start past every id in the checkpoint. Without a
+// checkpoint's. Its feature track ids start past every id in the checkpoint unless the run goes
+// on with the checkpoint's feature tracker (its state), whose ids go on by themselves. Without a
 // checkpoint (or from a complete one) nothing is renumbered.
 class ChainSeam {
  public:

@@ -22,6 +22,7 @@ constexpr const char* kTarget = "target";
 constexpr const char* kChangeTarget = "change_target";
 constexpr const char* kOpenTarget = "open_target";
 constexpr const char* kOpenChangeTarget = "open_change_target";
+constexpr const char* kTrackerState = "tracker_state";
 constexpr uint32_t kStateVersion = 1;
 
 // Little-endian fields appended to a byte vector.
@@ -319,7 +320,7 @@ CheckpointWriter::CheckpointWriter(mission::MissionStore* store,
 
 Status CheckpointWriter::Write(const frontend::FrontEndCheckpoint& c) {
   std::vector<mission::CheckpointRecord> records;
-  std::vector<std::string> replace = {kOpenTarget, kOpenChangeTarget};
+  std::vector<std::string> replace = {kOpenTarget, kOpenChangeTarget, kTrackerState};
   {
     Writer w;
     w.Put<uint32_t>(kStateVersion);
@@ -360,6 +361,7 @@ Status CheckpointWriter::Write(const frontend::FrontEndCheckpoint& c) {
   for (const track::TargetTrack& t : c.open_change_targets) {
     records.push_back({kOpenChangeTarget, open++, EncodeTarget(t)});
   }
+  if (!c.state.empty()) records.push_back({kTrackerState, 0, c.state});
   return store_->WriteCheckpoint(records, replace);
 }
 
@@ -373,6 +375,10 @@ StatusOr<std::optional<frontend::FrontEndCheckpoint>> ReadCheckpoint(
   const std::string where = store.path() + ": checkpoint";
   // Records come sorted by kind and key: each kind in the order it was written.
   for (const mission::CheckpointRecord& record : records) {
+    if (record.kind == kTrackerState) {
+      c.state = record.bytes;  // the front end reads it (it says when it is malformed)
+      continue;
+    }
     Reader r(record.bytes);
     bool ok = false;
     const std::string& kind = record.kind;
@@ -397,6 +403,7 @@ StatusOr<std::optional<frontend::FrontEndCheckpoint>> ReadCheckpoint(
       ok = DecodeTarget(r, &c.open_targets.emplace_back());
     } else if (kind == kOpenChangeTarget) {
       ok = DecodeTarget(r, &c.open_change_targets.emplace_back());
+
     } else {
       return InvalidDataError(where + ": unknown record kind '" + kind + "'");
     }

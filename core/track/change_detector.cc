@@ -1,6 +1,7 @@
 #include "core/track/change_detector.h"
 
 #include "core/track/homography.h"
+#include "core/util/byte_io.h"
 #include "core/util/check.h"
 
 #include <Eigen/Geometry>
@@ -546,6 +547,48 @@ std::vector<TargetTrack> DropChangeEchoes(std::vector<TargetTrack> tracks,
     if (!echo[i]) kept.push_back(std::move(tracks[i]));
   }
   return kept;
+}
+
+void BlobTracker::SaveState(ByteWriter* out) const {
+  out->Put<int64_t>(next_id_);
+  out->Put<uint64_t>(active_.size());
+  for (const Track& t : active_) {
+    SaveTargetTrack(t.target, out);
+    out->PutMatrix(t.current_from_anchor);
+    out->PutMatrix(t.last_anchored);
+    for (const double v : {t.fit.n, t.fit.st, t.fit.stt, t.fit.spp}) out->Put<double>(v);
+    out->PutMatrix(t.fit.sp);
+    out->PutMatrix(t.fit.stp);
+    out->PutMatrix(t.velocity);
+    out->Put<int64_t>(t.first_frame);
+    out->Put<int32_t>(t.hits);
+    out->Put<uint8_t>(t.confirmed);
+  }
+  out->Put<uint64_t>(finished_.size());
+  for (const TargetTrack& t : finished_) SaveTargetTrack(t, out);
+}
+
+bool BlobTracker::RestoreState(ByteReader* in) {
+  size_t count = 0;
+  if (!in->Get(&next_id_) || !in->GetCount(49, &count)) return false;
+  active_.resize(count);
+  for (Track& t : active_) {
+    uint8_t confirmed = 0;
+    if (!RestoreTargetTrack(in, &t.target) || !in->GetMatrix(&t.current_from_anchor) ||
+        !in->GetMatrix(&t.last_anchored) || !in->Get(&t.fit.n) || !in->Get(&t.fit.st) ||
+        !in->Get(&t.fit.stt) || !in->Get(&t.fit.spp) || !in->GetMatrix(&t.fit.sp) ||
+        !in->GetMatrix(&t.fit.stp) || !in->GetMatrix(&t.velocity) || !in->Get(&t.first_frame) ||
+        !in->Get(&t.hits) || !in->Get(&confirmed)) {
+      return false;
+    }
+    t.confirmed = confirmed != 0;
+  }
+  if (!in->GetCount(49, &count)) return false;
+  finished_.resize(count);
+  for (TargetTrack& t : finished_) {
+    if (!RestoreTargetTrack(in, &t)) return false;
+  }
+  return true;
 }
 
 }  // namespace saker::track

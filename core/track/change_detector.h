@@ -26,6 +26,7 @@
 // enough.
 
 #include "core/track/target_tracks.h"
+#include "core/util/byte_io.h"
 #include "core/util/status.h"
 
 #include <Eigen/Core>
@@ -156,6 +157,11 @@ class BlobTracker {
   std::vector<TargetTrack> TakeFinished();
   // Ends every track (end of the video or a chain break).
   void FinishAll();
+
+  // The tracks followed, so that a resumed run goes on exactly from the latest frame
+  // (docs/reliability.md, "Resume"). RestoreState is false when `in` is malformed.
+  void SaveState(ByteWriter* out) const;
+  bool RestoreState(ByteReader* in);
 
  private:
   // The least-squares line p(t) = a + v t through a track's hits, in the coordinates of its first

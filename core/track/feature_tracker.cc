@@ -1,5 +1,6 @@
 #include "core/track/feature_tracker.h"
 
+#include "core/util/byte_io.h"
 #include "core/util/check.h"
 #include "core/util/timer.h"
 
@@ -160,19 +161,9 @@ Eigen::Vector2d FeatureTracker::ToFull(const cv::Point2f& p) const {
   return {(p.x + 0.5) * scale_x_ - 0.5, (p.y + 0.5) * scale_y_ - 0.5};
 }
 
-void FeatureTracker::Process(int64_t frame_index, const cv::Mat& grey) {
-  SAKER_CHECK(!grey.empty() && grey.type() == CV_8UC1) << "the tracker needs a CV_8UC1 image";
-  SAKER_CHECK(frame_index >= 0) << "frame index " << frame_index;
-  SAKER_CHECK(last_frame_ < 0 || frame_index > last_frame_)
-      << "frame " << frame_index << " after frame " << last_frame_;
-  const Stopwatch start;
-  timing_ = Timing{};
-
-  if (have_previous_ &&
-      (grey.size() != full_size_ ||
-       frame_index - last_frame_ - 1 > static_cast<int64_t>(options_.max_frame_gap))) {
-    EndAll();
-  }
+// The frame's size, and its processing image's pyramid as the latest (the one before becomes the
+// previous); false, with no pyramid, for a frame too small to track.
+bool FeatureTracker::SetFrame(const cv::Mat& grey) {
   full_size_ = grey.size();
   small_size_ = full_size_;
   if (options_.processing_width > 0 && options_.processing_width < full_size_.width) {
@@ -185,11 +176,7 @@ void FeatureTracker::Process(int64_t frame_index, const cv::Mat& grey) {
   scale_y_ = static_cast<double>(full_size_.height) / small_size_.height;
 
   if (small_size_.width < kMinProcessingSide || small_size_.height < kMinProcessingSide) {
-    EndAll();
-    last_frame_ = frame_index;
-    points_.clear();
-    timing_.total_ms = start.ElapsedMs();
-    return;
+    return false;
   }
 
   // Both filters sample at (i + 0.5) * s - 0.5, the convention of ToFull. From 2x down, area
@@ -208,6 +195,29 @@ void FeatureTracker::Process(int64_t frame_index, const cv::Mat& grey) {
                               options_.pyramid_levels, /*withDerivatives=*/true,
                               cv::BORDER_REFLECT_101, cv::BORDER_CONSTANT,
                               /*tryReuseInputImage=*/false);
+  return true;
+}
+
+void FeatureTracker::Process(int64_t frame_index, const cv::Mat& grey) {
+  SAKER_CHECK(!grey.empty() && grey.type() == CV_8UC1) << "the tracker needs a CV_8UC1 image";
+  SAKER_CHECK(frame_index >= 0) << "frame index " << frame_index;
+  SAKER_CHECK(last_frame_ < 0 || frame_index > last_frame_)
+      << "frame " << frame_index << " after frame " << last_frame_;
+  const Stopwatch start;
+  timing_ = Timing{};
+
+  if (have_previous_ &&
+      (grey.size() != full_size_ ||
+       frame_index - last_frame_ - 1 > static_cast<int64_t>(options_.max_frame_gap))) {
+    EndAll();
+  }
+  if (!SetFrame(grey)) {
+    EndAll();
+    last_frame_ = frame_index;
+    points_.clear();
+    timing_.total_ms = start.ElapsedMs();
+    return;
+  }
   timing_.pyramid_ms = start.ElapsedMs();
 
   const Stopwatch flow_start;
@@ -447,6 +457,61 @@ void FeatureTracker::Reset() {
   EndAll();
   points_.clear();
   last_frame_ = -1;
+}
+
+void FeatureTracker::SaveState(ByteWriter* out) const {
+  out->Put<int64_t>(last_frame_);
+  out->Put<int64_t>(next_id_);
+  out->Put<int32_t>(frames_since_detection_);
+  out->Put<uint64_t>(reference_count_);
+  out->Put<uint8_t>(have_previous_);
+  out->Put<uint64_t>(live_.size());
+  for (size_t i = 0; i < live_.size(); ++i) {
+    const FeatureTrack& t = live_[i];
+    out->Put<int64_t>(static_cast<int64_t>(t.id));
+    out->Put<int64_t>(t.first_frame);
+    out->Put<int64_t>(t.history_start);
+    out->Put<uint64_t>(t.positions.size());
+    for (const Eigen::Vector2d& p : t.positions) out->PutMatrix(p);
+    out->Put<float>(live_small_[i].x);
+    out->Put<float>(live_small_[i].y);
+  }
+  out->PutVector(live_patches_);
+}
+
+bool FeatureTracker::RestoreState(ByteReader* in, const cv::Mat& grey) {
+  Reset();
+  uint8_t have_previous = 0;
+  uint64_t reference_count = 0;
+  size_t live = 0;
+  if (!in->Get(&last_frame_) || !in->Get(&next_id_) || !in->Get(&frames_since_detection_) ||
+      !in->Get(&reference_count) || !in->Get(&have_previous) || !in->GetCount(48, &live)) {
+    return false;
+  }
+  reference_count_ = static_cast<size_t>(reference_count);
+  have_previous_ = have_previous != 0;
+  live_.resize(live);
+  live_small_.resize(live);
+  for (size_t i = 0; i < live; ++i) {
+    FeatureTrack& t = live_[i];
+    int64_t id = 0;
+    size_t positions = 0;
+    if (!in->Get(&id) || !in->Get(&t.first_frame) || !in->Get(&t.history_start) ||
+        !in->GetCount(16, &positions) || positions == 0) {
+      return false;
+    }
+    t.id = static_cast<FeatureTrackId>(id);
+    t.positions.resize(positions);
+    for (Eigen::Vector2d& p : t.positions) {
+      if (!in->GetMatrix(&p)) return false;
+    }
+    if (!in->Get(&live_small_[i].x) || !in->Get(&live_small_[i].y)) return false;
+  }
+  if (!in->GetVector(&live_patches_)) return false;
+  if (have_previous_ && !SetFrame(grey)) return false;
+  points_.clear();
+  for (const FeatureTrack& t : live_) points_.push_back({t.id, t.positions.back(), t.first_frame});
+  return true;
 }
 
 }  // namespace saker::track

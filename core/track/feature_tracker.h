@@ -45,6 +45,7 @@
 // itself (cv::setNumThreads).
 
 #include "core/track/types.h"
+#include "core/util/byte_io.h"
 #include "core/util/status.h"
 
 #include <Eigen/Core>
@@ -138,6 +139,12 @@ class FeatureTracker {
   // frame starts afresh with new corners. Ids keep increasing; any frame index may follow.
   void Reset();
 
+  // The tracker's state after the latest frame, so that a resumed run goes on exactly from there
+  // (docs/reliability.md, "Resume"): everything but the image pyramid, which RestoreState builds
+  // again from that same frame (`grey`). RestoreState is false when `in` is malformed.
+  void SaveState(ByteWriter* out) const;
+  bool RestoreState(ByteReader* in, const cv::Mat& grey);
+
   // Where the time of the latest Process call went (milliseconds, wall clock).
   struct Timing {
     double pyramid_ms = 0;  // shrinking the frame and building its pyramid
@@ -151,6 +158,7 @@ class FeatureTracker {
   // Moves every live track to the finished list and forgets the previous frame.
   void EndAll();
   void Finish(FeatureTrack track);
+  bool SetFrame(const cv::Mat& grey);
   // Tracks the live points into the pyramid of the new frame; keeps the survivors.
   void TrackPoints(int64_t frame_index);
   // Detects corners in the grid cells that ran short and starts tracks on them.

@@ -75,6 +75,16 @@ void KeyFrameChain::Break(int64_t frame_index, std::string reason, FrameOutcome*
   outcome->chain_break = true;
 }
 
+void KeyFrameChain::ContinueFrom(KeyFrame last) {
+  SAKER_CHECK(key_frames_.empty() && !last_frame_index_)
+      << "a chain goes on from a key frame only when new";
+  segment_ = 0;
+  in_segment_ = true;
+  last_frame_index_ = last.frame_index;
+  std::sort(last.points.begin(), last.points.end(), ById);
+  AddKeyFrame(last.frame_index, std::move(last.points));
+}
+
 FrameOutcome KeyFrameChain::AddFrame(int64_t frame_index,
                                      const std::vector<StationaryPoint>& stationary,
                                      const std::optional<HomographyEstimate>& from_previous) {

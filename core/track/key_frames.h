@@ -99,6 +99,11 @@ class KeyFrameChain {
   FrameOutcome AddFrame(int64_t frame_index, const std::vector<StationaryPoint>& stationary,
                         const std::optional<HomographyEstimate>& from_previous);
 
+  // A chain that goes on from `last`, the latest key frame of a run that stopped there (a resumed
+  // run, docs/reliability.md "Resume"): it becomes this chain's key frame 0, in segment 0, as if
+  // the frames before had been added. Only on a new chain.
+  void ContinueFrom(KeyFrame last);
+
   const std::vector<KeyFrame>& key_frames() const { return key_frames_; }
   const std::vector<SequentialLink>& links() const { return links_; }
   const std::vector<ChainBreak>& breaks() const { return breaks_; }

@@ -149,4 +149,56 @@ MotionLabel MotionSegmenter::LabelOf(FeatureTrackId id) const {
   return it == tracks_.end() ? MotionLabel::kUnknown : it->second.label;
 }
 
+void MotionSegmenter::SaveState(ByteWriter* out) const {
+  out->Put<int64_t>(calls_);
+  std::vector<int64_t> ids;
+  ids.reserve(tracks_.size());
+  for (const auto& [id, state] : tracks_) ids.push_back(id);
+  std::sort(ids.begin(), ids.end());  // the same bytes whatever the map's order
+  out->Put<uint64_t>(ids.size());
+  for (const int64_t id : ids) {
+    const TrackState& state = tracks_.at(id);
+    out->Put<int64_t>(id);
+    out->Put<uint64_t>(state.first);
+    out->Put<int64_t>(state.updated);
+    out->Put<int32_t>(static_cast<int32_t>(state.label));
+    out->Put<uint64_t>(state.steps.size());
+    for (const Step& step : state.steps) {
+      out->PutMatrix(step.residual);
+      out->PutMatrix(step.flow);
+      out->Put<uint8_t>(step.significant);
+    }
+  }
+}
+
+bool MotionSegmenter::RestoreState(ByteReader* in) {
+  Reset();
+  size_t count = 0;
+  if (!in->Get(&calls_) || !in->GetCount(36, &count)) return false;
+  for (size_t i = 0; i < count; ++i) {
+    int64_t id = 0;
+    uint64_t first = 0;
+    int32_t label = 0;
+    size_t steps = 0;
+    TrackState state;
+    if (!in->Get(&id) || !in->Get(&first) || !in->Get(&state.updated) || !in->Get(&label) ||
+        !in->GetCount(33, &steps) || label < 0 ||
+        label > static_cast<int32_t>(MotionLabel::kMoving) || (steps > 0 && first >= steps)) {
+      return false;
+    }
+    state.first = static_cast<size_t>(first);
+    state.label = static_cast<MotionLabel>(label);
+    state.steps.resize(steps);
+    for (Step& step : state.steps) {
+      uint8_t significant = 0;
+      if (!in->GetMatrix(&step.residual) || !in->GetMatrix(&step.flow) || !in->Get(&significant)) {
+        return false;
+      }
+      step.significant = significant != 0;
+    }
+    tracks_.emplace(id, std::move(state));
+  }
+  return true;
+}
+
 }  // namespace saker::track

@@ -24,6 +24,7 @@
 // targets (target_tracks.h).
 
 #include "core/track/types.h"
+#include "core/util/byte_io.h"
 #include "core/util/status.h"
 
 #include <Eigen/Core>
@@ -79,6 +80,11 @@ class MotionSegmenter {
   const std::vector<MovingPoint>& moving() const { return moving_; }
 
   void Reset();
+
+  // Every track's history and label, so that a resumed run goes on exactly from the latest frame
+  // (docs/reliability.md, "Resume"). RestoreState is false when `in` is malformed.
+  void SaveState(ByteWriter* out) const;
+  bool RestoreState(ByteReader* in);
 
  private:
   struct Step {

@@ -536,4 +536,86 @@ std::vector<TargetTrack> LinkFragments(std::vector<TargetTrack> tracks,
   return tracks;
 }
 
+void SaveTargetTrack(const TargetTrack& track, ByteWriter* out) {
+  out->Put<int64_t>(static_cast<int64_t>(track.id));
+  out->Put<uint8_t>(track.confirmed);
+  out->Put<uint64_t>(track.max_features);
+  out->PutMatrix(track.image_velocity);
+  out->Put<uint64_t>(track.observations.size());
+  for (const TargetObservation& o : track.observations) {
+    out->Put<int64_t>(o.frame);
+    out->PutMatrix(o.position);
+    out->PutMatrix(o.box_min);
+    out->PutMatrix(o.box_max);
+    out->PutMatrix(o.velocity);
+    out->Put<uint8_t>(static_cast<uint8_t>(o.change));
+    out->Put<uint64_t>(o.features.size());
+    for (const FeatureTrackId f : o.features) out->Put<int64_t>(static_cast<int64_t>(f));
+  }
+}
+
+bool RestoreTargetTrack(ByteReader* in, TargetTrack* track) {
+  int64_t id = 0;
+  uint8_t confirmed = 0;
+  uint64_t max_features = 0;
+  size_t observations = 0;
+  if (!in->Get(&id) || !in->Get(&confirmed) || !in->Get(&max_features) ||
+      !in->GetMatrix(&track->image_velocity) || !in->GetCount(81, &observations)) {
+    return false;
+  }
+  track->id = static_cast<TargetTrackId>(id);
+  track->confirmed = confirmed != 0;
+  track->max_features = static_cast<size_t>(max_features);
+  track->observations.resize(observations);
+  for (TargetObservation& o : track->observations) {
+    uint8_t change = 0;
+    size_t features = 0;
+    if (!in->Get(&o.frame) || !in->GetMatrix(&o.position) || !in->GetMatrix(&o.box_min) ||
+        !in->GetMatrix(&o.box_max) || !in->GetMatrix(&o.velocity) || !in->Get(&change) ||
+        change > static_cast<uint8_t>(ChangeEvidence::kChanged) || !in->GetCount(8, &features)) {
+      return false;
+    }
+    o.change = static_cast<ChangeEvidence>(change);
+    o.features.resize(features);
+    for (FeatureTrackId& f : o.features) {
+      int64_t feature = 0;
+      if (!in->Get(&feature)) return false;
+      f = static_cast<FeatureTrackId>(feature);
+    }
+  }
+  return true;
+}
+
+namespace {
+
+void SaveTargetTracks(const std::vector<TargetTrack>& tracks, ByteWriter* out) {
+  out->Put<uint64_t>(tracks.size());
+  for (const TargetTrack& t : tracks) SaveTargetTrack(t, out);
+}
+
+bool RestoreTargetTracks(ByteReader* in, std::vector<TargetTrack>* tracks) {
+  size_t count = 0;
+  if (!in->GetCount(49, &count)) return false;
+  tracks->resize(count);
+  for (TargetTrack& t : *tracks) {
+    if (!RestoreTargetTrack(in, &t)) return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+void TargetTracker::SaveState(ByteWriter* out) const {
+  SaveTargetTracks(active_, out);
+  SaveTargetTracks(waiting_, out);
+  SaveTargetTracks(finished_, out);
+  out->Put<int64_t>(change_through_);
+  out->Put<int64_t>(next_id_);
+}
+
+bool TargetTracker::RestoreState(ByteReader* in) {
+  return RestoreTargetTracks(in, &active_) && RestoreTargetTracks(in, &waiting_) &&
+         RestoreTargetTracks(in, &finished_) && in->Get(&change_through_) && in->Get(&next_id_);
+}
+
 }  // namespace saker::track

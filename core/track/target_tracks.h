@@ -13,6 +13,7 @@
 
 #include "core/track/motion_segmentation.h"
 #include "core/track/types.h"
+#include "core/util/byte_io.h"
 #include "core/util/status.h"
 
 #include <Eigen/Core>
@@ -107,6 +108,11 @@ class TargetTracker {
   // Ends every active target (at the end of the video or at a chain break).
   void FinishAll();
 
+  // The targets followed and waiting, so that a resumed run goes on exactly from the latest frame
+  // (docs/reliability.md, "Resume"). RestoreState is false when `in` is malformed.
+  void SaveState(ByteWriter* out) const;
+  bool RestoreState(ByteReader* in);
+
  private:
   // The steps of AddFrame, after grouping the frame's moving features into observations. Ties
   // each observation to an active target, most shared features first, then the nearest
@@ -131,6 +137,11 @@ class TargetTracker {
   int64_t change_through_ = -1;  // the latest frame RecordChange was given
   int64_t next_id_ = 1;
 };
+
+// A target track as bytes, bit for bit, and back (false when `in` is malformed): for the state a
+// checkpoint keeps (TargetTracker::SaveState, BlobTracker::SaveState).
+void SaveTargetTrack(const TargetTrack& track, ByteWriter* out);
+bool RestoreTargetTrack(ByteReader* in, TargetTrack* track);
 
 // Mean ground-relative speed of a track's observations, pixels per frame (0 for none).
 double MeanSpeed(const TargetTrack& track);

@@ -47,6 +47,7 @@ frontend::FrontEndCheckpoint MakeCheckpoint() {
   frontend::FrontEndCheckpoint c;
   c.through_frame = 9;
   c.change_through_frame = 1;
+  c.state = {1, 0, 0, 0, 255, 7, 0, 42};  // the front end's own bytes, kept as they are
   for (int i = 0; i < 10; ++i) {
     frontend::FrameResult f;
     f.index = i;
@@ -184,6 +185,7 @@ TEST_F(CheckpointTest, EveryFieldRoundTrips) {
   EXPECT_EQ(r.through_frame, c.through_frame);
   EXPECT_EQ(r.complete, c.complete);
   EXPECT_EQ(r.change_through_frame, c.change_through_frame);
+  EXPECT_EQ(r.state, c.state);
   ASSERT_EQ(r.frames.size(), c.frames.size());
   for (size_t i = 0; i < c.frames.size(); ++i) {
     const frontend::FrameResult& a = r.frames[i];
