@@ -1,20 +1,24 @@
 // Writes a small but complete mission file (every table filled, every link kind, tracks with and
 // without points, a few tiles) as a seed for fuzz_mission: `make_mission_seed OUT.saker`.
 // Built from the mission tests' fixture, so the seed follows the schema as it evolves.
+// Beside it, the same mission declaring absurd mosaic sizes over its few tiles
+// (OUT-absurd-<side>.saker, side 100,000 and 1,000,000 pixels: issue 29 item 10, where such a file
+// kept `export --geotiff` busy for hours).
 
 #include "core/mission/mission_store.h"
 #include "tests/core/mission/mission_fixtures.h"
 
+#include <algorithm>
+#include <cstdint>
 #include <cstdio>
 #include <filesystem>
 
-int main(int argc, char** argv) {
-  using namespace saker::mission;
-  if (argc != 2) {
-    std::fprintf(stderr, "usage: %s OUT.saker\n", argv[0]);
-    return 2;
-  }
-  const std::string path = argv[1];
+namespace {
+
+using namespace saker::mission;
+
+// The fixture with a pyramid of `side` x `side` pixels (0: the fixture's own) and three tiles.
+int WriteSeed(const std::string& path, int side) {
   auto store = MissionStore::Create(path, /*replace=*/true);
   if (!store.ok()) {
     std::fprintf(stderr, "%s\n", store.status().ToString().c_str());
@@ -23,6 +27,14 @@ int main(int argc, char** argv) {
   Mission mission = testing_support::MakeFullMission();
   if (!mission.pyramid) mission.pyramid = PyramidInfo{};
   mission.pyramid->levels = 2;
+  if (side > 0) {
+    mission.pyramid->width = side;
+    mission.pyramid->height = side;
+    while ((static_cast<int64_t>(mission.pyramid->tile_size) << (mission.pyramid->levels - 1)) <
+           side) {
+      ++mission.pyramid->levels;
+    }
+  }
   saker::Status saved = (*store)->Save(mission);
   if (saved.ok()) {
     saved = (*store)->WriteTiles({{0, 0, 0, {0x89, 'P', 'N', 'G', 1, 2, 3}},
@@ -38,4 +50,21 @@ int main(int argc, char** argv) {
   std::filesystem::remove(path + "-wal", ignored);
   std::filesystem::remove(path + "-shm", ignored);
   return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc != 2) {
+    std::fprintf(stderr, "usage: %s OUT.saker\n", argv[0]);
+    return 2;
+  }
+  const std::filesystem::path path = argv[1];
+  int failed = WriteSeed(path.string(), 0);
+  for (const int side : {100'000, 1'000'000}) {
+    std::filesystem::path absurd = path;
+    absurd.replace_filename(path.stem().string() + "-absurd-" + std::to_string(side) + ".saker");
+    failed = std::max(failed, WriteSeed(absurd.string(), side));
+  }
+  return failed;
 }
