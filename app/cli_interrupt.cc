@@ -8,9 +8,9 @@ namespace {
 
 std::atomic<JobContext*> g_job{nullptr};
 
-extern "C" void CancelOnInterrupt(int) {
+extern "C" void CancelOnInterrupt(int signal) {
   if (JobContext* job = g_job.load()) job->RequestCancel();
-  std::signal(SIGINT, SIG_DFL);  // a second Ctrl-C ends the process at once
+  std::signal(signal, SIG_DFL);  // a second Ctrl-C (or kill) ends the process at once
 }
 
 }  // namespace
@@ -18,10 +18,12 @@ extern "C" void CancelOnInterrupt(int) {
 ScopedInterrupt::ScopedInterrupt(JobContext* job) {
   g_job.store(job);
   previous_ = std::signal(SIGINT, CancelOnInterrupt);
+  previous_term_ = std::signal(SIGTERM, CancelOnInterrupt);
 }
 
 ScopedInterrupt::~ScopedInterrupt() {
   std::signal(SIGINT, previous_ == SIG_ERR ? SIG_DFL : previous_);
+  std::signal(SIGTERM, previous_term_ == SIG_ERR ? SIG_DFL : previous_term_);
   g_job.store(nullptr);
 }
 

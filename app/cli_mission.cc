@@ -152,7 +152,9 @@ ExportCommand::ExportCommand(CLI::App& app) : state_(std::make_unique<State>()) 
       "Export a mission for other tools: the activity map picture (mosaic with the tracks\n"
       "coloured, legend, scale bar and north arrow when geo-referenced), the mosaic as GeoTIFF\n"
       "(UTM of the map origin when geo-referenced), the tracks as GeoJSON (WGS84), KML and CSV\n"
-      "with every attribute. Give one or more outputs. See docs/exports.md.");
+      "with every attribute. Give one or more outputs; \"-\" writes one to standard output.\n"
+      "An output may not be the mission or its video. Ctrl-C cancels and leaves no partial\n"
+      "file. See docs/exports.md.");
   s.command->add_option("MISSION", s.mission, "Mission file (.saker)")->required();
   s.command->add_option("--png", s.png, "Activity map picture to write (.png or .jpg)");
   s.command->add_option("--geotiff", s.geotiff, "Mosaic GeoTIFF to write (.tif)");
@@ -200,11 +202,21 @@ int ExportCommand::Run() const {
   request.geojson = s.geojson;
   request.kml = s.kml;
   request.csv = s.csv;
-  StatusOr<std::vector<pipeline::ExportedFile>> written =
-      pipeline::ExportMission(*m, **store, request);
+  JobContext job;
+  StatusOr<std::vector<pipeline::ExportedFile>> written = [&] {
+    const ScopedInterrupt interrupt(&job);
+    return pipeline::ExportMission(*m, **store, request, &job);
+  }();
   if (!written.ok()) return Fail(written.status());
+  // An export to standard output keeps it for the file alone.
+  bool to_stdout = false;
   for (const pipeline::ExportedFile& file : *written) {
-    std::cout << "wrote " << file.path << " (" << file.what << ")\n";
+    to_stdout = to_stdout || file.path == "-" || file.path == "/dev/stdout";
+  }
+  std::ostream& out = to_stdout ? std::cerr : std::cout;
+  for (const pipeline::ExportedFile& file : *written) {
+    out << "wrote " << (file.path == "-" ? "standard output" : file.path) << " (" << file.what
+        << ")\n";
   }
   return kExitOk;
 }

@@ -260,18 +260,20 @@ std::string KmlStyle(int visit) {
   return out.str();
 }
 
+// A Data element; none for an absent value (a non-finite number), which has no text in KML.
 void KmlData(const std::string& name, const std::string& value, std::string& out) {
+  if (value.empty()) return;
   out += "<Data name=\"" + XmlText(name) + "\"><value>" + XmlText(value) + "</value></Data>";
 }
 
-// A per-observation list for ExtendedData: space-separated, "nan" for non-finite values.
+// A per-observation list for ExtendedData: comma-separated in point order, an absent
+// (non-finite) value an empty item, as in the CSV.
 template <typename Get>
 std::string KmlList(const mission::ActivityTrack& track, Get get) {
   std::string out;
-  for (const auto& p : track.points) {
-    if (!out.empty()) out += ' ';
-    const double value = get(p);
-    out += std::isfinite(value) ? FormatNumber(value) : "nan";
+  for (size_t i = 0; i < track.points.size(); ++i) {
+    if (i > 0) out += ',';
+    out += FormatNumber(get(track.points[i]));
   }
   return out;
 }
@@ -282,8 +284,11 @@ std::string KmlPlacemark(const mission::ActivityTrack& track, const Positions& p
   std::string out = "<Placemark id=\"track-" + std::to_string(track.id) + "\">";
   out += "<name>Track " + std::to_string(track.id) + "</name>";
   std::ostringstream description;
-  description << "Visit " << track.visit << ", " << FormatNumber(track.start_s) << " - "
-              << FormatNumber(track.end_s) << " s, " << track.points.size() << " points";
+  description << "Visit " << track.visit << ", ";
+  if (std::isfinite(track.start_s) && std::isfinite(track.end_s)) {
+    description << FormatNumber(track.start_s) << " - " << FormatNumber(track.end_s) << " s, ";
+  }
+  description << track.points.size() << " points";
   if (!video.empty()) description << ", video " << video;
   out += "<description>" + XmlText(description.str()) + "</description>";
   out += "<styleUrl>#" + VisitStyleId(track.visit) + "</styleUrl>";

@@ -188,7 +188,7 @@ StatusOr<std::unique_ptr<MissionStore>> MissionStore::Create(const std::string& 
     return impl.Checkpoint();
   };
   if (Status built = build(); !built.ok()) {
-    return Status(built.code(), path + ": cannot create the mission: " + built.message());
+    return Status(built.code(), path + ": cannot create the mission: " + replacement.Reason(built));
   }
   SAKER_RETURN_IF_ERROR(replacement.Commit());
   return Open(path, OpenMode::kReadWrite);

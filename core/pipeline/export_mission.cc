@@ -5,6 +5,7 @@
 #include "core/tiles/pyramid.h"
 #include "core/util/durable_file.h"
 
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <system_error>
@@ -32,11 +33,88 @@ render::TileReader StoreTileReader(const mission::MissionStore& store) {
   };
 }
 
+namespace {
+
+// Whether any tile of `level` lies in columns [x0, x1) of rows [y0, y1).
+StatusOr<bool> AnyTileIn(const mission::MissionStore& store, int level, int x0, int x1, int y0,
+                         int y1) {
+  for (int y = std::max(0, y0); y < y1; ++y) {
+    for (int x = std::max(0, x0); x < x1; ++x) {
+      SAKER_ASSIGN_OR_RETURN(const std::optional<std::vector<uint8_t>> tile,
+                             store.ReadTile(level, x, y));
+      if (tile) return true;
+    }
+  }
+  return false;
+}
+
+}  // namespace
+
+Status CheckDeclaredPyramid(const mission::PyramidInfo& pyramid,
+                            const mission::MissionStore& store) {
+  const std::string declared = store.path() + ": the mission declares a mosaic of " +
+                               std::to_string(pyramid.width) + " x " +
+                               std::to_string(pyramid.height) + " pixels";
+  if (pyramid.width < 1 || pyramid.height < 1 || pyramid.width > kMaxMosaicSidePx ||
+      pyramid.height > kMaxMosaicSidePx) {
+    return InvalidDataError(declared + " (1.." + std::to_string(kMaxMosaicSidePx) +
+                            " per side expected): the file is damaged or not Saker's");
+  }
+  if (pyramid.tile_size < 16 || pyramid.tile_size > 4096) {
+    return InvalidDataError(store.path() + ": the mission's mosaic tiles are " +
+                            std::to_string(pyramid.tile_size) +
+                            " pixels (16..4096 expected): the file is damaged or not Saker's");
+  }
+  // The pyramid is planned around the frames' footprints, so its tiles reach the raster's right
+  // and bottom edges (within a tile: an edge may be touched by a sliver of one frame only).
+  const int columns = (pyramid.width + pyramid.tile_size - 1) / pyramid.tile_size;
+  const int rows = (pyramid.height + pyramid.tile_size - 1) / pyramid.tile_size;
+  SAKER_ASSIGN_OR_RETURN(const bool right, AnyTileIn(store, 0, columns - 2, columns, 0, rows));
+  SAKER_ASSIGN_OR_RETURN(const bool bottom, AnyTileIn(store, 0, 0, columns, rows - 2, rows));
+  if (!right || !bottom) {
+    return InvalidDataError(declared + ", but its tiles do not reach its " +
+                            (right ? "bottom" : "right") +
+                            " edge: the declared size is wrong (the file is damaged)");
+  }
+  return Status::Ok();
+}
+
+Status CheckExportTargets(const mission::Mission& mission, const mission::MissionStore& store,
+                          const ExportRequest& request) {
+  const std::vector<std::string> inputs = {store.path(), store.path() + "-wal",
+                                           store.path() + "-shm", store.path() + "-journal",
+                                           mission.source.path};
+  std::vector<std::string> targets;
+  for (const std::string* path :
+       {&request.png, &request.geotiff, &request.geojson, &request.kml, &request.csv}) {
+    if (path->empty()) continue;
+    SAKER_RETURN_IF_ERROR(CheckNotAnInput(*path, inputs));
+    // Two outputs in one file would leave only the last.
+    if (std::find(targets.begin(), targets.end(), *path) != targets.end() ||
+        !CheckNotAnInput(*path, targets).ok()) {
+      return InvalidArgumentError(*path + ": given for two outputs; each needs a file of its own");
+    }
+    targets.push_back(*path);
+  }
+  return Status::Ok();
+}
+
 StatusOr<std::vector<ExportedFile>> ExportMission(const mission::Mission& mission,
                                                   const mission::MissionStore& store,
                                                   const ExportRequest& request, JobContext* job) {
+  // Every check before any work: a refused request writes nothing.
+  SAKER_RETURN_IF_ERROR(CheckExportTargets(mission, store, request));
+  if (mission.pyramid && !(request.png.empty() && request.geotiff.empty())) {
+    SAKER_RETURN_IF_ERROR(CheckDeclaredPyramid(*mission.pyramid, store));
+  }
   std::vector<ExportedFile> written;
   const auto cancelled = [&] { return job != nullptr && job->IsCancelled(); };
+  // Cancelling stops a long picture or GeoTIFF between two tiles (its temporary is removed).
+  const render::TileReader stored = StoreTileReader(store);
+  const render::TileReader read_tile = [&](int level, int x, int y) -> StatusOr<cv::Mat> {
+    if (cancelled()) return CancelledError("export cancelled");
+    return stored(level, x, y);
+  };
   const auto progress = [&](double fraction) {
     if (job != nullptr) job->ReportProgress("export", fraction);
   };
@@ -45,7 +123,7 @@ StatusOr<std::vector<ExportedFile>> ExportMission(const mission::Mission& missio
     if (cancelled()) return CancelledError("export cancelled");
     progress(0);
     StatusOr<render::ActivityMap> rendered =
-        render::RenderActivityMap(mission, StoreTileReader(store), request.map);
+        render::RenderActivityMap(mission, read_tile, request.map);
     if (!rendered.ok()) {
       return Status(rendered.status().code(), store.path() + ": " + rendered.status().message());
     }
@@ -66,7 +144,7 @@ StatusOr<std::vector<ExportedFile>> ExportMission(const mission::Mission& missio
     }
     SAKER_ASSIGN_OR_RETURN(const exporting::GeoTiffReport report,
                            exporting::ExportGeoTiff(mission.map, *mission.pyramid, request.level,
-                                                    StoreTileReader(store), request.geotiff));
+                                                    read_tile, request.geotiff));
     char fit[64] = "";
     if (mission.map.geo_referenced) {
       std::snprintf(fit, sizeof(fit), ", affine fit within %.3f m", report.max_fit_error_m);
@@ -91,10 +169,8 @@ StatusOr<std::vector<ExportedFile>> ExportMission(const mission::Mission& missio
 }
 
 Status CopyMission(const std::string& from, const std::string& to, bool replace, JobContext* job) {
+  SAKER_RETURN_IF_ERROR(CheckNotAnInput(to, {from}));
   std::error_code error;
-  if (fs::exists(to, error) && fs::equivalent(from, to, error)) {
-    return InvalidArgumentError(to + ": this is the mission being copied");
-  }
   if (fs::exists(to, error)) {
     if (!replace) return InvalidArgumentError(to + ": a file is already there");
     // Only a mission is ever overwritten (as MissionStore::Create with replace).
@@ -108,8 +184,12 @@ Status CopyMission(const std::string& from, const std::string& to, bool replace,
   // Built under a temporary name beside `to`, renamed into place when complete.
   FileReplacement replacement(to, {.side_suffixes = {"-wal", "-shm", "-journal"}});
   {
-    SAKER_ASSIGN_OR_RETURN(const std::unique_ptr<mission::MissionStore> target,
-                           mission::MissionStore::Create(replacement.temporary()));
+    StatusOr<std::unique_ptr<mission::MissionStore>> created =
+        mission::MissionStore::Create(replacement.temporary());
+    if (!created.ok()) {
+      return Status(created.status().code(), to + ": " + replacement.Reason(created.status()));
+    }
+    const std::unique_ptr<mission::MissionStore>& target = *created;
     SAKER_RETURN_IF_ERROR(target->Save(mission));
     if (mission.pyramid) {
       const mission::PyramidInfo& p = *mission.pyramid;

@@ -36,9 +36,28 @@ struct ExportedFile {
 // The decoded tiles of an open mission; errors name the mission file and the tile.
 render::TileReader StoreTileReader(const mission::MissionStore& store);
 
+// The longest side a mission's mosaic may declare: the largest the tile planner makes
+// (tiles::PyramidOptions::max_side_px).
+inline constexpr int kMaxMosaicSidePx = 1 << 22;
+
+// Checks a mission's declared mosaic size before anything reads it: within kMaxMosaicSidePx, and
+// reached by the tiles the mission holds (a few lookups), so a damaged or hostile file declaring
+// a huge raster over a few tiles is refused (InvalidData naming the mission) instead of keeping
+// an export busy for hours.
+Status CheckDeclaredPyramid(const mission::PyramidInfo& pyramid,
+                            const mission::MissionStore& store);
+
+// Checks the request's output paths: none is one of the job's inputs (the mission file, its log,
+// the source video: the same file by device and inode, CheckNotAnInput) and no file is given for
+// two outputs. InvalidArgument naming the path.
+Status CheckExportTargets(const mission::Mission& mission, const mission::MissionStore& store,
+                          const ExportRequest& request);
+
 // Writes what `request` asks for from `mission` (as loaded from `store`, whose tiles it reads;
-// the caller may have filtered its tracks). Stops at the first failure, whose message names the
-// file; the files written before it stay. `job` may cancel between files.
+// the caller may have filtered its tracks). CheckExportTargets and CheckDeclaredPyramid come
+// first, so a refused request writes nothing. Stops at the first failure, whose message names the
+// file; the files written before it stay. `job` may cancel between files and between the tiles
+// of the picture or the GeoTIFF.
 StatusOr<std::vector<ExportedFile>> ExportMission(const mission::Mission& mission,
                                                   const mission::MissionStore& store,
                                                   const ExportRequest& request,

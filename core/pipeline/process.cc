@@ -4,6 +4,7 @@
 #include "core/pipeline/checkpoint.h"
 #include "core/pipeline/open_mission.h"
 #include "core/pipeline/stages.h"
+#include "core/util/durable_file.h"
 #include "core/util/timer.h"
 #include "core/video/video_reader.h"
 
@@ -137,6 +138,8 @@ std::string ProcessSummary::ToText() const {
 StatusOr<ProcessSummary> ProcessVideo(const std::string& video, const std::string& mission_path,
                                       const ProcessOptions& options, JobContext* job) {
   SAKER_RETURN_IF_ERROR(options.Validate());
+  // The mission is never written over the video it is made from (nor --resume'd into it).
+  SAKER_RETURN_IF_ERROR(CheckNotAnInput(mission_path, {video}));
   const Stopwatch start;
   ProcessSummary summary;
   // Open the video first: a file that is not a video must not leave (or replace) a mission. The

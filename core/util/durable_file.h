@@ -8,6 +8,13 @@
 //
 // Writers that need a path (SQLite, GDAL, cv::imwrite, FFmpeg) write to temporary(); text and
 // JSON go through a stream (ReplaceFileFromStream) or a string (ReplaceFileContents).
+//
+// Targets that are not files are never renamed over: "-" (standard output), "/dev/stdout",
+// "/dev/stderr" and "/dev/fd/N" ("/proc/self/fd/N") name this process's open descriptor, which gets
+// the bytes; a character device or a FIFO (or a link to one) is opened and written; a block device
+// or a socket is refused. The content is still built in a temporary first (in the system's
+// temporary folder), so a writer that needs a path or fails half-way sends nothing. A regular file
+// reached through a symbolic link is replaced where the link points, and the link is kept.
 
 #include "core/util/status.h"
 
@@ -32,7 +39,8 @@ struct ReplaceOptions {
 
 // One replacement of `target`. The temporary is named after the target, hidden and unique to this
 // process and call: "<folder>/.<name>.part-<pid>-<n><extension>" (the target's extension last, for
-// writers that choose the format by it). Nothing exists there until the writer creates it; a file
+// writers that choose the format by it), in the target's folder, or in the system's temporary
+// folder for a target that is not a file. Nothing exists there until the writer creates it; a file
 // or folder of the same name (left by a dead process with the same id) is removed first.
 // The temporary may also be a folder the writer fills (its files are flushed with it).
 class FileReplacement {
@@ -52,9 +60,19 @@ class FileReplacement {
   Status Commit();
   // Removes the temporary and its side files now (best effort; also done by the destructor).
   void Discard();
+  // The message of a writer's error in terms of the target: without a leading "<temporary>: ",
+  // the hidden temporary's name nowhere (a person knows only the target's).
+  std::string Reason(const Status& status) const;
 
  private:
+  // Copies the temporary's bytes into the target that is no regular file (a device, a FIFO, an
+  // open descriptor).
+  Status CopyIntoTarget() const;
+
   std::string target_;
+  std::string place_;        // the file renamed over: the target, or where its link points
+  int descriptor_ = -1;      // ">= 0": the target names this open descriptor of the process
+  bool not_a_file_ = false;  // the target is a device, FIFO or descriptor: written, not replaced
   std::string temporary_;
   ReplaceOptions options_;
   bool done_ = false;
@@ -74,6 +92,18 @@ Status ReplaceFile(const std::string& target, const PathWriter& write,
 Status ReplaceFileFromStream(const std::string& target, const StreamWriter& write);
 // ReplaceFileFromStream writing `contents`.
 Status ReplaceFileContents(const std::string& target, std::string_view contents);
+
+// Refuses `output` when it is one of the files the job reads (`inputs`): the same file by device
+// and inode, whatever the names (a hard link, another path, a link to it), so a job never writes
+// over its own input. Inputs that do not exist are skipped; an output that does not exist yet is
+// none of them. The error (InvalidArgument) names the output and the input.
+Status CheckNotAnInput(const std::string& output, const std::vector<std::string>& inputs);
+
+// Removes the temporaries that dead processes left for `target` (a FileReplacement's
+// ".<name>.part-<pid>-<n>...", of a process that no longer exists; a live one's may be in use): a
+// job killed outright (SIGKILL, power cut) cannot remove its own. Best effort; every
+// FileReplacement does it for its target.
+void RemoveStaleTemporaries(const std::string& target);
 
 // Makes sure the data of the file (or the entries of the folder) at `path` reach the disk.
 // File systems that cannot sync a folder (EINVAL) count as success.

@@ -29,7 +29,9 @@ uint64_t Fnv1a(const void* data, size_t size, uint64_t hash) {
 }
 
 StatusOr<std::string> FingerprintFile(const std::string& path) {
-  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  // O_NONBLOCK: opening a FIFO without a writer would wait for ever (it is refused below); a
+  // regular file's reads are not affected.
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK);
   if (fd < 0) {
     const int err = errno;
     if (err == ENOENT || err == ENOTDIR) return NotFoundError(path + ": no such file");

@@ -53,6 +53,18 @@ Status CheckLocalFile(const std::string& path) {
   if (fs::is_directory(status)) {
     return InvalidArgumentError(path + ": is a directory, not a video file");
   }
+  // FFmpeg would wait for ever on a FIFO with no writer (and a device or socket is no recording):
+  // a live stream is given by its URL.
+  if (!fs::is_regular_file(status)) {
+    const char* kind = fs::is_fifo(status)             ? "a FIFO (named pipe)"
+                       : fs::is_socket(status)         ? "a socket"
+                       : fs::is_character_file(status) ? "a character device"
+                       : fs::is_block_file(status)     ? "a block device"
+                                                       : "a special file";
+    return InvalidArgumentError(path + ": is " + kind +
+                                ", not a video file; Saker reads recorded files (a live stream by "
+                                "its URL, e.g. udp://...)");
+  }
   if (fs::is_regular_file(status) && fs::file_size(local, error) == 0 && !error) {
     return InvalidDataError(path + ": file is empty (0 bytes), not a video");
   }

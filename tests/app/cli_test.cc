@@ -99,6 +99,21 @@ namespace {
 const char* kSmallSimulation =
     "--width 320 --height 180 --altitude 100 --fps 10 --duration 2 --quiet";
 
+// Simulates the small straight flight into DIR/flight.ts and, with `process`, its mission
+// DIR/flight.saker; gives (video, mission), empty when a step failed (reported).
+std::pair<std::string, std::string> SmallFlight(const std::filesystem::path& dir, bool process) {
+  const std::string video = (dir / "flight.ts").string();
+  const CliRun sim = RunCli("simulate --scenario straight -o '" + video + "' " + kSmallSimulation);
+  EXPECT_EQ(sim.exit_code, 0) << sim.out;
+  if (sim.exit_code != 0) return {};
+  const std::string mission = (dir / "flight.saker").string();
+  if (!process) return {video, ""};
+  const CliRun run = RunCli("process -q '" + video + "' -o '" + mission + "'");
+  EXPECT_EQ(run.exit_code, 0) << run.out;
+  if (run.exit_code != 0) return {};
+  return {video, mission};
+}
+
 TEST(CliSimulateTest, HelpListsScenariosAndOptions) {
   const CliRun run = RunCli("simulate --help");
   EXPECT_EQ(run.exit_code, 0);
@@ -148,9 +163,8 @@ TEST(CliSimulateTest, BadArgumentsAreUsageErrors) {
 
 TEST(CliMosaicTest, WritesThePictureAndSummarises) {
   const std::filesystem::path dir = saker::testing::MakeTempDir("saker-cli-mosaic");
-  const std::string video = (dir / "flight.ts").string();
-  ASSERT_EQ(RunCli("simulate --scenario straight -o '" + video + "' " + kSmallSimulation).exit_code,
-            0);
+  const std::string video = SmallFlight(dir, /*process=*/false).first;
+  ASSERT_FALSE(video.empty());
   const std::string picture = (dir / "mosaic.png").string();
   const CliRun run = RunCli("mosaic --json -o '" + picture + "' '" + video + "'");
   ASSERT_EQ(run.exit_code, 0) << run.out;
@@ -181,12 +195,10 @@ namespace {
 // --replace.
 TEST(CliMissionTest, CopyMakesTheSameMissionAndRefusesWhatItMustNot) {
   const std::filesystem::path dir = saker::testing::MakeTempDir("saker-cli-copy");
-  const std::string video = (dir / "flight.ts").string();
-  ASSERT_EQ(RunCli("simulate --scenario straight -o '" + video + "' " + kSmallSimulation).exit_code,
-            0);
-  const std::string mission = (dir / "flight.saker").string();
-  CliRun run = RunCli("process -q '" + video + "' -o '" + mission + "'");
-  ASSERT_EQ(run.exit_code, 0) << run.out;
+  const auto flight = SmallFlight(dir, /*process=*/true);
+  const std::string &video = flight.first, &mission = flight.second;
+  ASSERT_FALSE(mission.empty());
+  CliRun run;
   const std::string copy = (dir / "copy.saker").string();
   run = RunCli("copy '" + mission + "' '" + copy + "'");
   ASSERT_EQ(run.exit_code, 0) << run.out;
@@ -204,7 +216,7 @@ TEST(CliMissionTest, CopyMakesTheSameMissionAndRefusesWhatItMustNot) {
 
   run = RunCli("copy '" + mission + "' '" + mission + "' --replace");
   EXPECT_EQ(run.exit_code, 1);
-  EXPECT_NE(run.out.find("being copied"), std::string::npos) << run.out;
+  EXPECT_NE(run.out.find("an input of this job"), std::string::npos) << run.out;
   run = RunCli("copy '" + mission + "' '" + copy + "'");
   EXPECT_EQ(run.exit_code, 1);
   EXPECT_NE(run.out.find("already there"), std::string::npos) << run.out;
@@ -247,6 +259,35 @@ TEST(CliMissionTest, InfoSaysWhatTheMapIsAndThatTheFramesHaveMetadata) {
   ASSERT_FALSE(info.is_discarded()) << run.out;
   EXPECT_EQ(info["frames_with_metadata"], 25);
   EXPECT_EQ(info["klv"]["checksum_failures"], 0);
+  std::filesystem::remove_all(dir);
+}
+
+// Issue 29: `export M.saker --csv M.saker` replaced the mission and exited 0 (item 5), and an
+// export to a special file replaced it (item 6). The outputs may not be the job's inputs; "-" is
+// standard output, which then gets the file alone.
+TEST(CliMissionTest, ExportRefusesItsInputsAndWritesToStandardOutput) {
+  const std::filesystem::path dir = saker::testing::MakeTempDir("saker-cli-export");
+  const auto flight = SmallFlight(dir, /*process=*/true);
+  const std::string &video = flight.first, &mission = flight.second;
+  ASSERT_FALSE(mission.empty());
+  const auto size = std::filesystem::file_size(mission);
+  for (const std::string& option : {"--csv", "--geojson", "--kml", "--geotiff"}) {
+    for (const std::string& target : {mission, video}) {
+      const CliRun run = RunCli("export '" + mission + "' " + option + " '" + target + "'");
+      EXPECT_EQ(run.exit_code, 1) << option << " " << target << ": " << run.out;
+      EXPECT_NE(run.out.find("an input of this job"), std::string::npos) << run.out;
+    }
+  }
+  EXPECT_EQ(std::filesystem::file_size(mission), size);
+  ASSERT_EQ(RunCli("info '" + mission + "'").exit_code, 0);
+  // Standard output: the CSV alone (the summary goes to stderr, discarded here).
+  const CliRun csv = RunCli("export '" + mission + "' --csv - 2>/dev/null; exit $?");
+  ASSERT_EQ(csv.exit_code, 0) << csv.out;
+  EXPECT_EQ(csv.out.rfind("video,track_id,", 0), 0u) << csv.out;
+  EXPECT_EQ(csv.out.find("wrote"), std::string::npos) << csv.out;
+  for (const auto& entry : std::filesystem::directory_iterator(dir)) {
+    EXPECT_EQ(entry.path().filename().string().find(".part-"), std::string::npos) << entry.path();
+  }
   std::filesystem::remove_all(dir);
 }
 

@@ -3,10 +3,15 @@
 // [ANTIMERIDIAN.saker]`; the second, when named, is the same mission flown over the antimeridian
 // (its map origin and sensor positions either side of 180 degrees).
 // Built from the mission tests' fixture, so the seed follows the schema as it evolves.
+// Beside it, the same mission declaring absurd mosaic sizes over its few tiles
+// (OUT-absurd-<side>.saker, side 100,000 and 1,000,000 pixels: issue 29 item 10, where such a file
+// kept `export --geotiff` busy for hours).
 
 #include "core/mission/mission_store.h"
 #include "tests/core/mission/mission_fixtures.h"
 
+#include <algorithm>
+#include <cstdint>
 #include <cstdio>
 #include <filesystem>
 #include <string>
@@ -27,7 +32,8 @@ Mission AtTheAntimeridian(Mission mission) {
   return mission;
 }
 
-int WriteSeed(const std::string& path, Mission mission) {
+// `mission` with a pyramid of `side` x `side` pixels (0: the mission's own) and three tiles.
+int WriteSeed(const std::string& path, Mission mission, int side) {
   auto store = MissionStore::Create(path, /*replace=*/true);
   if (!store.ok()) {
     std::fprintf(stderr, "%s\n", store.status().ToString().c_str());
@@ -35,6 +41,14 @@ int WriteSeed(const std::string& path, Mission mission) {
   }
   if (!mission.pyramid) mission.pyramid = PyramidInfo{};
   mission.pyramid->levels = 2;
+  if (side > 0) {
+    mission.pyramid->width = side;
+    mission.pyramid->height = side;
+    while ((static_cast<int64_t>(mission.pyramid->tile_size) << (mission.pyramid->levels - 1)) <
+           side) {
+      ++mission.pyramid->levels;
+    }
+  }
   saker::Status saved = (*store)->Save(mission);
   if (saved.ok()) {
     saved = (*store)->WriteTiles({{0, 0, 0, {0x89, 'P', 'N', 'G', 1, 2, 3}},
@@ -60,6 +74,13 @@ int main(int argc, char** argv) {
     return 2;
   }
   const Mission mission = saker::mission::testing_support::MakeFullMission();
-  if (const int code = WriteSeed(argv[1], mission); code != 0) return code;
-  return argc == 3 ? WriteSeed(argv[2], AtTheAntimeridian(mission)) : 0;
+  const std::filesystem::path path = argv[1];
+  int failed = WriteSeed(path.string(), mission, 0);
+  for (const int side : {100'000, 1'000'000}) {
+    std::filesystem::path absurd = path;
+    absurd.replace_filename(path.stem().string() + "-absurd-" + std::to_string(side) + ".saker");
+    failed = std::max(failed, WriteSeed(absurd.string(), mission, side));
+  }
+  if (argc == 3) failed = std::max(failed, WriteSeed(argv[2], AtTheAntimeridian(mission), 0));
+  return failed;
 }

@@ -294,6 +294,37 @@ TEST(KmlExportTest, MarkupInNamesIsEscapedAndStylesFollowVisits) {
   EXPECT_EQ(ReadKmlWithGdal(path, "KML").size(), 3u);
 }
 
+// Issue 29: an observation without a ground position wrote "nan" into the KML's lists. Absent
+// values are empty list items, and absent single values leave their Data element out.
+TEST(KmlExportTest, AbsentValuesAreLeftOutNotWrittenAsNan) {
+  const auto dir = testing::MakeTempDir("saker-export");
+  const fs::path path = dir / "tracks.kml";
+  mission::Mission mission = MakeMission(true);
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  mission.tracks[2].points[1].map = {nan, nan};  // an observation without a ground position
+  mission.tracks[2].points[2].time_s = std::numeric_limits<double>::infinity();
+  mission.tracks[2].speed = nan;  // a track without a speed
+  mission.tracks[2].speed_mps.reset();
+  mission.tracks[2].end_s = nan;
+  ASSERT_TRUE(ExportKml(mission, path.string()).ok());
+  const std::string text = ReadText(path);
+  EXPECT_EQ(text.find("nan"), std::string::npos) << text;
+  EXPECT_EQ(text.find("inf"), std::string::npos) << text;
+  const size_t track = text.find("<Placemark id=\"track-3\">");
+  ASSERT_NE(track, std::string::npos);
+  const std::string placemark = text.substr(track, text.find("</Placemark>", track) - track);
+  EXPECT_NE(placemark.find("<Data name=\"map_x\"><value>10,,1210</value></Data>"),
+            std::string::npos)
+      << placemark;
+  EXPECT_EQ(placemark.find("<Data name=\"speed\">"), std::string::npos) << placemark;
+  EXPECT_EQ(placemark.find("<Data name=\"speed_mps\">"), std::string::npos) << placemark;
+  EXPECT_EQ(placemark.find("<value></value>"), std::string::npos) << placemark;
+  EXPECT_NE(placemark.find("<LineString>"), std::string::npos);  // two positions left
+  GDALAllRegister();
+  if (GDALGetDriverByName("KML") == nullptr) GTEST_SKIP() << "no KML driver in this GDAL";
+  EXPECT_EQ(ReadKmlWithGdal(path, "KML").size(), 3u);
+}
+
 TEST(KmlExportTest, NotGeoReferencedIsUnsupported) {
   const auto dir = testing::MakeTempDir("saker-export");
   const fs::path path = dir / "tracks.kml";

@@ -20,12 +20,15 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <sys/resource.h>
+#include <sys/stat.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
+#include <future>
 #include <iostream>
 #include <iterator>
 #include <memory>
@@ -354,6 +357,33 @@ TEST_F(HostileInputTest, FilesThatAreNotVideoAreRefusedNamingThem) {
   // FFmpeg reads a picture as a one-frame video; Saker says what it is.
   ExpectClearError(ingest::ScanVideo(png.string(), {}).status(), png,
                    "is a still picture (png), not a video");
+}
+
+// Item 11 of issue 29: a FIFO given as the video blocked `probe` and `process` for ever (FFmpeg
+// waits for a writer). It is refused at once; a test that would hang unblocks it and fails.
+TEST_F(HostileInputTest, AFifoIsRefusedNotWaitedOn) {
+  const fs::path fifo = *dir_ / "live.ts";
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  const fs::path mission = *dir_ / "live.saker";
+  auto refused = std::async(std::launch::async, [&] {
+    return std::make_pair(ingest::ScanVideo(fifo.string(), {}).status(),
+                          ProcessVideo(fifo.string(), mission.string(), {}).status());
+  });
+  if (refused.wait_for(std::chrono::seconds(10)) != std::future_status::ready) {
+    ADD_FAILURE() << "still waiting on the FIFO after 10 s";
+    // Unblock it: a writer that closes at once ends the reading.
+    for (int i = 0;
+         i < 4 && refused.wait_for(std::chrono::milliseconds(200)) != std::future_status::ready;
+         ++i) {
+      std::ofstream(fifo, std::ios::binary).close();
+    }
+  }
+  const auto [scan, process] = refused.get();
+  ExpectClearError(scan, fifo, "is a FIFO (named pipe), not a video file");
+  EXPECT_EQ(scan.code(), StatusCode::kInvalidArgument);
+  ExpectClearError(process, fifo, "is a FIFO (named pipe), not a video file");
+  EXPECT_FALSE(fs::exists(mission));
+  fs::remove(fifo);
 }
 
 // --- Truncation ----------------------------------------------------------------------------------

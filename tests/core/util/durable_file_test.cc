@@ -2,10 +2,16 @@
 
 #include "tests/testing/test_data.h"
 
+#include <fcntl.h>
 #include <gtest/gtest.h>
+#include <sys/stat.h>
+#include <sys/sysmacros.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -241,6 +247,115 @@ TEST(DurableFileTest, SyncPathReportsAMissingFile) {
   const Status missing = SyncPath((dir / "g").string());
   EXPECT_EQ(missing.code(), StatusCode::kIoError);
   EXPECT_NE(missing.message().find((dir / "g").string()), std::string::npos);
+}
+
+// Item 6 of issue 29: `--csv /dev/full` (as root) replaced the device node with a regular file and
+// reported success, and a FIFO or /dev/stdout was replaced likewise. A target that is no file is
+// written into, never renamed over.
+TEST(DurableFileTest, AFifoIsWrittenIntoNotReplaced) {
+  const fs::path dir = testing::MakeTempDir("saker-durable");
+  const fs::path fifo = dir / "pipe";
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  // The reader, as `cat pipe` would be, opened first so the writer does not wait for one.
+  const auto written_through = [&](const fs::path& target, const std::string& text) {
+    const int reader = ::open(fifo.c_str(), O_RDONLY | O_NONBLOCK);
+    EXPECT_GE(reader, 0);
+    const Status status = ReplaceFileContents(target.string(), text);
+    EXPECT_TRUE(status.ok()) << status.ToString();
+    std::string got(256, '\0');
+    const ssize_t n = ::read(reader, got.data(), got.size());
+    ::close(reader);
+    got.resize(static_cast<size_t>(std::max<ssize_t>(n, 0)));
+    return got;
+  };
+  EXPECT_EQ(written_through(fifo, "through the pipe\n"), "through the pipe\n");
+  EXPECT_TRUE(fs::is_fifo(fifo));
+  EXPECT_EQ(Names(dir), std::vector<std::string>{"pipe"});
+  // Through a link too: the link and the FIFO stay.
+  fs::create_symlink(fifo, dir / "link");
+  EXPECT_EQ(written_through(dir / "link", "again"), "again");
+  EXPECT_TRUE(fs::is_symlink(dir / "link"));
+  EXPECT_TRUE(fs::is_fifo(fifo));
+}
+
+TEST(DurableFileTest, AnOpenDescriptorGetsTheBytes) {
+  int fds[2];
+  ASSERT_EQ(::pipe(fds), 0);
+  // A writer that needs a path works too: the content is built in a temporary, then sent.
+  const Status status =
+      ReplaceFile("/dev/fd/" + std::to_string(fds[1]), [](const std::string& temporary) {
+        std::ofstream(temporary, std::ios::binary) << "to the descriptor";
+        return Status::Ok();
+      });
+  ASSERT_TRUE(status.ok()) << status.ToString();
+  ::close(fds[1]);
+  std::string text(64, '\0');
+  const ssize_t n = ::read(fds[0], text.data(), text.size());
+  ::close(fds[0]);
+  ASSERT_GT(n, 0);
+  text.resize(static_cast<size_t>(n));
+  EXPECT_EQ(text, "to the descriptor");
+}
+
+TEST(DurableFileTest, AFullDeviceIsAnErrorAndStaysADevice) {
+  if (::geteuid() != 0) GTEST_SKIP() << "only root can make a device node (CI runs as root)";
+  // A private /dev/full (character device 1, 7): the test never risks the machine's own.
+  const fs::path dir = testing::MakeTempDir("saker-durable");
+  const fs::path full = dir / "full";
+  if (::mknod(full.c_str(), S_IFCHR | 0666, ::makedev(1, 7)) != 0) {
+    GTEST_SKIP() << "cannot make a device node here: " << std::strerror(errno);
+  }
+  const Status status = ReplaceFileContents(full.string(), "nowhere to go");
+  EXPECT_EQ(status.code(), StatusCode::kIoError) << status.ToString();
+  EXPECT_EQ(status.message().rfind(full.string() + ": ", 0), 0u) << status.message();
+  EXPECT_NE(status.message().find(std::strerror(ENOSPC)), std::string::npos) << status.message();
+  EXPECT_TRUE(fs::is_character_file(full));
+  EXPECT_EQ(Names(dir), std::vector<std::string>{"full"});
+}
+
+TEST(DurableFileTest, ALinkToAFileIsKeptAndTheFileReplaced) {
+  const fs::path dir = testing::MakeTempDir("saker-durable");
+  WriteText(dir / "real.csv", "old");
+  fs::create_symlink("real.csv", dir / "latest.csv");
+  ASSERT_TRUE(ReplaceFileContents((dir / "latest.csv").string(), "new").ok());
+  EXPECT_TRUE(fs::is_symlink(dir / "latest.csv"));
+  EXPECT_EQ(ReadText(dir / "real.csv"), "new");
+  EXPECT_EQ(Names(dir), (std::vector<std::string>{"latest.csv", "real.csv"}));
+}
+
+// Item 5 of issue 29: the check every job makes before writing over what it reads.
+TEST(DurableFileTest, AnInputIsRecognisedByDeviceAndInodeWhateverItsName) {
+  const fs::path dir = testing::MakeTempDir("saker-durable");
+  WriteText(dir / "mission.saker", "m");
+  fs::create_hard_link(dir / "mission.saker", dir / "hard.saker");
+  fs::create_symlink(dir / "mission.saker", dir / "soft.saker");
+  const std::vector<std::string> inputs = {(dir / "video.ts").string(),  // absent: skipped
+                                           (dir / "mission.saker").string()};
+  for (const fs::path& output : {dir / "mission.saker", dir / "hard.saker", dir / "soft.saker",
+                                 dir / "." / "mission.saker"}) {
+    const Status status = CheckNotAnInput(output.string(), inputs);
+    EXPECT_EQ(status.code(), StatusCode::kInvalidArgument) << output;
+    EXPECT_EQ(status.message().rfind(output.string() + ": is ", 0), 0u) << status.message();
+  }
+  EXPECT_TRUE(CheckNotAnInput((dir / "new.csv").string(), inputs).ok());
+  WriteText(dir / "other.csv", "o");
+  EXPECT_TRUE(CheckNotAnInput((dir / "other.csv").string(), inputs).ok());
+}
+
+// A job killed outright (SIGKILL) cannot remove its temporary: the next replacement of the same
+// file does, and leaves a live process's alone.
+TEST(DurableFileTest, ADeadProcesssTemporaryIsRemovedByTheNextReplacement) {
+  const fs::path dir = testing::MakeTempDir("saker-durable");
+  const pid_t child = ::fork();
+  if (child == 0) ::_exit(0);
+  ASSERT_GT(child, 0);
+  ::waitpid(child, nullptr, 0);
+  const std::string dead = ".mosaic.tif.part-" + std::to_string(child) + "-0.tif";
+  const std::string live = ".mosaic.tif.part-" + std::to_string(::getppid()) + "-0.tif";
+  WriteText(dir / dead, "left by a killed export");
+  WriteText(dir / live, "being written");
+  ASSERT_TRUE(ReplaceFileContents((dir / "mosaic.tif").string(), "tiff").ok());
+  EXPECT_EQ(Names(dir), (std::vector<std::string>{live, "mosaic.tif"}));
 }
 
 }  // namespace

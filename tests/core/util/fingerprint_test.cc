@@ -3,8 +3,12 @@
 #include "tests/testing/test_data.h"
 
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 
+#include <chrono>
 #include <filesystem>
+#include <fstream>
+#include <future>
 #include <regex>
 #include <string>
 #include <vector>
@@ -85,6 +89,21 @@ TEST_F(FingerprintTest, FingerprintOfSmallAndMissingFiles) {
   EXPECT_EQ(status.status().code(), StatusCode::kNotFound);
   EXPECT_NE(status.status().message().find(missing), std::string::npos);
   EXPECT_EQ(FingerprintFile(dir_.string()).status().code(), StatusCode::kIoError);
+}
+
+// Issue 29 item 11: a FIFO where a video was looked for (the mission's folder, when the video
+// moved) blocked opening it for ever. It is refused at once, naming it.
+TEST_F(FingerprintTest, AFifoIsRefusedNotWaitedOn) {
+  const fs::path fifo = File("flight.ts");
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  auto fingerprint = std::async(std::launch::async, [&] { return FingerprintFile(fifo.string()); });
+  if (fingerprint.wait_for(std::chrono::seconds(10)) != std::future_status::ready) {
+    ADD_FAILURE() << "still waiting on the FIFO after 10 s";
+    std::ofstream(fifo).close();  // a writer that closes at once unblocks it
+  }
+  const StatusOr<std::string> result = fingerprint.get();
+  ASSERT_FALSE(result.ok());
+  EXPECT_EQ(result.status().message(), fifo.string() + ": not a regular file");
 }
 
 }  // namespace
