@@ -505,9 +505,14 @@ bool FeatureTracker::RestoreState(ByteReader* in, const cv::Mat& grey) {
     for (Eigen::Vector2d& p : t.positions) {
       if (!in->GetMatrix(&p)) return false;
     }
-    if (!in->Get(&live_small_[i].x) || !in->Get(&live_small_[i].y)) return false;
+    if (!in->Get(&live_small_[i].x) || !in->Get(&live_small_[i].y) ||
+        !std::isfinite(live_small_[i].x) || !std::isfinite(live_small_[i].y)) {
+      return false;
+    }
   }
-  if (!in->GetVector(&live_patches_)) return false;
+  // One patch per live track when the tracker correlates them (TrackPoints reads them so).
+  const size_t patches = options_.min_correlation > -1 ? live * static_cast<size_t>(kPatchArea) : 0;
+  if (!in->GetVector(&live_patches_) || live_patches_.size() != patches) return false;
   if (have_previous_ && !SetFrame(grey)) return false;
   points_.clear();
   for (const FeatureTrack& t : live_) points_.push_back({t.id, t.positions.back(), t.first_frame});

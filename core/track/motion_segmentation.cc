@@ -183,7 +183,8 @@ bool MotionSegmenter::RestoreState(ByteReader* in) {
     TrackState state;
     if (!in->Get(&id) || !in->Get(&first) || !in->Get(&state.updated) || !in->Get(&label) ||
         !in->GetCount(33, &steps) || label < 0 ||
-        label > static_cast<int32_t>(MotionLabel::kMoving) || (steps > 0 && first >= steps)) {
+        label > static_cast<int32_t>(MotionLabel::kMoving) ||
+        steps > static_cast<size_t>(options_.window_frames) || (steps > 0 && first >= steps)) {
       return false;
     }
     state.first = static_cast<size_t>(first);
