@@ -179,17 +179,24 @@ TEST(CliMosaicTest, BadInputsNameTheProblem) {
 
 namespace {
 
+// Simulates a small flight into `dir`/flight.ts and processes it into `dir`/flight.saker.
+void MakeMission(const std::filesystem::path& dir) {
+  const std::string video = (dir / "flight.ts").string();
+  ASSERT_EQ(RunCli("simulate --scenario straight -o '" + video + "' " + kSmallSimulation).exit_code,
+            0);
+  const CliRun run =
+      RunCli("process -q '" + video + "' -o '" + (dir / "flight.saker").string() + "'");
+  ASSERT_EQ(run.exit_code, 0) << run.out;
+}
+
 // process, then copy (Save As): the copy holds the same mission; the original is never the
 // target, a file that is not a mission is never replaced, and an existing mission only with
 // --replace.
 TEST(CliMissionTest, CopyMakesTheSameMissionAndRefusesWhatItMustNot) {
   const std::filesystem::path dir = saker::testing::MakeTempDir("saker-cli-copy");
-  const std::string video = (dir / "flight.ts").string();
-  ASSERT_EQ(RunCli("simulate --scenario straight -o '" + video + "' " + kSmallSimulation).exit_code,
-            0);
+  ASSERT_NO_FATAL_FAILURE(MakeMission(dir));
   const std::string mission = (dir / "flight.saker").string();
-  CliRun run = RunCli("process -q '" + video + "' -o '" + mission + "'");
-  ASSERT_EQ(run.exit_code, 0) << run.out;
+  CliRun run;
   const std::string copy = (dir / "copy.saker").string();
   run = RunCli("copy '" + mission + "' '" + copy + "'");
   ASSERT_EQ(run.exit_code, 0) << run.out;
@@ -230,12 +237,10 @@ TEST(CliMissionTest, CopyMakesTheSameMissionAndRefusesWhatItMustNot) {
 // still reads it. `info` and `export` leave no -wal/-shm beside a mission they read.
 TEST(CliMissionTest, ASecondJobOnAMissionBeingWrittenIsRefused) {
   const std::filesystem::path dir = saker::testing::MakeTempDir("saker-cli-two-jobs");
+  ASSERT_NO_FATAL_FAILURE(MakeMission(dir));
   const std::string video = (dir / "flight.ts").string();
-  ASSERT_EQ(RunCli("simulate --scenario straight -o '" + video + "' " + kSmallSimulation).exit_code,
-            0);
   const std::string mission = (dir / "flight.saker").string();
-  CliRun run = RunCli("process -q '" + video + "' -o '" + mission + "'");
-  ASSERT_EQ(run.exit_code, 0) << run.out;
+  CliRun run;
   const auto size = std::filesystem::file_size(mission);
   run = RunCli("info '" + mission + "'");
   EXPECT_EQ(run.exit_code, 0) << run.out;
