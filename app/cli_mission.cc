@@ -49,7 +49,8 @@ ProcessCommand::ProcessCommand(CLI::App& app) : state_(std::make_unique<State>()
   s.command->add_option("VIDEO", s.video, "Video file (MPEG-TS, MP4, ...)")->required();
   s.command->add_option("-o,--output", s.mission, "Mission file to write (.saker)")->required();
   s.command->add_flag("--replace", s.replace,
-                      "Replace an existing mission file (never a file that is not a mission)");
+                      "Replace an existing mission file (never a file that is not a mission, nor "
+                      "one that another job is writing)");
   s.command
       ->add_flag("--resume", s.options.resume,
                  "Carry on an interrupted job in the existing mission file (made from the same "
@@ -187,7 +188,8 @@ int ExportCommand::Run() const {
                  "--csv\n";
     return kExitUsage;
   }
-  StatusOr<std::unique_ptr<mission::MissionStore>> store = mission::MissionStore::Open(s.mission);
+  StatusOr<std::unique_ptr<mission::MissionStore>> store =
+      mission::MissionStore::Open(s.mission, mission::OpenMode::kSnapshot);
   if (!store.ok()) return Fail(store.status());
   StatusOr<mission::Mission> m = (*store)->Load();
   if (!m.ok()) return Fail(m.status());
@@ -245,7 +247,8 @@ CopyCommand::CopyCommand(CLI::App& app) : state_(std::make_unique<State>()) {
   s.command->add_option("MISSION", s.from, "Mission file to copy (.saker)")->required();
   s.command->add_option("NEW", s.to, "The copy (.saker)")->required();
   s.command->add_flag("--replace", s.replace,
-                      "Replace an existing mission file (never a file that is not a mission)");
+                      "Replace an existing mission file (never a file that is not a mission, nor "
+                      "one that a job is writing)");
 }
 
 CopyCommand::~CopyCommand() = default;

@@ -91,6 +91,7 @@ struct MainWindow::Loaded {
   std::optional<pipeline::CheckpointState> checkpoint;  // an interrupted job's
   // Its key frames, placed as the front end placed them, to show until there is a mosaic.
   std::vector<frontend::KeyFramePreview> previews;
+  bool read_only = false;  // the file cannot be written here
 };
 
 MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
@@ -436,6 +437,7 @@ void MainWindow::startLoad(const QString& path) {
                            pipeline::OpenMission(loaded->path.toStdString(), options));
     loaded->checkpoint = opened.checkpoint;
     loaded->previews = std::move(opened.previews);
+    loaded->read_only = opened.read_only;
     const pipeline::VideoLocation& video = opened.video;
     switch (video.state) {
       case pipeline::VideoLocation::State::kFound:
@@ -494,14 +496,15 @@ void MainWindow::missionLoaded(const Loaded& loaded) {
   } else {
     applyFilter();
   }
-  setWindowTitle(tr("%1 — Saker").arg(QFileInfo(mission_path_).fileName()));
+  const QString name = QFileInfo(mission_path_).fileName();
+  setWindowTitle(loaded.read_only ? tr("%1 (read-only) — Saker").arg(name)
+                                  : tr("%1 — Saker").arg(name));
   updateMissionFacts();
   updateActions();
   if (!jobs_->isRunning()) {
-    statusBar()->showMessage(
-        tr("Opened %1: %n track(s)", nullptr, static_cast<int>(mission_->tracks.size()))
-            .arg(QFileInfo(mission_path_).fileName()),
-        5000);
+    const QString opened =
+        tr("Opened %1: %n track(s)", nullptr, static_cast<int>(mission_->tracks.size())).arg(name);
+    statusBar()->showMessage(loaded.read_only ? tr("%1 (read-only)").arg(opened) : opened, 5000);
   }
   emit missionOpened(mission_path_);
 }

@@ -4,9 +4,13 @@
 #include "core/mission/sqlite.h"
 #include "core/util/durable_file.h"
 
+#include <fcntl.h>
+#include <sqlite3.h>
+#include <sys/file.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <csignal>
 #include <cstdlib>
@@ -24,12 +28,149 @@ constexpr int kBusyTimeoutMs = 5000;
 
 // The files SQLite may keep beside a database.
 const std::vector<std::string> kDatabaseSideSuffixes = {"-wal", "-shm", "-journal"};
+// SQLite reserves room for the longest of them ("-journal") in every path it opens.
+constexpr size_t kPathReserve = 8;
+// What is added to a mission's name beside it: ".lock" (the writer's lock), "-wal" and "-shm"
+// (a mission in WAL mode never has a -journal).
+constexpr size_t kNameReserve = 5;
+
+// The file whose lock a mission's writer holds.
+std::string LockPath(const std::string& path) { return path + ".lock"; }
+
+// The exclusive right to write a mission: an flock on "<mission>.lock" held while the writer
+// lives. The lock file is beside the mission, not the mission itself, so it survives Create's
+// rename of a new file over the path. The OS drops the lock when the process ends (a kill -9
+// included); the file then left, naming a dead process, blocks nobody. flock locks belong to an
+// open file description, so two stores of one process exclude each other too.
+class WriterLock {
+ public:
+  WriterLock(const WriterLock&) = delete;
+  WriterLock& operator=(const WriterLock&) = delete;
+  // Removes the file, then lets go: a writer that opened it meanwhile finds it gone (Acquire).
+  ~WriterLock() {
+    ::unlink(path_.c_str());
+    ::close(fd_);
+  }
+
+  // The lock of the mission at `mission`, or IoError naming the process that holds it.
+  static StatusOr<std::unique_ptr<WriterLock>> Acquire(const std::string& mission);
+  // Whether a writer holds the lock of the mission at `mission` now.
+  static bool IsHeld(const std::string& mission);
+
+ private:
+  WriterLock(std::string path, int fd) : path_(std::move(path)), fd_(fd) {}
+
+  std::string path_;
+  int fd_;
+};
+
+// The process id recorded in a lock file, or 0.
+long LockHolder(int fd) {
+  char text[32] = {};
+  const ssize_t n = ::pread(fd, text, sizeof(text) - 1, 0);
+  return n > 0 ? std::strtol(text, nullptr, 10) : 0;
+}
+
+StatusOr<std::unique_ptr<WriterLock>> WriterLock::Acquire(const std::string& mission) {
+  const std::string path = LockPath(mission);
+  for (int attempt = 0; attempt < 100; ++attempt) {
+    const int fd = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0666);
+    if (fd < 0) {
+      return IoError(mission + ": cannot create its lock file " + path + ": " +
+                     std::strerror(errno));
+    }
+    if (::flock(fd, LOCK_EX | LOCK_NB) != 0) {
+      const int err = errno;
+      const long holder = LockHolder(fd);
+      ::close(fd);
+      if (err != EWOULDBLOCK) {
+        return IoError(mission + ": cannot lock " + path + ": " + std::strerror(err));
+      }
+      return IoError(mission + ": the mission is in use by " +
+                     (holder > 0 ? "process " + std::to_string(holder) : "another process") +
+                     ", which is writing it: wait for that job to end or cancel it");
+    }
+    // The holder before may have removed the file between our open and our lock: the lock
+    // counts only on the file that is at the path.
+    struct stat held, named;
+    if (::fstat(fd, &held) == 0 && ::stat(path.c_str(), &named) == 0 &&
+        held.st_dev == named.st_dev && held.st_ino == named.st_ino) {
+      const std::string pid = std::to_string(::getpid()) + "\n";
+      // The process id is for messages only: a lock file it cannot be written to still locks.
+      if (::ftruncate(fd, 0) == 0 && ::pwrite(fd, pid.data(), pid.size(), 0) < 0) errno = 0;
+      return std::unique_ptr<WriterLock>(new WriterLock(path, fd));
+    }
+    ::close(fd);
+  }
+  return IoError(mission + ": cannot lock " + path + ": it keeps being replaced");
+}
+
+bool WriterLock::IsHeld(const std::string& mission) {
+  const int fd = ::open(LockPath(mission).c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) return false;  // no writer has it (none can where it cannot be made)
+  const bool held = ::flock(fd, LOCK_SH | LOCK_NB) != 0 && errno == EWOULDBLOCK;
+  ::close(fd);  // drops the shared lock if it was taken
+  return held;
+}
+
+// The folder of `path` ("." for a bare name).
+std::string FolderOf(const std::string& path) {
+  const std::filesystem::path parent = std::filesystem::path(path).parent_path();
+  return parent.empty() ? "." : parent.string();
+}
+
+bool FileExists(const std::string& path) {
+  struct stat st;
+  return ::stat(path.c_str(), &st) == 0;
+}
+
+// The path as SQLite will see it: absolute, through symbolic links (its unix VFS resolves them).
+std::string FullPath(const std::string& path) {
+  std::error_code error;
+  std::filesystem::path full = std::filesystem::weakly_canonical(path, error);
+  if (error) full = std::filesystem::absolute(path, error);
+  return error ? path : full.string();
+}
+
+// Refuses, naming the limit, a mission path SQLite cannot open: SQLite's unix VFS opens full
+// paths of at most its mxPathname (512) bytes less room for "-journal", and the folder's file
+// system limits names (NAME_MAX, 255 bytes) with ".lock", "-wal" or "-shm" added. `extra` bytes are
+// what a temporary built beside the mission adds to its path and name (Create's); the limits
+// named are the mission's own.
+Status CheckPathLimits(const std::string& path, size_t extra) {
+  const std::filesystem::path target(path);
+  const std::string name = target.filename().string();
+  const long name_max = ::pathconf(FolderOf(path).c_str(), _PC_NAME_MAX);
+  const size_t max_name = (name_max > 0 ? static_cast<size_t>(name_max) : 255);
+  // A temporary is set up with a rollback journal before it switches to WAL.
+  const size_t reserve = extra > 0 ? std::max(kNameReserve, extra + kPathReserve) : kNameReserve;
+  if (name.size() + reserve > max_name) {
+    const std::string limit = std::to_string(max_name - reserve);
+    return InvalidArgumentError(path + ": the file name is " + std::to_string(name.size()) +
+                                " bytes long; a mission's name may have at most " + limit +
+                                " bytes here (the file system allows " + std::to_string(max_name) +
+                                ", and Saker and SQLite write files named after it with up to " +
+                                std::to_string(reserve) + " bytes more)");
+  }
+  const sqlite3_vfs* vfs = sqlite3_vfs_find(nullptr);
+  const size_t max_path =
+      static_cast<size_t>(vfs != nullptr ? vfs->mxPathname : 512) - kPathReserve - extra;
+  const std::string full = FullPath(path);
+  if (full.size() > max_path) {
+    return InvalidArgumentError(path + ": the path is " + std::to_string(full.size()) +
+                                " bytes long in full; SQLite opens a mission's path of at most " +
+                                std::to_string(max_path) +
+                                " bytes: move it to a shorter folder or name");
+  }
+  return Status::Ok();
+}
 
 }  // namespace
 
 // ---------------------------------------------------------------------------------------------
 
 struct MissionStore::Impl {
+  std::unique_ptr<WriterLock> lock;  // a writer's; released last, after the connection closed
   OpenMode mode = OpenMode::kReadOnly;
   int schema_version = kSchemaVersion;  // of the file, as schema::CheckIdentity read it
   sqlite::Database db;                  // destroyed last: after the statements below
@@ -41,6 +182,10 @@ struct MissionStore::Impl {
   Status SetWriteOptions();
   // Folds the write-ahead log into the file and truncates it.
   Status Checkpoint();
+  // Opens `path` for reading and identifies it: a snapshot (immutable) or a live connection.
+  Status OpenToRead(const std::string& path, bool snapshot);
+  // OpenToRead as `mode` asks and as the storage allows.
+  Status OpenReadOnly(const std::string& path);
 };
 
 Status MissionStore::Impl::SetWriteOptions() {
@@ -79,16 +224,54 @@ MissionStore::~MissionStore() = default;
 const std::string& MissionStore::path() const { return impl_->path(); }
 OpenMode MissionStore::mode() const { return impl_->mode; }
 
+bool MissionStore::IsWritable(const std::string& path) {
+  return ::access(path.c_str(), W_OK) == 0 && ::access(FolderOf(path).c_str(), W_OK) == 0;
+}
+
+Status MissionStore::Impl::OpenToRead(const std::string& path, bool snapshot) {
+  SAKER_RETURN_IF_ERROR(db.Open(path, SQLITE_OPEN_READONLY, kBusyTimeoutMs, snapshot));
+  SAKER_ASSIGN_OR_RETURN(schema_version, schema::CheckIdentity(db));
+  return Status::Ok();
+}
+
+Status MissionStore::Impl::OpenReadOnly(const std::string& path) {
+  // A write-ahead log beside the file holds commits (of a job writing now, or of one that was
+  // killed) that only a live connection reads; a live connection makes and leaves the log and
+  // its shared memory (-shm) beside the file.
+  const bool log_present = FileExists(path + "-wal");
+  if (mode == OpenMode::kSnapshot && !log_present && !WriterLock::IsHeld(path)) {
+    return OpenToRead(path, /*snapshot=*/true);
+  }
+  const Status live = OpenToRead(path, /*snapshot=*/false);
+  if (live.ok() || live.code() != StatusCode::kIoError || IsWritable(path)) return live;
+  // Read-only storage, or a file the user may not write: no job of theirs changes it, and SQLite
+  // cannot make the files a live connection needs there.
+  if (log_present) {
+    return IoError(live.message() +
+                   " (the mission is read-only here and holds the write-ahead log of an "
+                   "interrupted job: copy it with its -wal file to storage you can write to)");
+  }
+  return OpenToRead(path, /*snapshot=*/true);
+}
+
 StatusOr<std::unique_ptr<MissionStore>> MissionStore::Open(const std::string& path, OpenMode mode) {
   SAKER_RETURN_IF_ERROR(schema::CheckFileHeader(path));
+  SAKER_RETURN_IF_ERROR(CheckPathLimits(path, 0));
   auto impl = std::make_unique<Impl>();
   impl->mode = mode;
+  return OpenImpl(path, std::move(impl));
+}
+
+StatusOr<std::unique_ptr<MissionStore>> MissionStore::OpenImpl(const std::string& path,
+                                                               std::unique_ptr<Impl> impl) {
   // Identify the file through a read-only connection first, so a refused file is never opened
   // for writing (closing a writable connection may checkpoint into it).
-  SAKER_RETURN_IF_ERROR(impl->db.Open(path, SQLITE_OPEN_READONLY, kBusyTimeoutMs));
-  SAKER_ASSIGN_OR_RETURN(impl->schema_version, schema::CheckIdentity(impl->db));
-  if (mode == OpenMode::kReadWrite) {
+  SAKER_RETURN_IF_ERROR(impl->OpenReadOnly(path));
+  if (impl->mode == OpenMode::kReadWrite) {
     impl->db.Close();
+    if (impl->lock == nullptr) {
+      SAKER_ASSIGN_OR_RETURN(impl->lock, WriterLock::Acquire(path));
+    }
     SAKER_RETURN_IF_ERROR(impl->db.Open(path, SQLITE_OPEN_READWRITE, kBusyTimeoutMs));
     SAKER_ASSIGN_OR_RETURN(impl->schema_version, schema::CheckIdentity(impl->db));
     SAKER_RETURN_IF_ERROR(impl->SetWriteOptions());
@@ -101,10 +284,8 @@ StatusOr<std::unique_ptr<MissionStore>> MissionStore::Open(const std::string& pa
 }
 
 void MissionStore::RemoveStaleTemporaries(const std::string& path) {
-  const std::filesystem::path target(path);
-  std::filesystem::path directory = target.parent_path();
-  if (directory.empty()) directory = ".";
-  const std::string name = target.filename().string();
+  const std::filesystem::path directory = FolderOf(path);
+  const std::string name = std::filesystem::path(path).filename().string();
   // A FileReplacement's ".NAME.part-PID-N.EXT" (Create's, CopyMission's) and the one Create
   // makes for CopyMission's, "..NAME.part-PID-N.EXT.part-PID-M.EXT"; from older versions Create's
   // ".NAME.new-PID-N", CopyMission's "NAME.part-PID" and ".NAME.part-PID.new-PID-N". Each with
@@ -130,18 +311,30 @@ void MissionStore::RemoveStaleTemporaries(const std::string& path) {
 }
 
 Status MissionStore::FoldLog(const std::string& path) {
+  Impl locked;
+  SAKER_ASSIGN_OR_RETURN(locked.lock, WriterLock::Acquire(path));
+  return FoldLogLocked(path, &locked);
+}
+
+Status MissionStore::FoldLogLocked(const std::string& path, Impl* locked) {
   struct stat st;
   if (::stat(path.c_str(), &st) != 0) {
     const int err = errno;
     if (err != ENOENT) return IoError(path + ": " + std::strerror(err));
     // A log or journal without its database (a writer was killed, then the file alone deleted)
     // would be replayed onto the next file to take the name.
-    for (const char* suffix : {"-wal", "-shm", "-journal"}) ::unlink((path + suffix).c_str());
+    for (const std::string& suffix : kDatabaseSideSuffixes) ::unlink((path + suffix).c_str());
     return Status::Ok();
   }
   // Fold the mission's write-ahead log into it; the log goes when the last connection closes.
-  SAKER_ASSIGN_OR_RETURN(std::unique_ptr<MissionStore> old, Open(path, OpenMode::kReadWrite));
-  return old->impl_->Checkpoint();
+  auto impl = std::make_unique<Impl>();
+  impl->mode = OpenMode::kReadWrite;
+  impl->lock = std::move(locked->lock);
+  SAKER_ASSIGN_OR_RETURN(std::unique_ptr<MissionStore> old, OpenImpl(path, std::move(impl)));
+  const Status folded = old->impl_->Checkpoint();
+  old->impl_->db.Close();
+  locked->lock = std::move(old->impl_->lock);  // the caller goes on holding it
+  return folded;
 }
 
 StatusOr<std::unique_ptr<MissionStore>> MissionStore::Create(const std::string& path,
@@ -153,27 +346,33 @@ StatusOr<std::unique_ptr<MissionStore>> MissionStore::Create(const std::string& 
     if (err != ENOENT) return IoError(path + ": " + std::strerror(err));
     exists = false;
   }
-  if (exists) {
-    if (!replace) {
-      return InvalidArgumentError(path + ": a file already exists there (not replaced)");
-    }
-    // Only a mission this version reads may be replaced; this probe never writes.
-    {
-      auto probe = Open(path, OpenMode::kReadOnly);
-      if (!probe.ok()) {
-        return Status(probe.status().code(), probe.status().message() + " (not replaced)");
-      }
-    }
+  if (exists && !replace) {
+    return InvalidArgumentError(path + ": a file already exists there (not replaced)");
   }
-  if (Status folded = FoldLog(path); !folded.ok()) {
-    return Status(folded.code(), folded.message() + " (not replaced)");
-  }
-  RemoveStaleTemporaries(path);
-
   // Built beside the target and renamed over it (not over a file that appeared meanwhile when
   // none was there), with the log folded in and synced, so a crash leaves the old or the new file.
   FileReplacement replacement(path, {.overwrite = exists, .side_suffixes = kDatabaseSideSuffixes});
   const std::string& temp = replacement.temporary();
+  SAKER_RETURN_IF_ERROR(
+      CheckPathLimits(path, std::filesystem::path(temp).filename().string().size() -
+                                std::filesystem::path(path).filename().string().size()));
+  // The writer's lock before anything is probed, folded or replaced, held by the new store: a
+  // second job on this mission is refused here, not left writing a file renamed away.
+  auto locked = std::make_unique<Impl>();
+  locked->mode = OpenMode::kReadWrite;
+  SAKER_ASSIGN_OR_RETURN(locked->lock, WriterLock::Acquire(path));
+  if (exists) {
+    // Only a mission this version reads may be replaced; this probe never writes.
+    auto probe = Open(path, OpenMode::kReadOnly);
+    if (!probe.ok()) {
+      return Status(probe.status().code(), probe.status().message() + " (not replaced)");
+    }
+  }
+  if (Status folded = FoldLogLocked(path, locked.get()); !folded.ok()) {
+    return Status(folded.code(), folded.message() + " (not replaced)");
+  }
+  RemoveStaleTemporaries(path);
+
   auto build = [&]() -> Status {
     Impl impl;
     impl.mode = OpenMode::kReadWrite;
@@ -191,7 +390,7 @@ StatusOr<std::unique_ptr<MissionStore>> MissionStore::Create(const std::string& 
     return Status(built.code(), path + ": cannot create the mission: " + replacement.Reason(built));
   }
   SAKER_RETURN_IF_ERROR(replacement.Commit());
-  return Open(path, OpenMode::kReadWrite);
+  return OpenImpl(path, std::move(locked));
 }
 
 Status MissionStore::Save(const Mission& mission, unsigned parts) {

@@ -26,8 +26,17 @@ namespace saker::mission {
 inline constexpr int32_t kMissionApplicationId = 0x53414B52;
 
 enum class OpenMode {
-  kReadOnly,   // viewers: never writes, works while another process writes
-  kReadWrite,  // the processing job (one writer at a time; others wait up to the busy timeout)
+  // Viewers: never writes, sees what a job writing meanwhile commits. A mission on read-only
+  // storage (or one the user may not write) opens too, as a snapshot, unless it holds the
+  // write-ahead log of an interrupted job.
+  kReadOnly,
+  // A one-off read (info, export, copy): as kReadOnly, but a mission no job is writing is opened
+  // as an immutable snapshot, so no -wal / -shm files are left beside it. A job that starts
+  // writing the same mission in place during the read may make the read fail.
+  kSnapshot,
+  // The processing job: the mission's one writer, holding its lock (`<mission>.lock`) while
+  // open; a second writer is refused, naming the process that writes.
+  kReadWrite,
 };
 
 // The parts of a mission that Save writes. The header (schema version, saker_version, source,
@@ -65,14 +74,18 @@ class MissionStore {
   // `replace` is true AND that file is a Saker mission this version can read: a foreign, corrupt
   // or newer-version file is never overwritten (its Open error is returned). The new file is
   // built beside the target and renamed over it, so a crash leaves either the old or the new file.
-  // Replacing a mission that another process has open fails with IoError.
+  // The writer's lock is taken before anything is replaced: a mission that another job writes
+  // (kReadWrite, Create) is refused with IoError naming its process; replacing one that another
+  // program holds a transaction on fails with IoError too. A path SQLite cannot open (too long,
+  // or a name too long for the temporary built beside it) is refused up front (InvalidArgument
+  // naming the limit).
   static StatusOr<std::unique_ptr<MissionStore>> Create(const std::string& path,
                                                         bool replace = false);
   // To be called just before a file built elsewhere is renamed over `path`: if a mission is
   // there, folds its write-ahead log into it (opening it for writing: it must be a mission this
   // version reads), so that no log is left to be replayed onto the new file; if nothing is there,
   // removes any orphaned log, shared-memory or journal file of a deleted mission. Create does this
-  // itself; pipeline::CopyMission calls it.
+  // itself; pipeline::CopyMission calls it. IoError when a job writes the mission.
   static Status FoldLog(const std::string& path);
   // Removes the temporary files that jobs killed while building a file for `path` left beside
   // it (Create's and CopyMission's, named after their process: only those of processes that no
@@ -82,7 +95,9 @@ class MissionStore {
   // Opens an existing mission. NotFound when missing; InvalidData for a zero-byte, truncated,
   // corrupt or non-SQLite file or an SQLite database that is not a Saker mission; Unsupported for
   // a newer schema version. A file that is refused is never written. Read-only stores work while
-  // another process writes.
+  // another process writes. kReadWrite takes the writer's lock: IoError naming the process when
+  // another job writes the mission. InvalidArgument naming the limit for a path SQLite cannot
+  // open (too long).
   static StatusOr<std::unique_ptr<MissionStore>> Open(const std::string& path,
                                                       OpenMode mode = OpenMode::kReadOnly);
 
@@ -93,6 +108,9 @@ class MissionStore {
   // The path the store was opened with.
   const std::string& path() const;
   OpenMode mode() const;
+  // Whether a job could write the file (false on read-only storage, or for a file or folder the
+  // user may not write): a viewer says "read-only".
+  static bool IsWritable(const std::string& path);
 
   // One transaction: writes the header and replaces the parts named by `parts` (SavePart bits).
   // InvalidArgument on a read-only store, for unknown part bits, or for a mission the file cannot
@@ -131,6 +149,12 @@ class MissionStore {
  private:
   struct Impl;
   explicit MissionStore(std::unique_ptr<Impl> impl);
+  // Open's work, for an `impl` whose mode (and, for writing, lock) is set.
+  static StatusOr<std::unique_ptr<MissionStore>> OpenImpl(const std::string& path,
+                                                          std::unique_ptr<Impl> impl);
+  // FoldLog's work, by the holder of the mission's lock.
+  // `locked` holds the lock, and holds it again on return.
+  static Status FoldLogLocked(const std::string& path, Impl* locked);
 
   std::unique_ptr<Impl> impl_;
 };

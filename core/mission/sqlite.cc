@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <bit>
+#include <cctype>
 #include <limits>
 
 namespace saker::mission::sqlite {
@@ -22,6 +23,23 @@ Status SqliteStatus(int rc, const std::string& message) {
     default:
       return IoError(message);
   }
+}
+
+// `path` as an SQLite URI ("file:" and the path, percent-encoded but for unreserved bytes and '/').
+std::string FileUri(const std::string& path) {
+  static const char kHex[] = "0123456789ABCDEF";
+  std::string uri = "file:";
+  for (const char c : path) {
+    const auto byte = static_cast<unsigned char>(c);
+    if (std::isalnum(byte) != 0 || std::strchr("/-._~", c) != nullptr) {
+      uri += c;
+    } else {
+      uri += '%';
+      uri += kHex[byte >> 4];
+      uri += kHex[byte & 15];
+    }
+  }
+  return uri;
 }
 
 std::string ColumnName(sqlite3_stmt* stmt, int col) {
@@ -186,10 +204,12 @@ void RowReader::FailRow(const std::string& problem) {
 // ---------------------------------------------------------------------------------------------
 // Database.
 
-Status Database::Open(const std::string& path, int flags, int busy_timeout_ms) {
+Status Database::Open(const std::string& path, int flags, int busy_timeout_ms, bool immutable) {
   path_ = path;
   sqlite3* raw = nullptr;
-  const int rc = sqlite3_open_v2(path.c_str(), &raw, flags, nullptr);
+  const int rc = immutable ? sqlite3_open_v2((FileUri(path) + "?immutable=1").c_str(), &raw,
+                                             SQLITE_OPEN_READONLY | SQLITE_OPEN_URI, nullptr)
+                           : sqlite3_open_v2(path.c_str(), &raw, flags, nullptr);
   db_.reset(raw);  // closed on every path, even when the open failed
   if (rc != SQLITE_OK) return SqliteError(raw, rc, path, "cannot open");
   int status = sqlite3_extended_result_codes(get(), 0);

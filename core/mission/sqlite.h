@@ -198,7 +198,10 @@ class Database {
   // Opens `path` (sqlite3_open_v2 `flags`) and configures the connection: waits up to
   // `busy_timeout_ms` for another connection's lock, and keeps a hostile file within its own
   // content (defensive mode, untrusted schema, cell size checks). Closes any earlier connection.
-  Status Open(const std::string& path, int flags, int busy_timeout_ms);
+  // `immutable`: read-only, promising SQLite that nothing changes the file while it is open, so
+  // it takes no locks and makes no -wal / -shm files (read-only media; a one-off read of a file
+  // no job writes).
+  Status Open(const std::string& path, int flags, int busy_timeout_ms, bool immutable = false);
   void Close() { db_.reset(); }
 
   sqlite3* get() const { return db_.get(); }

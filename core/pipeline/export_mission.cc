@@ -174,11 +174,11 @@ Status CopyMission(const std::string& from, const std::string& to, bool replace,
   if (fs::exists(to, error)) {
     if (!replace) return InvalidArgumentError(to + ": a file is already there");
     // Only a mission is ever overwritten (as MissionStore::Create with replace).
-    SAKER_RETURN_IF_ERROR(mission::MissionStore::Open(to).status());
+    SAKER_RETURN_IF_ERROR(mission::MissionStore::Open(to, mission::OpenMode::kSnapshot).status());
   }
   mission::MissionStore::RemoveStaleTemporaries(to);
   SAKER_ASSIGN_OR_RETURN(const std::unique_ptr<mission::MissionStore> source,
-                         mission::MissionStore::Open(from));
+                         mission::MissionStore::Open(from, mission::OpenMode::kSnapshot));
   SAKER_ASSIGN_OR_RETURN(const mission::Mission mission, source->Load());
 
   // Built under a temporary name beside `to`, renamed into place when complete.

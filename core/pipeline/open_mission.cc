@@ -54,7 +54,7 @@ VideoLocation LocateVideo(const mission::SourceVideo& source, const std::string&
 
 StatusOr<OpenedMission> OpenMission(const std::string& path, const OpenMissionOptions& options) {
   SAKER_ASSIGN_OR_RETURN(const std::unique_ptr<mission::MissionStore> store,
-                         mission::MissionStore::Open(path));
+                         mission::MissionStore::Open(path, mission::OpenMode::kSnapshot));
   OpenedMission opened;
   SAKER_ASSIGN_OR_RETURN(opened.mission, store->Load());
   SAKER_ASSIGN_OR_RETURN(opened.tiles, store->CountTiles());
@@ -65,6 +65,7 @@ StatusOr<OpenedMission> OpenMission(const std::string& path, const OpenMissionOp
     if (checkpoint) opened.previews = std::move(checkpoint->key_frame_images);
   }
   opened.video = LocateVideo(opened.mission.source, path, options);
+  opened.read_only = !mission::MissionStore::IsWritable(path);
   return opened;
 }
 

@@ -43,6 +43,9 @@ struct OpenedMission {
   std::optional<CheckpointState> checkpoint;  // an interrupted job's
   std::vector<frontend::KeyFramePreview> previews;
   VideoLocation video;
+  // The file cannot be written here (read-only storage or permissions): a viewer says so, and
+  // no job can resume it in place.
+  bool read_only = false;
 };
 
 // Frames of `mission` that carry metadata: a KLV time stamp or a sensor position (only from
@@ -60,7 +63,8 @@ std::string DescribeMapFrame(const mission::Mission& mission);
 // empty for missions written before Saker counted it.
 std::string DescribeKlv(const mission::Mission& mission);
 
-// Opens the mission file at `path` read-only and locates its video: at the recorded path, at the
+// Opens the mission file at `path` read-only (a snapshot: nothing is left beside it; a mission on
+// read-only storage opens too) and locates its video: at the recorded path, at the
 // remembered place, then beside the mission file under the recorded name. Errors (the file is
 // missing, not a mission, damaged) name the file; a missing video is not an error.
 StatusOr<OpenedMission> OpenMission(const std::string& path,

@@ -3,9 +3,12 @@
 
 #include "tests/testing/test_data.h"
 
+#include <fcntl.h>
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
+#include <sys/file.h>
 #include <sys/wait.h>
+#include <unistd.h>
 
 #include <array>
 #include <cstdio>
@@ -288,6 +291,43 @@ TEST(CliMissionTest, ExportRefusesItsInputsAndWritesToStandardOutput) {
   for (const auto& entry : std::filesystem::directory_iterator(dir)) {
     EXPECT_EQ(entry.path().filename().string().find(".part-"), std::string::npos) << entry.path();
   }
+  std::filesystem::remove_all(dir);
+}
+
+// Two jobs on one mission (issue 29): while a job writes the mission (it holds the lock beside
+// it, docs/mission-file.md, held here by the test as that job), a second `process --replace` or
+// `--resume` is refused naming the writer's process, and leaves the mission as it was; `info`
+// still reads it. `info` and `export` leave no -wal/-shm beside a mission they read.
+TEST(CliMissionTest, ASecondJobOnAMissionBeingWrittenIsRefused) {
+  const std::filesystem::path dir = saker::testing::MakeTempDir("saker-cli-two-jobs");
+  const auto flight = SmallFlight(dir, /*process=*/true);
+  const std::string &video = flight.first, &mission = flight.second;
+  ASSERT_FALSE(mission.empty());
+  CliRun run;
+  const auto size = std::filesystem::file_size(mission);
+  run = RunCli("info '" + mission + "'");
+  EXPECT_EQ(run.exit_code, 0) << run.out;
+  run = RunCli("export '" + mission + "' --csv '" + (dir / "tracks.csv").string() + "'");
+  EXPECT_EQ(run.exit_code, 0) << run.out;
+  for (const char* side : {"-wal", "-shm"}) {
+    EXPECT_FALSE(std::filesystem::exists(mission + side)) << side << " left beside the mission";
+  }
+
+  const int lock = ::open((mission + ".lock").c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+  ASSERT_GE(lock, 0);
+  ASSERT_EQ(::flock(lock, LOCK_EX | LOCK_NB), 0);
+  const std::string pid = std::to_string(::getpid());
+  ASSERT_EQ(::write(lock, pid.data(), pid.size()), static_cast<ssize_t>(pid.size()));
+  for (const char* how : {"--replace", "--resume"}) {
+    run = RunCli("process -q '" + video + "' -o '" + mission + "' " + how);
+    EXPECT_EQ(run.exit_code, 1) << how << ": " << run.out;
+    EXPECT_NE(run.out.find("in use by process " + pid), std::string::npos)
+        << how << ": " << run.out;
+  }
+  EXPECT_EQ(std::filesystem::file_size(mission), size);
+  run = RunCli("info '" + mission + "'");  // readers are not blocked
+  EXPECT_EQ(run.exit_code, 0) << run.out;
+  ::close(lock);
   std::filesystem::remove_all(dir);
 }
 

@@ -879,7 +879,11 @@ TEST_F(MissionStoreTest, ReaderLoadsWhileAWriterIsOpen) {
   ASSERT_TRUE(tile.ok() && tile->has_value());
   EXPECT_EQ(**tile, (std::vector<uint8_t>{9, 8, 7}));
 
-  // A second writer store can take over the writing.
+  // A second writer is refused while the first one is open (its lock,
+  // mission/MissionAccessTest), and takes over the writing once it is closed.
+  EXPECT_EQ(MissionStore::Open(path.string(), OpenMode::kReadWrite).status().code(),
+            StatusCode::kIoError);
+  writer.reset();
   auto writer2 = MissionStore::Open(path.string(), OpenMode::kReadWrite);
   ASSERT_TRUE(writer2.ok()) << writer2.status().ToString();
   ASSERT_TRUE((*writer2)->Save(first).ok());

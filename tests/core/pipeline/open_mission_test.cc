@@ -141,5 +141,21 @@ TEST_F(OpenMissionTest, ANonMissionIsAnErrorNamingTheFile) {
       << opened.status().message();
 }
 
+// `saker-cli info` and the GUI only read: no -wal, -shm or lock file is left beside the mission.
+TEST_F(OpenMissionTest, LeavesNothingBesideTheMissionItReads) {
+  StatusOr<OpenedMission> opened = OpenMission(mission_path_);
+  ASSERT_TRUE(opened.ok()) << opened.status().ToString();
+  for (const char* suffix : {"-wal", "-shm", "-journal", ".lock"}) {
+    EXPECT_FALSE(fs::exists(mission_path_ + suffix)) << mission_path_ + suffix << " left behind";
+  }
+}
+
+TEST_F(OpenMissionTest, SaysWhetherTheMissionCanBeWritten) {
+  StatusOr<OpenedMission> opened = OpenMission(mission_path_);
+  ASSERT_TRUE(opened.ok()) << opened.status().ToString();
+  EXPECT_FALSE(opened->read_only);
+  // Read-only storage itself is tested in mission/MissionAccessTest, as a user who may not write.
+}
+
 }  // namespace
 }  // namespace saker::pipeline
