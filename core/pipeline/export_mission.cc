@@ -17,16 +17,16 @@ bool ExportRequest::empty() const {
   return png.empty() && geotiff.empty() && geojson.empty() && kml.empty() && csv.empty();
 }
 
-render::TileReader StoreTileReader(const mission::MissionStore& store) {
-  return [&store](int level, int x, int y) -> StatusOr<cv::Mat> {
+render::TileReader StoreTileReader(const mission::MissionStore& store, int tile_size) {
+  return [&store, tile_size](int level, int x, int y) -> StatusOr<cv::Mat> {
     SAKER_ASSIGN_OR_RETURN(const std::optional<std::vector<uint8_t>> bytes,
                            store.ReadTile(level, x, y));
     if (!bytes) return cv::Mat();
-    StatusOr<cv::Mat> tile = tiles::DecodeTile(*bytes);
+    StatusOr<cv::Mat> tile = tiles::DecodeTile(*bytes, tile_size);
     if (!tile.ok()) {
-      return InvalidDataError(store.path() + ": tile " + std::to_string(level) + "/" +
-                              std::to_string(x) + "/" + std::to_string(y) + ": " +
-                              tile.status().message());
+      return Status(tile.status().code(), store.path() + ": tile " + std::to_string(level) + "/" +
+                                              std::to_string(x) + "/" + std::to_string(y) + ": " +
+                                              tile.status().message());
     }
     return tile;
   };
@@ -44,8 +44,9 @@ StatusOr<std::vector<ExportedFile>> ExportMission(const mission::Mission& missio
   if (!request.png.empty()) {
     if (cancelled()) return CancelledError("export cancelled");
     progress(0);
-    StatusOr<render::ActivityMap> rendered =
-        render::RenderActivityMap(mission, StoreTileReader(store), request.map);
+    StatusOr<render::ActivityMap> rendered = render::RenderActivityMap(
+        mission, StoreTileReader(store, mission.pyramid ? mission.pyramid->tile_size : 0),
+        request.map);
     if (!rendered.ok()) {
       return Status(rendered.status().code(), store.path() + ": " + rendered.status().message());
     }
@@ -64,9 +65,11 @@ StatusOr<std::vector<ExportedFile>> ExportMission(const mission::Mission& missio
                                   ": the mission has no mosaic tiles (processed with --no-tiles, "
                                   "cancelled, or no key frame)");
     }
-    SAKER_ASSIGN_OR_RETURN(const exporting::GeoTiffReport report,
-                           exporting::ExportGeoTiff(mission.map, *mission.pyramid, request.level,
-                                                    StoreTileReader(store), request.geotiff));
+    SAKER_ASSIGN_OR_RETURN(
+        const exporting::GeoTiffReport report,
+        exporting::ExportGeoTiff(mission.map, *mission.pyramid, request.level,
+                                 StoreTileReader(store, mission.pyramid->tile_size),
+                                 request.geotiff));
     char fit[64] = "";
     if (mission.map.geo_referenced) {
       std::snprintf(fit, sizeof(fit), ", affine fit within %.3f m", report.max_fit_error_m);

@@ -33,8 +33,9 @@ struct ExportedFile {
   std::string what;
 };
 
-// The decoded tiles of an open mission; errors name the mission file and the tile.
-render::TileReader StoreTileReader(const mission::MissionStore& store);
+// The decoded tiles of an open mission whose pyramid has tiles of `tile_size` pixels (each tile's
+// PNG header is checked against it before decoding); errors name the mission file and the tile.
+render::TileReader StoreTileReader(const mission::MissionStore& store, int tile_size);
 
 // Writes what `request` asks for from `mission` (as loaded from `store`, whose tiles it reads;
 // the caller may have filtered its tracks). Stops at the first failure, whose message names the
