@@ -192,7 +192,7 @@ StatusOr<bool> DecodeImage(Reader& r, const std::string& where, frontend::KeyFra
   if (!(p->image.scale >= 1 && p->image.scale < 1e4)) return false;
   if (!png.empty()) {
     const int64_t max_pixels = video::ReaderOptions().max_pixels;
-    const tiles::ImageLimits limits{max_pixels, max_pixels, max_pixels};
+    const tiles::ImageLimits limits{int64_t{1} << 16, int64_t{1} << 16, max_pixels};
     StatusOr<cv::Mat> grey = tiles::DecodePng(png, cv::IMREAD_GRAYSCALE, limits);
     if (!grey.ok()) return Status(grey.status().code(), where + ": " + grey.status().message());
     p->image.grey = std::move(grey).value();

@@ -48,7 +48,9 @@ StatusOr<std::vector<ExportedFile>> ExportMission(const mission::Mission& missio
         mission, StoreTileReader(store, mission.pyramid ? mission.pyramid->tile_size : 0),
         request.map);
     if (!rendered.ok()) {
-      return Status(rendered.status().code(), store.path() + ": " + rendered.status().message());
+      const std::string& message = rendered.status().message();  // a tile's names the file
+      return Status(rendered.status().code(),
+                    message.rfind(store.path(), 0) == 0 ? message : store.path() + ": " + message);
     }
     const render::ActivityMap& map = *rendered;
     SAKER_RETURN_IF_ERROR(render::WritePicture(map.bgr, request.png));
