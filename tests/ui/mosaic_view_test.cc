@@ -626,7 +626,7 @@ TEST(TileCacheTest, DecompressionBombTileIsReportedNotDecoded) {
   mission::EncodedTile good;
   const std::filesystem::path path = WriteTwoTileMission(*m, &good);
   {
-    auto store = mission::MissionStore::Open(path.string());
+    auto store = mission::MissionStore::Open(path.string(), mission::OpenMode::kReadWrite);
     ASSERT_TRUE(store.ok());
     ASSERT_TRUE((*store)->WriteTiles({{0, 0, 0, saker::testing::PngBomb(40000, 40000)}}).ok());
   }
