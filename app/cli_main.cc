@@ -10,6 +10,7 @@
 #include "core/ingest/report.h"
 #include "core/ingest/video_scan.h"
 #include "core/util/check.h"
+#include "core/util/status.h"
 #include "core/video/video_reader.h"
 
 #include <CLI/CLI.hpp>
@@ -86,8 +87,9 @@ int main(int argc, char** argv) {
       "saker-cli: headless Saker, the analyst workstation for airborne video.\n"
       "Reads MPEG-TS / MPG / MP4 video (H.264, H.265, MPEG-2) with STANAG 4609 KLV metadata\n"
       "(MISB ST 0601 local set, MISB EG 0104 universal set).\n\n"
-      "Exit codes: 0 success, 1 the input could not be read (message on stderr),\n"
-      "2 bad command line, 3 internal error (please report it)."};
+      "Exit codes: 0 success, 1 the input could not be read or the job failed, out of memory\n"
+      "included (message on stderr), 2 bad command line, 3 internal error (please report it),\n"
+      "130 cancelled by Ctrl-C."};
   app.set_version_flag("--version", std::string("saker-cli ") + kVersion);
   app.require_subcommand(1);
 
@@ -172,6 +174,12 @@ int main(int argc, char** argv) {
   } catch (const saker::CheckError& e) {
     std::cerr << "saker-cli: internal error, please report it: " << e.what() << "\n";
     return kExitBug;
+  } catch (...) {
+    // Memory running out (std::bad_alloc, cv::Exception) or an unexpected exception: a message,
+    // never std::terminate. The mission keeps what its last commit holds.
+    const saker::Status status = saker::StatusFromCurrentException("saker-cli");
+    std::cerr << status.message() << "\n";
+    return status.code() == saker::StatusCode::kResourceExhausted ? kExitInputError : kExitBug;
   }
   return kExitOk;
 }

@@ -79,7 +79,8 @@ ProcessCommand::ProcessCommand(CLI::App& app) : state_(std::make_unique<State>()
   s.command
       ->add_option("--max-memory", s.options.front_end.max_memory_mib,
                    "Stop with an error, naming the frame reached, when Saker's memory exceeds this "
-                   "many MiB (default: three quarters of this machine's memory; 0: no limit)")
+                   "many MiB, or before decoding when the decoder and frame queues would take it "
+                   "over (default: three quarters of this machine's memory; 0: no limit)")
       ->capture_default_str()
       ->check(CLI::NonNegativeNumber);
 }

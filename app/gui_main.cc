@@ -1,5 +1,6 @@
 // saker: the analyst workstation GUI. A thin main(): all behaviour lives in ui/.
 
+#include "core/util/status.h"
 #include "core/video/video_reader.h"
 #include "ui/main_window.h"
 
@@ -55,13 +56,22 @@ int main(int argc, char** argv) {
                  "is set). On a headless machine use saker-cli, or run `xvfb-run -a saker`.\n";
     return 1;
   }
-  QApplication app(argc, argv);
-  SetIdentity();
+  try {
+    QApplication app(argc, argv);
+    SetIdentity();
 
-  // Damage is reported in the window; FFmpeg's own stderr chatter is noise here.
-  saker::video::SetFfmpegLogVerbose(false);
-  saker::ui::MainWindow window;
-  window.show();
-  if (!files.isEmpty()) window.openPath(files.front());
-  return app.exec();
+    // Damage is reported in the window; FFmpeg's own stderr chatter is noise here.
+    saker::video::SetFfmpegLogVerbose(false);
+    saker::ui::MainWindow window;
+    window.show();
+    if (!files.isEmpty()) window.openPath(files.front());
+    return app.exec();
+  } catch (...) {
+    // Jobs report their own exceptions (TaskRunner); one that reaches here (memory running out
+    // on the GUI thread) ends the window with a message rather than std::terminate. A mission
+    // keeps what its last commit holds. Exit codes as saker-cli's.
+    const saker::Status status = saker::StatusFromCurrentException("saker");
+    std::cerr << status.message() << "\n";
+    return status.code() == saker::StatusCode::kResourceExhausted ? 1 : 3;
+  }
 }

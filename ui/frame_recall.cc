@@ -1,5 +1,6 @@
 #include "ui/frame_recall.h"
 
+#include "core/util/status.h"
 #include "core/util/timer.h"
 #include "core/video/video_reader.h"
 
@@ -10,6 +11,7 @@
 #include <condition_variable>
 #include <exception>
 #include <mutex>
+#include <new>
 #include <optional>
 #include <string>
 #include <thread>
@@ -171,8 +173,8 @@ void FrameRecall::run() {
         bool warmed = false;
         try {
           warmed = warm_up();
-        } catch (const std::exception& error) {  // a broken invariant: report, never terminate
-          open_error = QString::fromUtf8(error.what());
+        } catch (...) {  // a broken invariant or no memory: report, never terminate
+          open_error = QString::fromStdString(StatusFromCurrentException(path).message());
         }
         if (warmed) {
           std::lock_guard<std::mutex> relock(shared.mutex);
@@ -213,12 +215,14 @@ void FrameRecall::run() {
       } else {
         // Convert straight into the QImage's buffer: one pass, no extra copy.
         image = QImage(frame->bgr.cols, frame->bgr.rows, QImage::Format_RGB888);
+        if (image.isNull()) throw std::bad_alloc();  // Qt could not allocate it
         cv::Mat rgb(image.height(), image.width(), CV_8UC3, image.bits(),
                     static_cast<size_t>(image.bytesPerLine()));
         cv::cvtColor(frame->bgr, rgb, cv::COLOR_BGR2RGB);
       }
-    } catch (const std::exception& exception) {
-      error = QString::fromUtf8(exception.what());
+    } catch (...) {
+      image = QImage();
+      error = QString::fromStdString(StatusFromCurrentException(path).message());
     }
     const double ms = timer.ElapsedMs();
     // A request for a video that has since been replaced answers nobody.

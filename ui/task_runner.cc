@@ -26,14 +26,14 @@ bool TaskRunner::start(const QString& title, Task task) {
     }
   });
   job_ = job;
-  thread_ = std::thread([this, job, task = std::move(task)] {
+  thread_ = std::thread([this, job, task = std::move(task), context = title.toStdString()] {
     Status status;
     try {
       status = task(job.get());
-    } catch (const std::exception& e) {
-      // The engine reports errors as Status; an exception is a bug, but it must not take the
-      // analyst's work down with it.
-      status = IoError(std::string("unexpected error: ") + e.what());
+    } catch (...) {
+      // The engine reports errors as Status; an exception is a bug or memory running out, but
+      // it must not take the analyst's work down with it.
+      status = StatusFromCurrentException(context);
     }
     mailbox_->post([this, status] {
       running_ = false;

@@ -2,11 +2,14 @@
 
 #include "core/mission/mission_store.h"
 #include "core/tiles/pyramid.h"
+#include "core/util/status.h"
 
 #include <condition_variable>
 #include <deque>
+#include <exception>
 #include <functional>
 #include <mutex>
+#include <new>
 #include <string>
 #include <thread>
 #include <utility>
@@ -26,8 +29,10 @@ bool SamePyramid(const std::optional<mission::PyramidInfo>& a,
 
 // QImage's ARGB32 is one 32-bit value per pixel (BGRA in memory only on little-endian machines):
 // packing each pixel is portable, and cheap next to the PNG decode.
+// A null image when Qt cannot allocate it (the caller reports that).
 QImage ImageFromBgra(const cv::Mat& bgra) {
   QImage image(bgra.cols, bgra.rows, QImage::Format_ARGB32);
+  if (image.isNull()) return image;
   for (int row = 0; row < bgra.rows; ++row) {
     const uint8_t* in = bgra.ptr<uint8_t>(row);
     auto* out = reinterpret_cast<QRgb*>(image.scanLine(row));
@@ -35,6 +40,25 @@ QImage ImageFromBgra(const cv::Mat& bgra) {
   }
   // Premultiplied is what the raster paint engine blends without converting on every paint.
   return image.convertToFormat(QImage::Format_ARGB32_Premultiplied);
+}
+
+// Reads and decodes one tile into `image` (null when the store has none); the error, or empty.
+// Never throws: an exception here would end the GUI (the worker is a std::thread).
+std::string LoadTile(const mission::MissionStore& store, const TileKey& key, int tile_size,
+                     QImage* image) {
+  try {
+    auto bytes = store.ReadTile(key.level, key.x, key.y);
+    if (!bytes.ok()) return bytes.status().message();
+    if (!bytes->has_value()) return {};
+    auto decoded = tiles::DecodeTile(**bytes, tile_size);
+    if (!decoded.ok()) return decoded.status().message();
+    *image = ImageFromBgra(*decoded);
+    if (image->isNull()) throw std::bad_alloc();  // Qt could not allocate it
+    return {};
+  } catch (...) {
+    *image = QImage();
+    return StatusFromCurrentException("").message();
+  }
 }
 
 // Bytes an entry counts against the budget; empty tiles count a little, so that the bookkeeping
@@ -54,6 +78,7 @@ struct TileCache::Shared {
   std::condition_variable wake;
   bool stop = false;
   std::string path;        // the mission file of `generation`
+  int tile_size = 0;       // its pyramid's
   quint64 generation = 0;  // bumped by every setMission
   std::deque<Request> queue;
   std::optional<Request> busy;  // being read now (not in `queue`)
@@ -69,6 +94,7 @@ void TileCache::runWorker(Shared* shared, const Deliver& deliver) {
     TileKey key;
     quint64 generation = 0;
     std::string path;
+    int tile_size = 0;
     {
       std::unique_lock lock(shared->mutex);
       shared->wake.wait(lock, [&] { return shared->stop || !shared->queue.empty(); });
@@ -80,6 +106,7 @@ void TileCache::runWorker(Shared* shared, const Deliver& deliver) {
       if (generation != shared->generation) continue;  // queued before a setMission
       shared->busy = request;
       path = shared->path;
+      tile_size = shared->tile_size;
     }
     if (store_generation != generation) {
       // A reload opens the file afresh, so new tiles and a replaced file are both seen.
@@ -95,19 +122,7 @@ void TileCache::runWorker(Shared* shared, const Deliver& deliver) {
     }
     QImage image;
     std::string error = open_error;
-    if (store) {
-      auto bytes = store->ReadTile(key.level, key.x, key.y);
-      if (!bytes.ok()) {
-        error = bytes.status().message();
-      } else if (bytes->has_value()) {
-        auto decoded = tiles::DecodeTile(**bytes);
-        if (decoded.ok()) {
-          image = ImageFromBgra(*decoded);
-        } else {
-          error = decoded.status().message();
-        }
-      }
-    }
+    if (store) error = LoadTile(*store, key, tile_size, &image);
     if (!error.empty() && error.find(path) == std::string::npos) {
       error = path + ": tile " + std::to_string(key.level) + "/" + std::to_string(key.x) + "/" +
               std::to_string(key.y) + ": " + error;
@@ -157,6 +172,7 @@ void TileCache::setMission(const QString& path, std::optional<mission::PyramidIn
     std::lock_guard lock(shared_->mutex);
     shared_->generation = generation_;
     shared_->path = path_.toStdString();
+    shared_->tile_size = pyramid_ ? pyramid_->tile_size : 0;
     shared_->queue.clear();
   }
   if (reload) {

@@ -30,8 +30,11 @@ namespace {
 // baseline + this lag (20 frames with the default baseline of 12: still within the 25 frames a
 // target lives on unseen).
 constexpr int64_t kChangeLagFrames = 8;
-// How often the memory limit is checked: reading /proc costs about 10 us.
-constexpr int64_t kMemoryCheckFrames = 25;
+// How often the memory limit is checked: reading /proc costs about 10 us. Every 25 frames of
+// 720p: every frame for pictures of this many pixels and more (8K).
+constexpr int64_t kMemoryCheckPixels = int64_t{25} * 1280 * 720;
+// FramePipelineBytes: the H.264 decoder keeps up to 16 reference pictures.
+constexpr int64_t kDecoderReferencePictures = 16;
 // The layout of the trackers' state in a checkpoint (FrontEndCheckpoint::state).
 constexpr uint32_t kStateLayout = 1;
 
@@ -53,21 +56,29 @@ class DecodeThread {
   DecodeThread(std::unique_ptr<video::VideoReader> reader, size_t queue_frames, int64_t pixels_from,
                const ingest::AlignmentOptions& alignment)
       : queue_(queue_frames) {
+    const std::string path = reader->info().path;
     ingest::ScanOptions scan_options;
     scan_options.alignment = alignment;
-    thread_ = std::thread([this, reader = std::move(reader), pixels_from, scan_options]() mutable {
-      Stopwatch watch;
-      scan_ =
-          ingest::ScanVideo(std::move(reader), scan_options, &job_, [&](const video::Frame& frame) {
-            video::Frame copy = frame;
-            // The reader reuses its buffers; a frame that is only decoded needs no pixels.
-            copy.grey = frame.index >= pixels_from ? frame.grey.clone() : cv::Mat();
-            decode_ms_ += watch.ElapsedMs();
-            if (!queue_.Push(std::move(copy))) job_.RequestCancel();
-            watch.Restart();
-          });
-      queue_.Close(scan_.ok() ? Status::Ok() : scan_.status());
-    });
+    thread_ =
+        std::thread([this, reader = std::move(reader), pixels_from, scan_options, path]() mutable {
+          // An exception must not leave this thread (std::terminate): out of memory while decoding
+          // is an error of the run like any other.
+          try {
+            Stopwatch watch;
+            scan_ = ingest::ScanVideo(
+                std::move(reader), scan_options, &job_, [&](const video::Frame& frame) {
+                  video::Frame copy = frame;
+                  // The reader reuses its buffers; a frame that is only decoded needs no pixels.
+                  copy.grey = frame.index >= pixels_from ? frame.grey.clone() : cv::Mat();
+                  decode_ms_ += watch.ElapsedMs();
+                  if (!queue_.Push(std::move(copy))) job_.RequestCancel();
+                  watch.Restart();
+                });
+          } catch (...) {
+            scan_ = StatusFromCurrentException(path + ": decoding");
+          }
+          queue_.Close(scan_.ok() ? Status::Ok() : scan_.status());
+        });
   }
   ~DecodeThread() {
     job_.RequestCancel();
@@ -163,7 +174,11 @@ class FrontEnd {
   Status Replay(const video::Frame& frame);
   std::vector<uint8_t> SaveState() const;
   void ReportProgress(double frames_done) const;
-  Status CheckMemory(const video::Frame& frame) const;
+  // Before decoding pictures of this size: the memory in use and what the frame pipeline may
+  // take for them (FramePipelineBytes, less what it holds for the previous size) must fit in the
+  // limit.
+  Status CheckMemoryBudget(int width, int height);
+  Status CheckMemory(const video::Frame& frame);
   Status ProcessFrame(const video::Frame& frame);
   std::optional<track::HomographyEstimate> EstimateGroundMotion(
       std::optional<Eigen::Vector3d>* epipole);
@@ -190,6 +205,7 @@ class FrontEnd {
   std::optional<TargetSeam> target_seam_;  // when resuming from an incomplete checkpoint
   ChainSeam chain_seam_;
   double expected_frames_ = 1;  // for progress only
+  cv::Size budget_size_;        // the picture size CheckMemoryBudget last checked
 
   FrontEndResult result_;
   std::vector<track::TargetTrack> targets_by_change_;
@@ -245,6 +261,8 @@ FrontEnd::FrontEnd(std::unique_ptr<video::VideoReader> reader, const FrontEndOpt
 }
 
 StatusOr<FrontEndResult> FrontEnd::Run() {
+  // Before the decoder and the queues allocate anything of the video's size.
+  SAKER_RETURN_IF_ERROR(CheckMemoryBudget(result_.video.width, result_.video.height));
   SAKER_RETURN_IF_ERROR(StartFromCheckpoint());
   DecodeThread decode(std::move(reader_), static_cast<size_t>(options_.queue_frames),
                       start_.warm_from, options_.metadata);
@@ -358,8 +376,34 @@ void FrontEnd::ReportProgress(double frames_done) const {
   }
 }
 
-Status FrontEnd::CheckMemory(const video::Frame& frame) const {
-  if (options_.max_memory_mib <= 0 || frame.index % kMemoryCheckFrames != 0) return Status::Ok();
+Status FrontEnd::CheckMemoryBudget(int width, int height) {
+  // What the pipeline holds for the previous size is in the resident memory already.
+  const int64_t held = options_.FramePipelineBytes(budget_size_.width, budget_size_.height);
+  budget_size_ = cv::Size(width, height);
+  if (options_.max_memory_mib <= 0) return Status::Ok();
+  const int64_t resident_mib = ResidentMemoryBytes() / (1024 * 1024);
+  const int64_t needed = options_.FramePipelineBytes(width, height);
+  const int64_t needed_mib = needed / (1024 * 1024);
+  const int64_t more_mib = std::max<int64_t>(0, needed - held) / (1024 * 1024);
+  if (resident_mib + more_mib <= options_.max_memory_mib) return Status::Ok();
+  return ResourceExhaustedError(
+      path_ + ": processing stopped before decoding pictures of " + std::to_string(width) + "x" +
+      std::to_string(height) + ": decoding them and queueing the frames needs up to " +
+      std::to_string(needed_mib) + " MiB, which with the " + std::to_string(resident_mib) +
+      " MiB Saker is using is over its memory limit of " + std::to_string(options_.max_memory_mib) +
+      " MiB. Raise the limit (--max-memory) or process a smaller video.");
+}
+
+Status FrontEnd::CheckMemory(const video::Frame& frame) {
+  if (options_.max_memory_mib <= 0) return Status::Ok();
+  if (!frame.grey.empty() &&
+      (frame.grey.cols != budget_size_.width || frame.grey.rows != budget_size_.height)) {
+    // The picture size changed mid-stream: the queues will fill with frames of the new size.
+    SAKER_RETURN_IF_ERROR(CheckMemoryBudget(frame.grey.cols, frame.grey.rows));
+  }
+  const int64_t pixels = std::max<int64_t>(1, frame.grey.total());
+  const int64_t interval = std::max<int64_t>(1, kMemoryCheckPixels / pixels);
+  if (frame.index % interval != 0) return Status::Ok();
   const int64_t resident_mib = ResidentMemoryBytes() / (1024 * 1024);
   if (resident_mib <= options_.max_memory_mib) return Status::Ok();
   std::ostringstream message;
@@ -653,6 +697,17 @@ video::ReaderOptions FrontEndOptions::EffectiveReader() const {
   return reader;
 }
 
+int64_t FrontEndOptions::FramePipelineBytes(int width, int height) const {
+  const int64_t pixels = static_cast<int64_t>(std::max(width, 0)) * std::max(height, 0);
+  const int64_t threads = decoder_threads > 0
+                              ? decoder_threads
+                              : std::min<int64_t>(16, std::thread::hardware_concurrency() + 1);
+  const int64_t decoder_pictures = kDecoderReferencePictures + 1 + threads;
+  // Queued for the tracker, for change detection, waiting for its answers; current and previous.
+  const int64_t grey_frames = queue_frames + change_queue_frames + kChangeLagFrames + 2;
+  return pixels * 3 / 2 * decoder_pictures + pixels * grey_frames;
+}
+
 track::TrackerOptions FrontEndOptions::EffectiveTracker() const {
   track::TrackerOptions effective = tracker;
   effective.keep_finished = false;
@@ -720,8 +775,16 @@ StatusOr<FrontEndResult> RunFrontEnd(std::unique_ptr<video::VideoReader> reader,
       << ": the front end needs a reader opened with FrontEndOptions::EffectiveReader() and not "
          "yet read from";
   SAKER_RETURN_IF_ERROR(ValidateRun(reader->info().path, options, resume));
+  const std::string path = reader->info().path;
   FrontEnd front_end(std::move(reader), options, job, resume);
-  return front_end.Run();
+  try {
+    return front_end.Run();
+  } catch (const CheckError&) {
+    throw;  // a bug: reported as one by the caller
+  } catch (...) {
+    // Out of memory on this thread or the change detection thread: an error naming the video.
+    return StatusFromCurrentException(path + ": processing stopped");
+  }
 }
 
 }  // namespace saker::frontend

@@ -71,7 +71,9 @@ struct FrontEndOptions {
   // The process's resident memory allowed while the front end runs, MiB (0: no limit; the
   // pipeline and saker-cli default to util's DefaultMemoryLimitMiB). Beyond it the front end stops
   // with a ResourceExhausted error that names the video and the frame, rather than let the
-  // machine run out of memory. Checked every 25 frames.
+  // machine run out of memory. Checked before decoding (the memory in use plus
+  // FramePipelineBytes() for the video's picture size must fit), then every 25 frames of 720p
+  // (every frame from 23 megapixels on, 8K).
   int64_t max_memory_mib = 0;
   // Called on the calling thread with each new key frame (needs key_frame_image_width > 0).
   std::function<void(const KeyFramePreview&)> on_key_frame;
@@ -94,6 +96,11 @@ struct FrontEndOptions {
   video::ReaderOptions EffectiveReader() const;
   track::TrackerOptions EffectiveTracker() const;
   track::TargetTrackOptions EffectiveTargets() const;
+  // The most memory the decoder and the frame queues can hold for pictures of `width` x `height`,
+  // bytes: the decoder's pictures (4:2:0, up to 16 references, one being decoded and one per
+  // decoder thread) and the grey frames queued for the tracker and change detection or held
+  // until change detection answers. An upper bound, so that the limit is never overshot.
+  int64_t FramePipelineBytes(int width, int height) const;
 };
 
 // What the front end found about one frame.

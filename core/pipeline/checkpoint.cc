@@ -1,5 +1,8 @@
 #include "core/pipeline/checkpoint.h"
 
+#include "core/tiles/image_decode.h"
+#include "core/video/video_reader.h"
+
 #include <opencv2/imgcodecs.hpp>
 
 #include <cstring>
@@ -176,7 +179,10 @@ StatusOr<std::vector<uint8_t>> EncodeImage(const frontend::KeyFramePreview& p) {
   return w.Take();
 }
 
-bool DecodeImage(Reader& r, frontend::KeyFramePreview* p) {
+// `where` names the record. A key frame image is a downscaled copy of a video frame, so its PNG
+// may declare no more pixels than the largest picture the video reader accepts; the header is
+// checked before anything is decoded (a decompression bomb is refused, not allocated).
+StatusOr<bool> DecodeImage(Reader& r, const std::string& where, frontend::KeyFramePreview* p) {
   int32_t id = 0;
   std::vector<uint8_t> png;
   if (!r.Get(&id) || !r.Get(&p->image.frame_index) || !r.Get(&p->image.scale) ||
@@ -186,8 +192,11 @@ bool DecodeImage(Reader& r, frontend::KeyFramePreview* p) {
   p->image.id = static_cast<track::KeyFrameId>(id);
   if (!(p->image.scale >= 1 && p->image.scale < 1e4)) return false;
   if (!png.empty()) {
-    p->image.grey = cv::imdecode(png, cv::IMREAD_GRAYSCALE);
-    if (p->image.grey.empty()) return false;
+    const int64_t max_pixels = video::ReaderOptions().max_pixels;
+    const tiles::ImageLimits limits{int64_t{1} << 16, int64_t{1} << 16, max_pixels};
+    StatusOr<cv::Mat> grey = tiles::DecodePng(png, cv::IMREAD_GRAYSCALE, limits);
+    if (!grey.ok()) return Status(grey.status().code(), where + ": " + grey.status().message());
+    p->image.grey = std::move(grey).value();
   }
   return true;
 }
@@ -390,7 +399,8 @@ StatusOr<std::optional<frontend::FrontEndCheckpoint>> ReadCheckpoint(
     } else if (kind == kKeyFrame) {
       ok = DecodeKeyFrame(r, &c.key_frames.emplace_back());
     } else if (kind == kImage) {
-      ok = DecodeImage(r, &c.key_frame_images.emplace_back());
+      const std::string record_name = where + " record " + kind + " " + std::to_string(record.key);
+      SAKER_ASSIGN_OR_RETURN(ok, DecodeImage(r, record_name, &c.key_frame_images.emplace_back()));
     } else if (kind == kLink) {
       ok = DecodeLink(r, &c.links.emplace_back());
     } else if (kind == kBreak) {

@@ -18,16 +18,16 @@ bool ExportRequest::empty() const {
   return png.empty() && geotiff.empty() && geojson.empty() && kml.empty() && csv.empty();
 }
 
-render::TileReader StoreTileReader(const mission::MissionStore& store) {
-  return [&store](int level, int x, int y) -> StatusOr<cv::Mat> {
+render::TileReader StoreTileReader(const mission::MissionStore& store, int tile_size) {
+  return [&store, tile_size](int level, int x, int y) -> StatusOr<cv::Mat> {
     SAKER_ASSIGN_OR_RETURN(const std::optional<std::vector<uint8_t>> bytes,
                            store.ReadTile(level, x, y));
     if (!bytes) return cv::Mat();
-    StatusOr<cv::Mat> tile = tiles::DecodeTile(*bytes);
+    StatusOr<cv::Mat> tile = tiles::DecodeTile(*bytes, tile_size);
     if (!tile.ok()) {
-      return InvalidDataError(store.path() + ": tile " + std::to_string(level) + "/" +
-                              std::to_string(x) + "/" + std::to_string(y) + ": " +
-                              tile.status().message());
+      return Status(tile.status().code(), store.path() + ": tile " + std::to_string(level) + "/" +
+                                              std::to_string(x) + "/" + std::to_string(y) + ": " +
+                                              tile.status().message());
     }
     return tile;
   };
@@ -110,7 +110,8 @@ StatusOr<std::vector<ExportedFile>> ExportMission(const mission::Mission& missio
   std::vector<ExportedFile> written;
   const auto cancelled = [&] { return job != nullptr && job->IsCancelled(); };
   // Cancelling stops a long picture or GeoTIFF between two tiles (its temporary is removed).
-  const render::TileReader stored = StoreTileReader(store);
+  const render::TileReader stored =
+      StoreTileReader(store, mission.pyramid ? mission.pyramid->tile_size : 0);
   const render::TileReader read_tile = [&](int level, int x, int y) -> StatusOr<cv::Mat> {
     if (cancelled()) return CancelledError("export cancelled");
     return stored(level, x, y);
@@ -125,7 +126,9 @@ StatusOr<std::vector<ExportedFile>> ExportMission(const mission::Mission& missio
     StatusOr<render::ActivityMap> rendered =
         render::RenderActivityMap(mission, read_tile, request.map);
     if (!rendered.ok()) {
-      return Status(rendered.status().code(), store.path() + ": " + rendered.status().message());
+      const std::string& message = rendered.status().message();  // a tile's names the file
+      return Status(rendered.status().code(),
+                    message.rfind(store.path(), 0) == 0 ? message : store.path() + ": " + message);
     }
     const render::ActivityMap& map = *rendered;
     SAKER_RETURN_IF_ERROR(render::WritePicture(map.bgr, request.png));

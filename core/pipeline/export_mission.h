@@ -33,8 +33,9 @@ struct ExportedFile {
   std::string what;
 };
 
-// The decoded tiles of an open mission; errors name the mission file and the tile.
-render::TileReader StoreTileReader(const mission::MissionStore& store);
+// The decoded tiles of an open mission whose pyramid has tiles of `tile_size` pixels (each tile's
+// PNG header is checked against it before decoding); errors name the mission file and the tile.
+render::TileReader StoreTileReader(const mission::MissionStore& store, int tile_size);
 
 // The longest side a mission's mosaic may declare: the largest the tile planner makes
 // (tiles::PyramidOptions::max_side_px).

@@ -235,6 +235,7 @@ StatusOr<ActivityMap> RenderActivityMap(const mission::Mission& mission, const T
                                            mission.map.geo_referenced);
   const int width_px = std::max(1, static_cast<int>(std::lround(options.line_width * ui)));
   for (const mission::ActivityTrack& track : shown_copy) {
+    if (track.points.empty()) continue;  // a mission may hold a track without points: no line
     std::vector<cv::Point> line;
     for (const mission::TrackPoint& p : track.points) {
       line.push_back(Fixed((out.image_from_map * p.map.homogeneous()).hnormalized()));

@@ -1,5 +1,6 @@
 #include "core/tiles/pyramid.h"
 
+#include "core/tiles/image_decode.h"
 #include "core/util/statistics.h"
 #include "core/util/timer.h"
 
@@ -238,8 +239,9 @@ class Renderer {
 }  // namespace
 
 Status PyramidOptions::Validate() const {
-  if (tile_size < 16 || tile_size > 4096) {
-    return InvalidArgumentError("mosaic tiles: tile_size must be 16..4096 pixels");
+  if (tile_size < 16 || tile_size > kMaxTileSize) {
+    return InvalidArgumentError("mosaic tiles: tile_size must be 16.." +
+                                std::to_string(kMaxTileSize) + " pixels");
   }
   if (!(map_units_per_px >= 0) || !std::isfinite(map_units_per_px)) {
     return InvalidArgumentError("mosaic tiles: map_units_per_px must be >= 0");
@@ -324,11 +326,18 @@ StatusOr<RenderSummary> RenderPyramid(const std::vector<KeyFrameView>& frames, i
   return summary;
 }
 
-StatusOr<cv::Mat> DecodeTile(const std::vector<uint8_t>& bytes) {
+StatusOr<cv::Mat> DecodeTile(const std::vector<uint8_t>& bytes, int tile_size) {
   if (bytes.empty()) return InvalidDataError("mosaic tile: no bytes");
-  cv::Mat tile = cv::imdecode(bytes, cv::IMREAD_UNCHANGED);
-  if (tile.empty() || tile.type() != CV_8UC4) {
-    return InvalidDataError("mosaic tile: not a BGRA PNG image");
+  if (tile_size < 1 || tile_size > kMaxTileSize) {
+    return InvalidDataError("mosaic tile: the pyramid's tile size " + std::to_string(tile_size) +
+                            " is outside 1.." + std::to_string(kMaxTileSize));
+  }
+  const ImageLimits limits{tile_size, tile_size, static_cast<int64_t>(tile_size) * tile_size};
+  StatusOr<cv::Mat> tile = DecodePng(bytes, cv::IMREAD_UNCHANGED, limits);
+  if (!tile.ok()) return Status(tile.status().code(), "mosaic tile: " + tile.status().message());
+  if (tile->type() != CV_8UC4 || tile->cols != tile_size || tile->rows != tile_size) {
+    return InvalidDataError("mosaic tile: not a " + std::to_string(tile_size) + "x" +
+                            std::to_string(tile_size) + " BGRA PNG image");
   }
   return tile;
 }

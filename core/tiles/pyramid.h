@@ -26,8 +26,11 @@ struct KeyFrameView {
   Eigen::Matrix3d map_from_frame = Eigen::Matrix3d::Identity();  // full-resolution pixels
 };
 
+// The largest tile side PyramidOptions admits (a 64 MiB BGRA tile); a stored tile never exceeds it.
+inline constexpr int kMaxTileSize = 4096;
+
 struct PyramidOptions {
-  int tile_size = 256;          // pixels per tile side
+  int tile_size = 256;          // pixels per tile side, 16..kMaxTileSize
   double map_units_per_px = 0;  // level 0 resolution; 0: the key frames' median resolution
   int max_side_px = 32768;      // level 0's longer side at most (coarsens the resolution)
   int png_compression = 1;      // 0-9: fast by default (tiles are written often)
@@ -59,8 +62,10 @@ StatusOr<RenderSummary> RenderPyramid(const std::vector<KeyFrameView>& frames, i
                                       const PyramidOptions& options, const TileSink& write,
                                       JobContext* job = nullptr);
 
-// Decodes a tile written by RenderPyramid: CV_8UC4 BGRA. InvalidData when the bytes are not an
-// image of that kind.
-StatusOr<cv::Mat> DecodeTile(const std::vector<uint8_t>& bytes);
+// Decodes a tile written by RenderPyramid for a pyramid of `tile_size` (PyramidInfo::tile_size):
+// CV_8UC4 BGRA, tile_size x tile_size. InvalidData when the bytes are not an image of that kind,
+// before anything is decoded when the PNG header declares another size or the tile size is
+// beyond kMaxTileSize (a decompression bomb); ResourceExhausted when memory runs out.
+StatusOr<cv::Mat> DecodeTile(const std::vector<uint8_t>& bytes, int tile_size);
 
 }  // namespace saker::tiles

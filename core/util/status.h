@@ -23,7 +23,8 @@ enum class StatusCode {
   kIoError,            // The operating system or a library failed to read or write.
   kCancelled,          // The job was cancelled by the user.
   kOutOfRange,         // Seek or lookup past the end.
-  kResourceExhausted,  // A configured limit (memory, size) would be exceeded.
+  kResourceExhausted,  // A configured limit (memory, size) would be exceeded, or memory ran out.
+  kInternal,           // An unexpected exception (a bug) caught at a thread or process boundary.
 };
 
 const char* StatusCodeName(StatusCode code);
@@ -57,6 +58,7 @@ inline Status UnsupportedError(std::string m) { return {StatusCode::kUnsupported
 inline Status IoError(std::string m) { return {StatusCode::kIoError, std::move(m)}; }
 inline Status CancelledError(std::string m) { return {StatusCode::kCancelled, std::move(m)}; }
 inline Status OutOfRangeError(std::string m) { return {StatusCode::kOutOfRange, std::move(m)}; }
+inline Status InternalError(std::string m) { return {StatusCode::kInternal, std::move(m)}; }
 inline Status ResourceExhaustedError(std::string m) {
   return {StatusCode::kResourceExhausted, std::move(m)};
 }
@@ -95,6 +97,13 @@ class [[nodiscard]] StatusOr {
  private:
   std::variant<T, Status> data_;
 };
+
+// The Status for the exception being handled: call it in a `catch (...)` block where an exception
+// must not go further (a thread's or a process's outermost frame, the engine's boundary).
+// ResourceExhausted ("out of memory") for std::bad_alloc, OpenCV's failed allocations and a
+// thread that could not be started; kInternal (a bug), with the exception's text, for any other.
+// `context` starts the message (the file or the job).
+Status StatusFromCurrentException(const std::string& context);
 
 }  // namespace saker
 

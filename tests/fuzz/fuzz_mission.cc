@@ -2,7 +2,9 @@
 // private temporary directory (on /dev/shm when available, to spare the disk) and opened with
 // MissionStore::Open, read-only and then read-write (which may upgrade a version 1 file in
 // place), loading everything the store offers: the header, frames, key frames, links, tracks and
-// their points, and the tiles of the pyramid the header declares.
+// their points, and the tiles of the pyramid the header declares, decoded as the GUI and the
+// exports decode them (tiles::DecodeTile, whose PNG size is checked before decoding), and an
+// unfinished job's checkpoint with its key frame images (pipeline::ReadCheckpoint).
 //
 // The input is used two ways:
 //   - an input that starts with the SQLite header ("SQLite format 3\0") is the file itself:
@@ -19,7 +21,10 @@
 
 #include "core/mission/mission.h"
 #include "core/mission/mission_store.h"
+#include "core/pipeline/checkpoint.h"
+#include "core/tiles/pyramid.h"
 #include "tests/core/mission/mission_fixtures.h"
+#include "tests/testing/png_bomb.h"
 
 #include <sqlite3.h>
 #include <unistd.h>
@@ -84,12 +89,19 @@ void LoadEverything(const mission::MissionStore& store, const std::string& path)
   ExpectNamesFile(loaded.status(), path);
   auto count = store.CountTiles();
   ExpectNamesFile(count.status(), path);
-  // A few tiles of each declared level (the store has no listing; the viewer asks like this).
+  // A few tiles of each declared level (the store has no listing; the viewer asks like this),
+  // decoded: a decompression bomb must be refused from its header, never allocated.
   if (loaded.ok() && loaded->pyramid) {
     const int levels = std::clamp(loaded->pyramid->levels, 0, 4);
     for (int level = 0; level < levels; ++level) {
       for (int y = 0; y < 2; ++y) {
-        for (int x = 0; x < 2; ++x) ExpectNamesFile(store.ReadTile(level, x, y).status(), path);
+        for (int x = 0; x < 2; ++x) {
+          const auto tile = store.ReadTile(level, x, y);
+          ExpectNamesFile(tile.status(), path);
+          if (tile.ok() && tile->has_value()) {
+            static_cast<void>(tiles::DecodeTile(**tile, loaded->pyramid->tile_size));
+          }
+        }
       }
     }
   }
@@ -98,6 +110,7 @@ void LoadEverything(const mission::MissionStore& store, const std::string& path)
   // An unfinished job's checkpoint records (their content is pipeline/checkpoint's, tested in
   // tests/core/pipeline/checkpoint_test.cc).
   ExpectNamesFile(store.ReadCheckpoint().status(), path);
+  ExpectNamesFile(pipeline::ReadCheckpoint(store).status(), path);
 }
 
 void WriteFile(const fs::path& path, const uint8_t* data, size_t size) {
@@ -122,7 +135,13 @@ const EditBase& Base() {
       if (!store.ok()) Fail("cannot create the base mission");
       mission::Mission m = mission::testing_support::MakeFullMission();
       if (!(*store)->Save(m).ok()) Fail("cannot save the base mission");
-      if (!(*store)->WriteTiles({{0, 0, 0, {1, 2, 3}}, {1, 0, 0, {4}}}).ok()) {
+      // Tiles the edits can swap: bytes that are no image, and decompression bombs.
+      if (!(*store)
+               ->WriteTiles({{0, 0, 0, {1, 2, 3}},
+                             {1, 0, 0, {4}},
+                             {0, 1, 0, saker::testing::PngBomb(40000, 40000)},
+                             {0, 0, 1, saker::testing::PngBomb(16384, 16384)}})
+               .ok()) {
         Fail("cannot write the base tiles");
       }
     }  // closing checkpoints the write-ahead log into the file

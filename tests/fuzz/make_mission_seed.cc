@@ -1,20 +1,53 @@
 // Writes a small but complete mission file (every table filled, every link kind, tracks with and
-// without points, a few tiles) as a seed for fuzz_mission: `make_mission_seed OUT.saker
-// [ANTIMERIDIAN.saker]`; the second, when named, is the same mission flown over the antimeridian
-// (its map origin and sensor positions either side of 180 degrees).
-// Built from the mission tests' fixture, so the seed follows the schema as it evolves.
-// Beside it, the same mission declaring absurd mosaic sizes over its few tiles
-// (OUT-absurd-<side>.saker, side 100,000 and 1,000,000 pixels: issue 29 item 10, where such a file
-// kept `export --geotiff` busy for hours).
+// without points, a few tiles, decompression bomb tiles, and a checkpoint whose key frame image is
+// a bomb) as a seed for fuzz_mission: `make_mission_seed OUT.saker [ANTIMERIDIAN.saker]`; the
+// second, when named, is the same mission flown over the antimeridian (its map origin and sensor
+// positions either side of 180 degrees). Built from the mission tests' fixture, so the seed
+// follows the schema as it evolves. Beside it, the same mission declaring absurd mosaic sizes over
+// its few tiles (OUT-absurd-<side>.saker, side 100,000 and 1,000,000 pixels: issue 29 item 10,
+// where such a file kept `export --geotiff` busy for hours).
 
 #include "core/mission/mission_store.h"
 #include "tests/core/mission/mission_fixtures.h"
+#include "tests/testing/png_bomb.h"
 
 #include <algorithm>
 #include <cstdint>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <string>
+#include <vector>
+
+namespace {
+
+template <typename T>
+void Put(T value, std::vector<uint8_t>* out) {
+  const size_t at = out->size();
+  out->resize(at + sizeof(T));
+  std::memcpy(out->data() + at, &value, sizeof(T));
+}
+
+// An unfinished job's checkpoint as pipeline/checkpoint.cc writes it (docs/mission-file.md): the
+// state, and key frame 0's image, whose PNG header claims 40000 x 40000 pixels.
+std::vector<saker::mission::CheckpointRecord> BombCheckpoint() {
+  std::vector<uint8_t> state;
+  Put<uint32_t>(1, &state);  // version
+  Put<int64_t>(0, &state);   // through frame
+  Put<uint8_t>(0, &state);   // not complete
+  Put<int64_t>(-1, &state);  // change detection through frame
+  std::vector<uint8_t> image;
+  Put<int32_t>(0, &image);                                                  // key frame id
+  Put<int64_t>(0, &image);                                                  // frame
+  Put<double>(2.0, &image);                                                 // scale
+  for (int i = 0; i < 9; ++i) Put<double>(i % 4 == 0 ? 1.0 : 0.0, &image);  // identity
+  const std::vector<uint8_t> bomb = saker::testing::PngBomb(40000, 40000);
+  Put<uint64_t>(bomb.size(), &image);
+  image.insert(image.end(), bomb.begin(), bomb.end());
+  return {{"state", 0, state}, {"key_frame_image", 0, image}};
+}
+
+}  // namespace
 
 namespace {
 
@@ -53,8 +86,11 @@ int WriteSeed(const std::string& path, Mission mission, int side) {
   if (saved.ok()) {
     saved = (*store)->WriteTiles({{0, 0, 0, {0x89, 'P', 'N', 'G', 1, 2, 3}},
                                   {0, 1, 0, {0xFF, 0xD8, 0xFF, 4, 5}},
+                                  {0, 0, 1, saker::testing::PngBomb(40000, 40000)},
+                                  {0, 1, 1, saker::testing::PngBomb(16384, 16384)},
                                   {1, 0, 0, {6, 7, 8, 9}}});
   }
+  if (saved.ok()) saved = (*store)->WriteCheckpoint(BombCheckpoint());
   if (!saved.ok()) {
     std::fprintf(stderr, "%s\n", saved.ToString().c_str());
     return 1;

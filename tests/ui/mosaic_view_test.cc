@@ -14,6 +14,7 @@
 #include "core/track/homography.h"
 #include "core/track/image_geometry.h"
 #include "core/video/video_reader.h"
+#include "tests/testing/png_bomb.h"
 #include "tests/testing/test_data.h"
 #include "tests/ui/ui_testing.h"
 #include "ui/tile_cache.h"
@@ -614,6 +615,33 @@ TEST(TileCacheTest, MissingTileIsEmptyAndBadTileReportedOnce) {
   cache.request(0, 0, 0);
   ASSERT_TRUE(failed.wait(10000));
   EXPECT_EQ(failed.count(), 2);
+}
+
+// A tile whose PNG header claims 40000 x 40000 pixels (a 100-byte decompression bomb) ended the
+// GUI: cv::imdecode threw on the cache's worker thread. It is reported, naming the file, and the
+// cache goes on serving the other tiles.
+TEST(TileCacheTest, DecompressionBombTileIsReportedNotDecoded) {
+  const testing::TestMission* m = SmallMission();
+  ASSERT_NE(m, nullptr);
+  mission::EncodedTile good;
+  const std::filesystem::path path = WriteTwoTileMission(*m, &good);
+  {
+    auto store = mission::MissionStore::Open(path.string(), mission::OpenMode::kReadWrite);
+    ASSERT_TRUE(store.ok());
+    ASSERT_TRUE((*store)->WriteTiles({{0, 0, 0, saker::testing::PngBomb(40000, 40000)}}).ok());
+  }
+  TileCache cache;
+  QSignalSpy failed(&cache, &TileCache::failed);
+  QSignalSpy ready(&cache, &TileCache::tileReady);
+  cache.setMission(QString::fromStdString(path.string()), m->loaded.pyramid);
+  cache.request(0, 0, 0);
+  ASSERT_TRUE(failed.wait(10000));
+  const QString message = failed.at(0).at(0).toString();
+  EXPECT_TRUE(message.contains("two.saker")) << message.toStdString();
+  EXPECT_TRUE(message.contains("40000x40000")) << message.toStdString();
+  EXPECT_EQ(cache.state(0, 0, 0), TileCache::State::kEmpty);
+  cache.request(good.level, 0, 0);
+  ASSERT_TRUE(WaitUntil([&] { return !cache.tile(good.level, 0, 0).isNull(); }));
 }
 
 TEST(TileCacheTest, NewestRequestsWinAndBudgetEvicts) {

@@ -14,6 +14,7 @@
 #include <atomic>
 #include <chrono>
 #include <memory>
+#include <new>
 #include <optional>
 #include <stdexcept>
 #include <thread>
@@ -140,6 +141,23 @@ TEST(TaskRunnerTest, AnExceptionInTheJobBecomesAnError) {
   EXPECT_FALSE(received.finished->ok());
   EXPECT_NE(received.finished->message().find("disk on fire"), std::string::npos)
       << received.finished->ToString();
+}
+
+// Memory running out in a job (std::bad_alloc) is an error saying so; an exception that is no
+// std::exception ended the GUI (std::terminate on the worker thread).
+TEST(TaskRunnerTest, OutOfMemoryAndUnknownExceptionsBecomeErrors) {
+  TaskRunner runner;
+  Received received;
+  Record(&runner, &received);
+  ASSERT_TRUE(runner.start("process", [](JobContext*) -> Status { throw std::bad_alloc(); }));
+  ASSERT_TRUE(WaitUntil([&] { return received.finished.has_value(); }));
+  EXPECT_EQ(received.finished->code(), StatusCode::kResourceExhausted);
+  EXPECT_NE(received.finished->message().find("out of memory"), std::string::npos)
+      << received.finished->ToString();
+  received.finished.reset();
+  ASSERT_TRUE(runner.start("export", [](JobContext*) -> Status { throw 42; }));
+  ASSERT_TRUE(WaitUntil([&] { return received.finished.has_value(); }));
+  EXPECT_EQ(received.finished->code(), StatusCode::kInternal);
 }
 
 TEST(TaskRunnerTest, DestroyingWhileRunningCancelsAndWaitsForTheJob) {

@@ -7,6 +7,7 @@
 #include "core/sim/simulator.h"
 #include "core/sim/truth.h"
 #include "core/util/check.h"
+#include "core/util/memory.h"
 #include "core/video/video_reader.h"
 #include "tests/testing/test_data.h"
 
@@ -147,7 +148,8 @@ TEST_F(FrontEndTest, MemoryLimitStopsWithAClearMessage) {
   ASSERT_FALSE(stopped.ok());
   EXPECT_EQ(stopped.status().code(), StatusCode::kResourceExhausted);
   EXPECT_NE(stopped.status().message().find(video), std::string::npos);
-  EXPECT_NE(stopped.status().message().find("stopped at frame 0"), std::string::npos);
+  EXPECT_NE(stopped.status().message().find("stopped before decoding"), std::string::npos)
+      << stopped.status().message();
   EXPECT_NE(stopped.status().message().find("memory limit of 1 MiB"), std::string::npos);
 
   options.max_memory_mib = 1 << 20;  // 1 TiB
@@ -156,6 +158,33 @@ TEST_F(FrontEndTest, MemoryLimitStopsWithAClearMessage) {
   EXPECT_EQ(run->frames.size(), result_->frames.size());
   options.max_memory_mib = -1;
   EXPECT_EQ(RunFrontEnd(video, options).status().code(), StatusCode::kInvalidArgument);
+}
+
+// The limit is checked before the decoder and the frame queues fill with pictures of the video's
+// size (an 8K clip with a 200 MiB limit reached 1063 MiB before the check every 25 frames ran):
+// here, long queues of 640x360 frames that would take the process over its limit.
+TEST_F(FrontEndTest, MemoryLimitIsCheckedBeforeDecodingAgainstThePictureSize) {
+  ASSERT_NE(result_, nullptr);
+  const std::string video = (*dir_ / "town.ts").string();
+  FrontEndOptions options;
+  options.queue_frames = 256;
+  options.change_queue_frames = 256;
+  const int64_t needed_mib = options.FramePipelineBytes(640, 360) / (1024 * 1024);
+  EXPECT_GT(needed_mib, 100);
+  EXPECT_EQ(options.FramePipelineBytes(1280, 720), 4 * options.FramePipelineBytes(640, 360));
+  options.max_memory_mib = ResidentMemoryBytes() / (1024 * 1024) + needed_mib / 2;
+  int64_t progress_reports = 0;
+  JobContext job([&](const std::string&, double) { ++progress_reports; });
+  const StatusOr<FrontEndResult> stopped = RunFrontEnd(video, options, &job);
+  ASSERT_FALSE(stopped.ok());
+  EXPECT_EQ(stopped.status().code(), StatusCode::kResourceExhausted);
+  const std::string& message = stopped.status().message();
+  EXPECT_NE(message.find(video + ": processing stopped before decoding pictures of 640x360"),
+            std::string::npos)
+      << message;
+  EXPECT_NE(message.find("needs up to " + std::to_string(needed_mib) + " MiB"), std::string::npos)
+      << message;
+  EXPECT_EQ(progress_reports, 0);  // not one frame was processed
 }
 
 // Change detection runs on its own thread and its answers are applied at a fixed lag: however the

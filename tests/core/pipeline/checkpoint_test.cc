@@ -4,6 +4,7 @@
 
 #include "core/pipeline/checkpoint.h"
 
+#include "tests/testing/png_bomb.h"
 #include "tests/testing/test_data.h"
 
 #include <gtest/gtest.h>
@@ -291,6 +292,30 @@ TEST_F(CheckpointTest, DamagedRecordsAreRefusedNamingTheFile) {
   ASSERT_FALSE(read.ok());
   EXPECT_NE(read.status().message().find("record link 0 is truncated or malformed"),
             std::string::npos)
+      << read.status().message();
+}
+
+// A key frame image record whose PNG header claims 40000 x 40000 pixels (a 100-byte
+// decompression bomb) aborted `process --resume` with an uncaught cv::Exception. It is
+// InvalidData naming the file and the record, refused from the header before anything is decoded.
+TEST_F(CheckpointTest, DecompressionBombKeyFrameImageIsRefusedNamingTheRecord) {
+  std::vector<uint8_t> record = GetRecord("key_frame_image", 2);
+  const size_t png_at = 4 + 8 + 8 + 9 * 8;  // id, frame, scale, placement, then the PNG's size
+  ASSERT_GT(record.size(), png_at + 8);
+  record.resize(png_at);
+  const std::vector<uint8_t> bomb = saker::testing::PngBomb(40000, 40000);
+  const uint64_t size = bomb.size();
+  record.resize(png_at + sizeof(size));
+  std::memcpy(record.data() + png_at, &size, sizeof(size));
+  record.insert(record.end(), bomb.begin(), bomb.end());
+  SetRecord("key_frame_image", 2, record);
+  const auto read = Read();
+  ASSERT_FALSE(read.ok());
+  EXPECT_EQ(read.status().code(), StatusCode::kInvalidData);
+  EXPECT_NE(read.status().message().find("mission.saker: checkpoint record key_frame_image 2"),
+            std::string::npos)
+      << read.status().message();
+  EXPECT_NE(read.status().message().find("40000x40000"), std::string::npos)
       << read.status().message();
 }
 

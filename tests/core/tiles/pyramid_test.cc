@@ -78,7 +78,7 @@ TEST(Pyramid, PlacesAndBlendsKeyFramesAcrossLevels) {
   // pixel (19.75, 29.75) of the half-size card, between card values.
   const auto pixel = [&](const Eigen::Vector2d& map) {
     const auto [tx, ty, col, row] = Locate(*info, map);
-    const auto tile = DecodeTile(store.at({0, tx, ty}));
+    const auto tile = DecodeTile(store.at({0, tx, ty}), info->tile_size);
     EXPECT_TRUE(tile.ok());
     return tile->at<cv::Vec4b>(row, col);
   };
@@ -94,7 +94,7 @@ TEST(Pyramid, PlacesAndBlendsKeyFramesAcrossLevels) {
   EXPECT_GE(overlap[0], value_b - 2);
   EXPECT_LE(overlap[0], value_a + 2);
   // The top tile covers everything, downsampled 16x: alpha on the footprint, 0 beyond it.
-  const auto top = DecodeTile(store.at({4, 0, 0}));
+  const auto top = DecodeTile(store.at({4, 0, 0}), info->tile_size);
   ASSERT_TRUE(top.ok());
   EXPECT_EQ(top->at<cv::Vec4b>(10, 20)[3], 255);
   EXPECT_EQ(top->at<cv::Vec4b>(50, 60)[3], 0);  // row 50 * 16 = 800 > 480: below the footprint
@@ -147,7 +147,7 @@ TEST(Pyramid, CancelAndErrors) {
   Eigen::Matrix3d beyond = Eigen::Matrix3d::Identity();
   beyond(2, 0) = -0.01;  // the right of the image is beyond the horizon
   EXPECT_FALSE(PlanPyramid({{&a, 1.0, beyond}}, kWidth, kHeight, false, options).ok());
-  EXPECT_FALSE(DecodeTile({1, 2, 3}).ok());
+  EXPECT_FALSE(DecodeTile({1, 2, 3}, options.tile_size).ok());
   options.tile_size = 3;
   EXPECT_FALSE(options.Validate().ok());
 }
