@@ -76,8 +76,8 @@ StatusOr<std::unique_ptr<WriterLock>> WriterLock::Acquire(const std::string& mis
   for (int attempt = 0; attempt < 100; ++attempt) {
     const int fd = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0666);
     if (fd < 0) {
-      return IoError(mission + ": cannot create its lock file " + path + ": " +
-                     std::strerror(errno));
+      return IoError(mission + ": cannot create the lock file beside it: " +
+                     std::string(std::strerror(errno)));
     }
     if (::flock(fd, LOCK_EX | LOCK_NB) != 0) {
       const int err = errno;
@@ -360,7 +360,14 @@ StatusOr<std::unique_ptr<MissionStore>> MissionStore::Create(const std::string& 
   // second job on this mission is refused here, not left writing a file renamed away.
   auto locked = std::make_unique<Impl>();
   locked->mode = OpenMode::kReadWrite;
-  SAKER_ASSIGN_OR_RETURN(locked->lock, WriterLock::Acquire(path));
+  auto lock = WriterLock::Acquire(path);
+  if (!lock.ok()) {
+    // Named once, as the other errors of Create: "PATH: cannot create the mission: why".
+    std::string why = lock.status().message();
+    if (why.rfind(path + ": ", 0) == 0) why.erase(0, path.size() + 2);
+    return Status(lock.status().code(), path + ": cannot create the mission: " + why);
+  }
+  locked->lock = std::move(*lock);
   if (exists) {
     // Only a mission this version reads may be replaced; this probe never writes.
     auto probe = Open(path, OpenMode::kReadOnly);

@@ -201,8 +201,7 @@ namespace {
 // --replace.
 TEST(CliMissionTest, CopyMakesTheSameMissionAndRefusesWhatItMustNot) {
   const std::filesystem::path dir = saker::testing::MakeTempDir("saker-cli-copy");
-  const auto flight = SmallFlight(dir, /*process=*/true);
-  const std::string &video = flight.first, &mission = flight.second;
+  const std::string mission = SmallFlight(dir, /*process=*/true).second;
   ASSERT_FALSE(mission.empty());
   CliRun run;
   const std::string copy = (dir / "copy.saker").string();
@@ -277,9 +276,10 @@ TEST(CliMissionTest, ExportRefusesItsInputsAndWritesToStandardOutput) {
   const std::string &video = flight.first, &mission = flight.second;
   ASSERT_FALSE(mission.empty());
   const auto size = std::filesystem::file_size(mission);
-  for (const std::string& option : {"--csv", "--geojson", "--kml", "--geotiff"}) {
+  for (const char* option : {"--csv", "--geojson", "--kml", "--geotiff"}) {
     for (const std::string& target : {mission, video}) {
-      const CliRun run = RunCli("export '" + mission + "' " + option + " '" + target + "'");
+      const CliRun run =
+          RunCli("export '" + mission + "' " + std::string(option) + " '" + target + "'");
       EXPECT_EQ(run.exit_code, 1) << option << " " << target << ": " << run.out;
       EXPECT_NE(run.out.find("an input of this job"), std::string::npos) << run.out;
     }
