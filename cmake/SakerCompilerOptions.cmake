@@ -27,6 +27,17 @@ if(SAKER_SANITIZE_THREAD)
   target_link_options(saker_compile_options INTERFACE -fsanitize=thread)
 endif()
 
+# LLVM's linker links a test executable about five times faster than GNU ld (0.7 s against 3.3 s
+# for test_mosaic_chain_solver in the release tree): the suite has about 140 executables.
+option(SAKER_USE_LLD "Link with lld when the compiler accepts -fuse-ld=lld" ON)
+if(SAKER_USE_LLD)
+  include(CheckLinkerFlag)
+  check_linker_flag(CXX -fuse-ld=lld SAKER_HAVE_LLD)
+  if(SAKER_HAVE_LLD)
+    add_link_options(-fuse-ld=lld)
+  endif()
+endif()
+
 find_program(CCACHE_PROGRAM ccache)
 if(CCACHE_PROGRAM)
   set(CMAKE_CXX_COMPILER_LAUNCHER ${CCACHE_PROGRAM})

@@ -7,7 +7,7 @@ set -euo pipefail
 
 packages=(
   # Build tools
-  cmake ninja-build g++ ccache pkg-config
+  cmake ninja-build g++ ccache pkg-config lld
   # GUI and engine libraries
   qt6-base-dev qt6-svg-dev libopencv-dev libeigen3-dev libceres-dev libgeographiclib-dev
   libavformat-dev libavcodec-dev libswscale-dev libavutil-dev ffmpeg
