@@ -16,6 +16,8 @@
 
 #include <QAction>
 #include <QApplication>
+#include <QDockWidget>
+#include <QDoubleSpinBox>
 #include <QDragEnterEvent>
 #include <QDropEvent>
 #include <QElapsedTimer>
@@ -35,6 +37,8 @@
 #include <QTimer>
 #include <QUrl>
 #include <QXmlStreamReader>
+#include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <set>
@@ -57,6 +61,66 @@ bool OpenAndWait(MainWindow& window, const TestMission& m) {
 
 QAction* ColourAction(MainWindow& window, const char* mode) {
   return window.findChild<QAction*>(QString("colourBy_") + mode);
+}
+
+// The Mission panel's filter boxes, in their order: from, to (s), slowest, fastest.
+std::vector<QDoubleSpinBox*> FilterBoxes(MainWindow& window) {
+  auto* dock = window.findChild<QDockWidget*>("missionDock");
+  if (dock == nullptr) return {};
+  const QList<QDoubleSpinBox*> boxes = dock->findChildren<QDoubleSpinBox*>();
+  return {boxes.begin(), boxes.end()};
+}
+
+// The texts of the Mission panel's labels (to find the speed unit).
+QStringList MissionPanelTexts(MainWindow& window) {
+  QStringList texts;
+  auto* dock = window.findChild<QDockWidget*>("missionDock");
+  if (dock == nullptr) return texts;
+  for (QLabel* label : dock->findChildren<QLabel*>()) texts << label->text();
+  return texts;
+}
+
+// After a run that ends in the window: the filters span the mission's tracks, in m/s (the map is
+// geo-referenced), and can be used.
+void ExpectFiltersFitTheMission(MainWindow& window) {
+  const mission::Mission& m = *window.mission();
+  ASSERT_TRUE(m.map.geo_referenced);
+  ASSERT_FALSE(m.tracks.empty());
+  const std::vector<QDoubleSpinBox*> boxes = FilterBoxes(window);
+  ASSERT_EQ(boxes.size(), 4u);
+  double end_s = 0, fastest = 0;
+  for (const mission::ActivityTrack& t : m.tracks) {
+    end_s = std::max(end_s, t.end_s);
+    fastest = std::max(fastest, t.speed_mps.value_or(0));
+  }
+  for (QDoubleSpinBox* box : boxes) EXPECT_TRUE(box->isEnabled());
+  EXPECT_GE(boxes[1]->maximum(), std::floor(end_s));
+  EXPECT_GE(boxes[1]->value(), std::floor(end_s));
+  EXPECT_GE(boxes[3]->maximum(), fastest);
+  EXPECT_GE(boxes[3]->value(), fastest);
+  const QStringList texts = MissionPanelTexts(window);
+  EXPECT_TRUE(texts.contains("m/s")) << texts.join(" | ").toStdString();
+  EXPECT_FALSE(texts.contains("px/s")) << texts.join(" | ").toStdString();
+  EXPECT_EQ(window.mosaicView()->legend().title.find("pixels"), std::string::npos);
+  for (size_t i = 0; i < m.tracks.size(); ++i) EXPECT_TRUE(window.mosaicView()->isTrackVisible(i));
+}
+
+// Opens a damaged mission file called `name`: missionFailed and an error dialog naming it, which
+// is then closed.
+void OpenDamagedMission(MainWindow& window, const std::string& name) {
+  const fs::path bad = saker::testing::MakeTempDir("saker-ui-corrupt") / name;
+  std::ofstream(bad) << "SQLite format 3 but not really; a damaged file\n";
+  QSignalSpy failed(&window, &MainWindow::missionFailed);
+  window.openMission(QString::fromStdString(bad.string()));
+  ASSERT_TRUE(failed.wait(10000));
+  EXPECT_TRUE(failed.takeFirst().at(1).toString().contains(QString::fromStdString(name)));
+  QMessageBox* box = nullptr;
+  ASSERT_TRUE(WaitUntil([&] {
+    box = window.findChild<QMessageBox*>("errorDialog");
+    return box != nullptr && box->isVisible();
+  }));
+  EXPECT_TRUE(box->text().contains(QString::fromStdString(name))) << box->text().toStdString();
+  box->accept();
 }
 
 TEST(MainWindowTest, OpensAMissionAndSwitchesColourModesWithTheirLegends) {
@@ -318,6 +382,8 @@ TEST(MainWindowTest, ProcessingKeepsTheWindowLiveAndCancelLeavesAUsablePartialMi
   // ends; the reload after the job shows the mission without it.
   EXPECT_TRUE(WaitUntil([&] { return !resume->isEnabled(); })) << "nothing left to resume";
   EXPECT_FALSE(facts->text().contains("Resume Processing")) << facts->text().toStdString();
+  // The filters follow the resumed mission (they stayed at "0.0 to 1.0 px/s", disabled).
+  ExpectFiltersFitTheMission(window);
 }
 
 TEST(MainWindowTest, ProcessingToTheEndShowsTheMissionAsItsStagesComplete) {
@@ -340,6 +406,9 @@ TEST(MainWindowTest, ProcessingToTheEndShowsTheMissionAsItsStagesComplete) {
   EXPECT_GE(opened.count(), 2);
   EXPECT_FALSE(window.mosaicView()->showingPreview());
   EXPECT_EQ(window.mission()->tracks.size(), m->loaded.tracks.size());
+  // The filters follow the processed mission (they stayed at "0.0 to 1.0 px/s", disabled, until
+  // the mission was opened again).
+  ExpectFiltersFitTheMission(window);
 }
 
 TEST(MainWindowTest, ExportsWriteValidFilesOfTheShownTracks) {
@@ -458,22 +527,9 @@ TEST(MainWindowTest, ExportActivityMapFromTheFileMenu) {
 }
 
 TEST(MainWindowTest, CorruptMissionGivesAnErrorDialogNamingTheFile) {
-  const fs::path dir = saker::testing::MakeTempDir("saker-ui-corrupt");
-  const fs::path bad = dir / "sortie-12.saker";
-  std::ofstream(bad) << "SQLite format 3 but not really; a damaged file\n";
   MainWindow window;
   window.show();
-  QSignalSpy failed(&window, &MainWindow::missionFailed);
-  window.openMission(QString::fromStdString(bad.string()));
-  ASSERT_TRUE(failed.wait(10000));
-  EXPECT_TRUE(failed.takeFirst().at(1).toString().contains("sortie-12.saker"));
-  QMessageBox* box = nullptr;
-  ASSERT_TRUE(WaitUntil([&] {
-    box = window.findChild<QMessageBox*>("errorDialog");
-    return box != nullptr && box->isVisible();
-  }));
-  EXPECT_TRUE(box->text().contains("sortie-12.saker")) << box->text().toStdString();
-  box->accept();
+  ASSERT_NO_FATAL_FAILURE(OpenDamagedMission(window, "sortie-12.saker"));
   EXPECT_EQ(window.mission(), nullptr);
   // The window is still usable: a good mission opens after it.
   const TestMission* m = SmallMission();
@@ -528,6 +584,35 @@ TEST(MainWindowTest, AMissionWhoseVideoHasGoneOpensAndOffersToLocateIt) {
   again.openMission(QString::fromStdString(moved.string()));
   ASSERT_TRUE(again_opened.wait(30000));
   EXPECT_EQ(again.videoPath().toStdString(), fs::absolute(m->video).string());
+}
+
+// A mission that does not open leaves the one shown open, with its title and facts.
+TEST(MainWindowTest, AFailedOpenKeepsTheOpenMissionAndItsTitle) {
+  const TestMission* m = SmallMission();
+  ASSERT_NE(m, nullptr);
+  MainWindow window;
+  window.show();
+  ASSERT_TRUE(OpenAndWait(window, *m));
+  const auto shown = window.mission();
+  const QString path = window.missionPath();
+  const QString title = window.windowTitle();
+  ASSERT_TRUE(title.contains("loop.saker"));
+
+  ASSERT_NO_FATAL_FAILURE(OpenDamagedMission(window, "sortie-13.saker"));
+
+  EXPECT_EQ(window.mission(), shown);
+  EXPECT_EQ(window.missionPath(), path);
+  EXPECT_EQ(window.windowTitle(), title);
+  auto* facts = window.findChild<QLabel*>("missionFacts");
+  ASSERT_NE(facts, nullptr);
+  EXPECT_TRUE(facts->text().contains("loop.saker")) << facts->text().toStdString();
+  EXPECT_FALSE(facts->text().contains("Loading")) << facts->text().toStdString();
+  EXPECT_FALSE(facts->text().contains("sortie-13")) << facts->text().toStdString();
+  EXPECT_TRUE(window.mosaicView()->tilesComplete());
+  size_t visible = 0;
+  for (size_t i = 0; i < shown->tracks.size(); ++i)
+    visible += window.mosaicView()->isTrackVisible(i);
+  EXPECT_EQ(visible, shown->tracks.size());
 }
 
 // Not a check: the user guide's screenshots, of the demo mission, when SAKER_UI_SCREENSHOTS
