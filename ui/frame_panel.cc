@@ -45,6 +45,7 @@ std::vector<video::FrameIndexEntry> StoredFrameIndex(const mission::Mission& mis
 }
 
 constexpr int kHintDelayMs = 100;  // a decode faster than this shows no "decoding…" hint
+constexpr int kLongStep = 10;      // observations stepped by Shift+Left and Shift+Right
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 // The 16 compass points, clockwise from north, each covering 22.5 degrees.
@@ -228,14 +229,28 @@ FramePanel::FramePanel(QWidget* parent)
   error_label_->setStyleSheet(QStringLiteral("color: #c62828;"));
   error_label_->hide();
 
-  // Stepping and playback: actions carry the shortcuts (active while focus is in the panel, so
-  // the arrow keys keep panning the mosaic elsewhere), tool buttons show them.
+  // Stepping and playback: actions carry the shortcuts, tool buttons show them. Comma, period and
+  // Space act while the focus is in the panel. Left and Right (with Shift: ten observations) act
+  // anywhere in the window once an observation is shown, so that they step along the track picked
+  // on the map; with none shown they pan the map, and text boxes keep them.
   previous_action_ = new QAction(style()->standardIcon(QStyle::SP_MediaSkipBackward),
                                  tr("Previous Observation"), this);
-  previous_action_->setShortcuts({QKeySequence(Qt::Key_Left), QKeySequence(Qt::Key_Comma)});
+  previous_action_->setShortcut(QKeySequence(Qt::Key_Comma));
   next_action_ =
       new QAction(style()->standardIcon(QStyle::SP_MediaSkipForward), tr("Next Observation"), this);
-  next_action_->setShortcuts({QKeySequence(Qt::Key_Right), QKeySequence(Qt::Key_Period)});
+  next_action_->setShortcut(QKeySequence(Qt::Key_Period));
+  const std::pair<QKeyCombination, int> steps[] = {{Qt::Key_Left, -1},
+                                                   {Qt::Key_Right, 1},
+                                                   {Qt::ShiftModifier | Qt::Key_Left, -kLongStep},
+                                                   {Qt::ShiftModifier | Qt::Key_Right, kLongStep}};
+  for (const auto& [key, delta] : steps) {
+    auto* step = new QAction(this);
+    step->setShortcut(QKeySequence(key));
+    step->setShortcutContext(Qt::WindowShortcut);
+    connect(step, &QAction::triggered, this, [this, delta = delta] { stepObservation(delta); });
+    addAction(step);
+    step_actions_.push_back(step);
+  }
   play_action_ = new QAction(style()->standardIcon(QStyle::SP_MediaPlay), tr("Play"), this);
   play_action_->setShortcut(QKeySequence(Qt::Key_Space));
   connect(previous_action_, &QAction::triggered, this, &FramePanel::previousObservation);
@@ -430,15 +445,17 @@ QString FramePanel::errorText() const { return error_label_->text(); }
 
 bool FramePanel::decodingHintShown() const { return !canvas_->hint().isEmpty(); }
 
-void FramePanel::previousObservation() {
-  if (!current_ || current_->second == 0) return;
-  showObservation(current_->first, current_->second - 1);
-}
+void FramePanel::previousObservation() { stepObservation(-1); }
 
-void FramePanel::nextObservation() {
+void FramePanel::nextObservation() { stepObservation(1); }
+
+void FramePanel::stepObservation(int steps) {
   if (!current_ || !mission_) return;
-  if (current_->second + 1 >= mission_->tracks[current_->first].points.size()) return;
-  showObservation(current_->first, current_->second + 1);
+  const auto last = static_cast<int64_t>(mission_->tracks[current_->first].points.size()) - 1;
+  const int64_t point =
+      std::clamp<int64_t>(static_cast<int64_t>(current_->second) + steps, 0, last);
+  if (point != static_cast<int64_t>(current_->second))
+    showObservation(current_->first, static_cast<size_t>(point));
 }
 
 void FramePanel::togglePlay() {
@@ -711,10 +728,17 @@ void FramePanel::updateActions() {
   play_action_->setIcon(
       style()->standardIcon(playing_ ? QStyle::SP_MediaPause : QStyle::SP_MediaPlay));
   play_action_->setText(playing_ ? tr("Pause") : tr("Play"));
-  previous_action_->setToolTip(
-      tr("Previous observation of the track (%1)").arg(ShortcutText(previous_action_)));
-  next_action_->setToolTip(
-      tr("Next observation of the track (%1)").arg(ShortcutText(next_action_)));
+  for (QAction* step : step_actions_) step->setEnabled(current_.has_value());
+  previous_action_->setToolTip(tr("Previous observation of the track (%1, %2; %3: %4 back)")
+                                   .arg(ShortcutText(step_actions_[0]))
+                                   .arg(ShortcutText(previous_action_))
+                                   .arg(ShortcutText(step_actions_[2]))
+                                   .arg(kLongStep));
+  next_action_->setToolTip(tr("Next observation of the track (%1, %2; %3: %4 on)")
+                               .arg(ShortcutText(step_actions_[1]))
+                               .arg(ShortcutText(next_action_))
+                               .arg(ShortcutText(step_actions_[3]))
+                               .arg(kLongStep));
   play_action_->setToolTip((playing_ ? tr("Pause (%1)") : tr("Play the video from this frame (%1)"))
                                .arg(ShortcutText(play_action_)));
 }

@@ -105,6 +105,15 @@ void ExpectFiltersFitTheMission(MainWindow& window) {
   for (size_t i = 0; i < m.tracks.size(); ++i) EXPECT_TRUE(window.mosaicView()->isTrackVisible(i));
 }
 
+// The track with the most observations.
+size_t LongestTrack(const mission::Mission& mission) {
+  size_t longest = 0;
+  for (size_t i = 0; i < mission.tracks.size(); ++i) {
+    if (mission.tracks[i].points.size() > mission.tracks[longest].points.size()) longest = i;
+  }
+  return longest;
+}
+
 // Opens a damaged mission file called `name`: missionFailed and an error dialog naming it, which
 // is then closed.
 void OpenDamagedMission(MainWindow& window, const std::string& name) {
@@ -615,6 +624,72 @@ TEST(MainWindowTest, AFailedOpenKeepsTheOpenMissionAndItsTitle) {
   EXPECT_EQ(visible, shown->tracks.size());
 }
 
+// After a pick on the map, Left and Right step along the picked track wherever the focus is in the
+// window (but in a text box), Shift+Left and Shift+Right ten observations at a time.
+TEST(MainWindowTest, ArrowKeysStepAlongTheSelectedTrackAfterAPick) {
+  const TestMission* m = SmallMission();
+  ASSERT_NE(m, nullptr);
+  MainWindow window;
+  window.resize(1400, 900);
+  window.show();
+  window.activateWindow();
+  ASSERT_TRUE(QTest::qWaitForWindowActive(&window));
+  ASSERT_TRUE(OpenAndWait(window, *m));
+  const auto& tracks = window.mission()->tracks;
+  const size_t longest = LongestTrack(*window.mission());
+  ASSERT_GE(tracks[longest].points.size(), 30u);
+  MosaicView* view = window.mosaicView();
+  view->fitToWindow();
+  const Eigen::Vector2d at = tracks[longest].points[tracks[longest].points.size() / 2].map;
+  view->zoomAt(4, view->widgetFromMap(at));
+  FramePanel* panel = window.framePanel();
+  QTest::mouseClick(view, Qt::LeftButton, Qt::NoModifier, view->widgetFromMap(at).toPoint());
+  ASSERT_TRUE(panel->currentObservation().has_value()) << "the click picked nothing";
+  const auto [track, picked] = *panel->currentObservation();
+  const auto& points = tracks[track].points;
+  ASSERT_GE(picked, 10u);
+  ASSERT_LT(picked + 12, points.size());
+  EXPECT_TRUE(view->hasFocus());
+
+  const auto expect_at = [&](size_t point, const char* how) {
+    ASSERT_TRUE(panel->currentObservation().has_value()) << how;
+    EXPECT_EQ(panel->currentObservation()->first, track) << how;
+    EXPECT_EQ(panel->currentObservation()->second, point) << how;
+    ASSERT_TRUE(view->marker().has_value()) << how;
+    EXPECT_LT((*view->marker() - points[point].map).norm(), 1e-9) << how;
+  };
+  const QPointF centre = view->widgetFromMap(Eigen::Vector2d::Zero());
+  QTest::keyClick(view, Qt::Key_Right);
+  expect_at(picked + 1, "Right");
+  EXPECT_EQ(view->widgetFromMap(Eigen::Vector2d::Zero()), centre) << "Right panned the map";
+  QTest::keyClick(view, Qt::Key_Right, Qt::ShiftModifier);
+  expect_at(picked + 11, "Shift+Right");
+  QTest::keyClick(view, Qt::Key_Left);
+  expect_at(picked + 10, "Left");
+  QTest::keyClick(view, Qt::Key_Left, Qt::ShiftModifier);
+  expect_at(picked, "Shift+Left");
+  EXPECT_EQ(view->widgetFromMap(Eigen::Vector2d::Zero()), centre) << "the keys panned the map";
+  // Shift steps stop at the track's ends.
+  for (int i = 0; i < 1 + static_cast<int>(points.size()) / 10; ++i) {
+    QTest::keyClick(view, Qt::Key_Left, Qt::ShiftModifier);
+  }
+  expect_at(0, "Shift+Left to the start");
+  // Up and Down still pan the map.
+  QTest::keyClick(view, Qt::Key_Down);
+  EXPECT_NE(view->widgetFromMap(Eigen::Vector2d::Zero()), centre) << "Down did not pan";
+  expect_at(0, "Down");
+
+  // In a number box the arrow keys edit the number.
+  QDoubleSpinBox* from = FilterBoxes(window).at(0);
+  from->setFocus();
+  QTest::keyClick(from, Qt::Key_Right);
+  expect_at(0, "Right in a number box");
+  // From the frame panel as from the map.
+  panel->setFocus();
+  QTest::keyClick(panel, Qt::Key_Right);
+  expect_at(1, "Right in the frame panel");
+}
+
 // Not a check: the user guide's screenshots, of the demo mission, when SAKER_UI_SCREENSHOTS
 // names a folder (docs/user-guide.md says how to remake them).
 TEST(MainWindowScreenshots, DemoMission) {
@@ -640,10 +715,7 @@ TEST(MainWindowScreenshots, DemoMission) {
   // A click on the middle observation of the longest track, zoomed in around it.
   ColourAction(window, "speed")->trigger();
   const auto& tracks = window.mission()->tracks;
-  size_t longest = 0;
-  for (size_t i = 0; i < tracks.size(); ++i) {
-    if (tracks[i].points.size() > tracks[longest].points.size()) longest = i;
-  }
+  const size_t longest = LongestTrack(*window.mission());
   const Eigen::Vector2d at = tracks[longest].points[tracks[longest].points.size() / 2].map;
   view->zoomAt(2.5, view->widgetFromMap(at));
   ASSERT_TRUE(WaitUntil([&] { return view->tilesComplete(); }));
