@@ -186,6 +186,33 @@ class FrameCanvas : public QWidget {
   QString hint_;
 };
 
+// A value of the observation's attributes. Its text does not size the panel: playback changes it
+// at every frame, and the panel keeps the width it was given. A text wider than the label is
+// elided, and given in full in the tooltip.
+class ValueLabel : public QLabel {
+ public:
+  explicit ValueLabel(QWidget* parent) : QLabel(parent) {
+    setSizePolicy(QSizePolicy::Ignored, QSizePolicy::Preferred);
+    setTextInteractionFlags(Qt::TextSelectableByMouse);
+  }
+
+ protected:
+  void paintEvent(QPaintEvent* event) override {
+    const QRect area = contentsRect();
+    const QFontMetrics metrics(font());
+    const bool fits = metrics.horizontalAdvance(text()) <= area.width();
+    setToolTip(fits ? QString() : text());
+    if (fits) {
+      QLabel::paintEvent(event);
+      return;
+    }
+    QPainter painter(this);
+    painter.setPen(palette().color(foregroundRole()));
+    painter.drawText(area, Qt::AlignLeft | Qt::AlignVCenter,
+                     metrics.elidedText(text(), Qt::ElideRight, area.width()));
+  }
+};
+
 FramePanel::FramePanel(QWidget* parent)
     : QWidget(parent), last_recall_ms_(kNaN), last_decode_ms_(kNaN) {
   recall_ = new FrameRecall(this);
@@ -283,9 +310,8 @@ FramePanel::FramePanel(QWidget* parent)
                           int span = 1) {
     auto* key = new QLabel(name, this);
     key->setForegroundRole(QPalette::PlaceholderText);
-    auto* value = new QLabel(this);
+    auto* value = new ValueLabel(this);
     value->setObjectName(QLatin1String(object_name));
-    value->setTextInteractionFlags(Qt::TextSelectableByMouse);
     info->addWidget(key, row, column * 2);
     info->addWidget(value, row, column * 2 + 1, 1, span);
     return value;

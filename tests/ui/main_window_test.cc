@@ -690,6 +690,45 @@ TEST(MainWindowTest, ArrowKeysStepAlongTheSelectedTrackAfterAPick) {
   expect_at(1, "Right in the frame panel");
 }
 
+// The frame panel keeps the width it was given while playback changes its frame and texts.
+TEST(MainWindowTest, TheFramePanelKeepsItsWidthWhilePlaying) {
+  const TestMission* m = SmallMission();
+  ASSERT_NE(m, nullptr);
+  MainWindow window;
+  window.resize(1400, 900);
+  window.show();
+  ASSERT_TRUE(QTest::qWaitForWindowExposed(&window));
+  ASSERT_TRUE(OpenAndWait(window, *m));
+  FramePanel* panel = window.framePanel();
+  auto* dock = window.findChild<QDockWidget*>("frameDock");
+  ASSERT_NE(dock, nullptr);
+  // An analyst narrowed the panel to see more of the map.
+  window.resizeDocks({dock}, {280}, Qt::Horizontal);
+  QTest::qWait(100);
+  const int width = panel->width();
+  ASSERT_LE(width, 300);
+
+  const auto& tracks = window.mission()->tracks;
+  const size_t longest = LongestTrack(*window.mission());
+  QSignalSpy shown(panel, &FramePanel::frameShown);
+  panel->showObservation(longest, tracks[longest].points.size() - 3);
+  ASSERT_TRUE(shown.wait(10000));
+  std::vector<int> widths = {panel->width()};
+  QObject::connect(panel, &FramePanel::frameShown, panel,
+                   [&](int64_t, double) { widths.push_back(panel->width()); });
+  panel->play();
+  ASSERT_TRUE(panel->isPlaying());
+  QTest::qWait(2500);  // about 30 frames at 12.5 fps, past the end of the track
+  panel->pause();
+  QTest::qWait(50);
+  widths.push_back(panel->width());
+  ASSERT_GE(widths.size(), 10u);
+  const auto [narrowest, widest] = std::minmax_element(widths.begin(), widths.end());
+  EXPECT_EQ(*narrowest, width);
+  EXPECT_EQ(*widest, width) << "the panel widened from " << width << " to " << *widest
+                            << " px while playing";
+}
+
 // Not a check: the user guide's screenshots, of the demo mission, when SAKER_UI_SCREENSHOTS
 // names a folder (docs/user-guide.md says how to remake them).
 TEST(MainWindowScreenshots, DemoMission) {
