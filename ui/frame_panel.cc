@@ -733,12 +733,17 @@ void FramePanel::updateInfo() {
   time_value_->setText(tr("%1 s").arg(time_s, 0, 'f', 2));
   frame_value_->setText(frame == point->frame ? QString::number(frame)
                                               : tr("%1 (track not observed)").arg(frame));
-  if (record != nullptr && record->utc_us) {
+  if (record == nullptr) {
+    // Processing has not stored the frames yet, or the video has more frames than the mission.
+    utc_value_->setText(tr("unknown (the mission has no record of this frame)"));
+  } else if (record->utc_us) {
     // ISO 8601 with the "Z" designator (Qt 6.4 writes UTC as "+00:00").
     const QDateTime utc = QDateTime::fromMSecsSinceEpoch(*record->utc_us / 1000, QTimeZone::utc());
     utc_value_->setText(utc.toString(QStringLiteral("yyyy-MM-dd'T'HH:mm:ss.zzz'Z'")));
+  } else if (record->sensor || record->metadata_corners) {
+    utc_value_->setText(tr("no time stamp in the frame's metadata"));
   } else {
-    utc_value_->setText(tr("not in the metadata"));
+    utc_value_->setText(tr("no metadata for this frame"));
   }
 }
 
