@@ -48,27 +48,40 @@ constexpr int kHintDelayMs = 100;  // a decode faster than this shows no "decodi
 constexpr int kLongStep = 10;      // observations stepped by Shift+Left and Shift+Right
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
-// The 16 compass points, clockwise from north, each covering 22.5 degrees.
-QString CompassPoint(double degrees) {
-  static const char* const kPoints[16] = {QT_TRANSLATE_NOOP("saker::ui::FramePanel", "N"),
-                                          QT_TRANSLATE_NOOP("saker::ui::FramePanel", "NNE"),
-                                          QT_TRANSLATE_NOOP("saker::ui::FramePanel", "NE"),
-                                          QT_TRANSLATE_NOOP("saker::ui::FramePanel", "ENE"),
-                                          QT_TRANSLATE_NOOP("saker::ui::FramePanel", "E"),
-                                          QT_TRANSLATE_NOOP("saker::ui::FramePanel", "ESE"),
-                                          QT_TRANSLATE_NOOP("saker::ui::FramePanel", "SE"),
-                                          QT_TRANSLATE_NOOP("saker::ui::FramePanel", "SSE"),
-                                          QT_TRANSLATE_NOOP("saker::ui::FramePanel", "S"),
-                                          QT_TRANSLATE_NOOP("saker::ui::FramePanel", "SSW"),
-                                          QT_TRANSLATE_NOOP("saker::ui::FramePanel", "SW"),
-                                          QT_TRANSLATE_NOOP("saker::ui::FramePanel", "WSW"),
-                                          QT_TRANSLATE_NOOP("saker::ui::FramePanel", "W"),
-                                          QT_TRANSLATE_NOOP("saker::ui::FramePanel", "WNW"),
-                                          QT_TRANSLATE_NOOP("saker::ui::FramePanel", "NW"),
-                                          QT_TRANSLATE_NOOP("saker::ui::FramePanel", "NNW")};
+// The 16 compass points, clockwise from north.
+const char* const kCompassPoints[] = {QT_TRANSLATE_NOOP("saker::ui::FramePanel", "N"),
+                                      QT_TRANSLATE_NOOP("saker::ui::FramePanel", "NNE"),
+                                      QT_TRANSLATE_NOOP("saker::ui::FramePanel", "NE"),
+                                      QT_TRANSLATE_NOOP("saker::ui::FramePanel", "ENE"),
+                                      QT_TRANSLATE_NOOP("saker::ui::FramePanel", "E"),
+                                      QT_TRANSLATE_NOOP("saker::ui::FramePanel", "ESE"),
+                                      QT_TRANSLATE_NOOP("saker::ui::FramePanel", "SE"),
+                                      QT_TRANSLATE_NOOP("saker::ui::FramePanel", "SSE"),
+                                      QT_TRANSLATE_NOOP("saker::ui::FramePanel", "S"),
+                                      QT_TRANSLATE_NOOP("saker::ui::FramePanel", "SSW"),
+                                      QT_TRANSLATE_NOOP("saker::ui::FramePanel", "SW"),
+                                      QT_TRANSLATE_NOOP("saker::ui::FramePanel", "WSW"),
+                                      QT_TRANSLATE_NOOP("saker::ui::FramePanel", "W"),
+                                      QT_TRANSLATE_NOOP("saker::ui::FramePanel", "WNW"),
+                                      QT_TRANSLATE_NOOP("saker::ui::FramePanel", "NW"),
+                                      QT_TRANSLATE_NOOP("saker::ui::FramePanel", "NNW")};
+
+// The 8 directions on a map in pixels, clockwise from up the picture: such a map has no north.
+const char* const kPictureDirections[] = {QT_TRANSLATE_NOOP("saker::ui::FramePanel", "up"),
+                                          QT_TRANSLATE_NOOP("saker::ui::FramePanel", "up-right"),
+                                          QT_TRANSLATE_NOOP("saker::ui::FramePanel", "right"),
+                                          QT_TRANSLATE_NOOP("saker::ui::FramePanel", "down-right"),
+                                          QT_TRANSLATE_NOOP("saker::ui::FramePanel", "down"),
+                                          QT_TRANSLATE_NOOP("saker::ui::FramePanel", "down-left"),
+                                          QT_TRANSLATE_NOOP("saker::ui::FramePanel", "left"),
+                                          QT_TRANSLATE_NOOP("saker::ui::FramePanel", "up-left")};
+
+// The word of `words` (which divide the circle equally, clockwise from 0) for a heading.
+template <size_t N>
+QString DirectionWord(double degrees, const char* const (&words)[N]) {
   const double wrapped = std::fmod(std::fmod(degrees, 360.0) + 360.0, 360.0);
-  const int sector = static_cast<int>(std::floor(wrapped / 22.5 + 0.5)) % 16;
-  return QCoreApplication::translate("saker::ui::FramePanel", kPoints[sector]);
+  const size_t sector = static_cast<size_t>(std::floor(wrapped / (360.0 / N) + 0.5)) % N;
+  return QCoreApplication::translate("saker::ui::FramePanel", words[sector]);
 }
 
 // The shortcuts as the platform writes them, for tooltips: "Right, .".
@@ -713,7 +726,11 @@ void FramePanel::updateInfo() {
     speed_value_->setText(tr("%1 px/s").arg(track.speed, 0, 'f', 1));
   }
   const double heading = std::fmod(std::fmod(track.heading_deg, 360.0) + 360.0, 360.0);
-  heading_value_->setText(tr("%1° %2").arg(std::lround(heading) % 360).arg(CompassPoint(heading)));
+  // A map in pixels has no north: its directions are those of its picture.
+  const QString direction = mission_->map.geo_referenced
+                                ? DirectionWord(heading, kCompassPoints)
+                                : DirectionWord(heading, kPictureDirections);
+  heading_value_->setText(tr("%1° %2").arg(std::lround(heading) % 360).arg(direction));
 
   // Time and frame: of the observation, unless playback (or a pause after it) shows another frame.
   const bool recalling = pending_ticket_ != 0 && pending_from_click_;

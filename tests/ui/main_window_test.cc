@@ -30,6 +30,7 @@
 #include <QMimeData>
 #include <QProgressBar>
 #include <QPushButton>
+#include <QRegularExpression>
 #include <QSignalSpy>
 #include <QStatusBar>
 #include <QTest>
@@ -41,6 +42,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <set>
 
 namespace saker::ui {
@@ -114,6 +116,17 @@ size_t LongestTrack(const mission::Mission& mission) {
   return longest;
 }
 
+// Saves `mission`, changed by `change`, as a new mission file at `path` (without tiles).
+void SaveChangedCopy(const mission::Mission& mission, const fs::path& path,
+                     const std::function<void(mission::Mission&)>& change) {
+  auto store = mission::MissionStore::Create(path.string());
+  ASSERT_TRUE(store.ok()) << store.status().ToString();
+  mission::Mission copy = mission;
+  change(copy);
+  const Status saved = (*store)->Save(copy);
+  ASSERT_TRUE(saved.ok()) << saved.ToString();
+}
+
 // Opens a damaged mission file called `name`: missionFailed and an error dialog naming it, which
 // is then closed.
 void OpenDamagedMission(MainWindow& window, const std::string& name) {
@@ -130,6 +143,15 @@ void OpenDamagedMission(MainWindow& window, const std::string& name) {
   }));
   EXPECT_TRUE(box->text().contains(QString::fromStdString(name))) << box->text().toStdString();
   box->accept();
+}
+
+// Compass words: the 16 points (in capitals, as Saker writes them), and north, east, south, west.
+bool HasCompassWords(const QString& text) {
+  static const QRegularExpression kPoints(
+      "\\b(N|NNE|NE|ENE|E|ESE|SE|SSE|S|SSW|SW|WSW|W|WNW|NW|NNW)\\b");
+  static const QRegularExpression kWords("\\b(north|east|south|west)",
+                                         QRegularExpression::CaseInsensitiveOption);
+  return kPoints.match(text).hasMatch() || kWords.match(text).hasMatch();
 }
 
 TEST(MainWindowTest, OpensAMissionAndSwitchesColourModesWithTheirLegends) {
@@ -552,13 +574,9 @@ TEST(MainWindowTest, AMissionWhoseVideoHasGoneOpensAndOffersToLocateIt) {
   // A copy of the mission that records a video path that no longer exists.
   const fs::path dir = saker::testing::MakeTempDir("saker-ui-moved");
   const fs::path moved = dir / "moved.saker";
-  {
-    auto store = mission::MissionStore::Create(moved.string());
-    ASSERT_TRUE(store.ok()) << store.status().ToString();
-    mission::Mission copy = m->loaded;
+  ASSERT_NO_FATAL_FAILURE(SaveChangedCopy(m->loaded, moved, [&](mission::Mission& copy) {
     copy.source.path = (dir / "gone" / "loop.ts").string();
-    ASSERT_TRUE((*store)->Save(copy).ok());
-  }
+  }));
   MainWindow window;
   window.show();
   QSignalSpy opened(&window, &MainWindow::missionOpened);
@@ -727,6 +745,54 @@ TEST(MainWindowTest, TheFramePanelKeepsItsWidthWhilePlaying) {
   EXPECT_EQ(*narrowest, width);
   EXPECT_EQ(*widest, width) << "the panel widened from " << width << " to " << *widest
                             << " px while playing";
+}
+
+// A mission whose map is not geo-referenced has no north: directions are given on the map's
+// picture (up, right, down, left), in the frame panel and the legend.
+TEST(MainWindowTest, UngeoreferencedMissionsShowNoCompassWords) {
+  const TestMission* m = SmallMission();
+  ASSERT_NE(m, nullptr);
+  const fs::path dir = saker::testing::MakeTempDir("saker-ui-pixels");
+  const fs::path pixels = dir / "pixels.saker";
+  ASSERT_NO_FATAL_FAILURE(SaveChangedCopy(m->loaded, pixels, [](mission::Mission& copy) {
+    copy.map.geo_referenced = false;
+    copy.map.origin.reset();
+    for (mission::FrameRecord& f : copy.frames) f.metadata_corners.reset();
+    for (mission::ActivityTrack& t : copy.tracks) t.speed_mps.reset();
+  }));
+  for (const bool geo : {true, false}) {
+    SCOPED_TRACE(geo ? "geo-referenced" : "not geo-referenced");
+    MainWindow window;
+    window.show();
+    QSignalSpy opened(&window, &MainWindow::missionOpened);
+    window.openMission(QString::fromStdString(geo ? m->mission.string() : pixels.string()));
+    ASSERT_TRUE(opened.wait(30000));
+    ASSERT_EQ(window.mission()->map.geo_referenced, geo);
+    const auto& tracks = window.mission()->tracks;
+    auto* heading = window.framePanel()->findChild<QLabel*>("headingValue");
+    ASSERT_NE(heading, nullptr);
+    bool any_compass = false;
+    for (size_t t = 0; t < tracks.size(); ++t) {
+      window.framePanel()->showObservation(t, 0);
+      const bool compass = HasCompassWords(heading->text());
+      any_compass |= compass;
+      if (!geo) {
+        EXPECT_FALSE(compass) << "track " << t << ": " << heading->text().toStdString();
+      }
+    }
+    EXPECT_EQ(any_compass, geo);
+    ColourAction(window, "direction")->trigger();
+    const activity::Legend& legend = window.mosaicView()->legend();
+    QString words = QString::fromStdString(legend.title);
+    for (const activity::Legend::Entry& e : legend.entries)
+      words += " " + QString::fromStdString(e.label);
+    EXPECT_EQ(HasCompassWords(words), geo) << words.toStdString();
+    auto* facts = window.findChild<QLabel*>("missionFacts");
+    ASSERT_NE(facts, nullptr);
+    if (!geo) {
+      EXPECT_FALSE(HasCompassWords(facts->text())) << facts->text().toStdString();
+    }
+  }
 }
 
 // Not a check: the user guide's screenshots, of the demo mission, when SAKER_UI_SCREENSHOTS
