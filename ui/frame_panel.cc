@@ -45,29 +45,43 @@ std::vector<video::FrameIndexEntry> StoredFrameIndex(const mission::Mission& mis
 }
 
 constexpr int kHintDelayMs = 100;  // a decode faster than this shows no "decoding…" hint
+constexpr int kLongStep = 10;      // observations stepped by Shift+Left and Shift+Right
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
-// The 16 compass points, clockwise from north, each covering 22.5 degrees.
-QString CompassPoint(double degrees) {
-  static const char* const kPoints[16] = {QT_TRANSLATE_NOOP("saker::ui::FramePanel", "N"),
-                                          QT_TRANSLATE_NOOP("saker::ui::FramePanel", "NNE"),
-                                          QT_TRANSLATE_NOOP("saker::ui::FramePanel", "NE"),
-                                          QT_TRANSLATE_NOOP("saker::ui::FramePanel", "ENE"),
-                                          QT_TRANSLATE_NOOP("saker::ui::FramePanel", "E"),
-                                          QT_TRANSLATE_NOOP("saker::ui::FramePanel", "ESE"),
-                                          QT_TRANSLATE_NOOP("saker::ui::FramePanel", "SE"),
-                                          QT_TRANSLATE_NOOP("saker::ui::FramePanel", "SSE"),
-                                          QT_TRANSLATE_NOOP("saker::ui::FramePanel", "S"),
-                                          QT_TRANSLATE_NOOP("saker::ui::FramePanel", "SSW"),
-                                          QT_TRANSLATE_NOOP("saker::ui::FramePanel", "SW"),
-                                          QT_TRANSLATE_NOOP("saker::ui::FramePanel", "WSW"),
-                                          QT_TRANSLATE_NOOP("saker::ui::FramePanel", "W"),
-                                          QT_TRANSLATE_NOOP("saker::ui::FramePanel", "WNW"),
-                                          QT_TRANSLATE_NOOP("saker::ui::FramePanel", "NW"),
-                                          QT_TRANSLATE_NOOP("saker::ui::FramePanel", "NNW")};
+// The 16 compass points, clockwise from north.
+const char* const kCompassPoints[] = {QT_TRANSLATE_NOOP("saker::ui::FramePanel", "N"),
+                                      QT_TRANSLATE_NOOP("saker::ui::FramePanel", "NNE"),
+                                      QT_TRANSLATE_NOOP("saker::ui::FramePanel", "NE"),
+                                      QT_TRANSLATE_NOOP("saker::ui::FramePanel", "ENE"),
+                                      QT_TRANSLATE_NOOP("saker::ui::FramePanel", "E"),
+                                      QT_TRANSLATE_NOOP("saker::ui::FramePanel", "ESE"),
+                                      QT_TRANSLATE_NOOP("saker::ui::FramePanel", "SE"),
+                                      QT_TRANSLATE_NOOP("saker::ui::FramePanel", "SSE"),
+                                      QT_TRANSLATE_NOOP("saker::ui::FramePanel", "S"),
+                                      QT_TRANSLATE_NOOP("saker::ui::FramePanel", "SSW"),
+                                      QT_TRANSLATE_NOOP("saker::ui::FramePanel", "SW"),
+                                      QT_TRANSLATE_NOOP("saker::ui::FramePanel", "WSW"),
+                                      QT_TRANSLATE_NOOP("saker::ui::FramePanel", "W"),
+                                      QT_TRANSLATE_NOOP("saker::ui::FramePanel", "WNW"),
+                                      QT_TRANSLATE_NOOP("saker::ui::FramePanel", "NW"),
+                                      QT_TRANSLATE_NOOP("saker::ui::FramePanel", "NNW")};
+
+// The 8 directions on a map in pixels, clockwise from up the picture: such a map has no north.
+const char* const kPictureDirections[] = {QT_TRANSLATE_NOOP("saker::ui::FramePanel", "up"),
+                                          QT_TRANSLATE_NOOP("saker::ui::FramePanel", "up-right"),
+                                          QT_TRANSLATE_NOOP("saker::ui::FramePanel", "right"),
+                                          QT_TRANSLATE_NOOP("saker::ui::FramePanel", "down-right"),
+                                          QT_TRANSLATE_NOOP("saker::ui::FramePanel", "down"),
+                                          QT_TRANSLATE_NOOP("saker::ui::FramePanel", "down-left"),
+                                          QT_TRANSLATE_NOOP("saker::ui::FramePanel", "left"),
+                                          QT_TRANSLATE_NOOP("saker::ui::FramePanel", "up-left")};
+
+// The word of `words` (which divide the circle equally, clockwise from 0) for a heading.
+template <size_t N>
+QString DirectionWord(double degrees, const char* const (&words)[N]) {
   const double wrapped = std::fmod(std::fmod(degrees, 360.0) + 360.0, 360.0);
-  const int sector = static_cast<int>(std::floor(wrapped / 22.5 + 0.5)) % 16;
-  return QCoreApplication::translate("saker::ui::FramePanel", kPoints[sector]);
+  const size_t sector = static_cast<size_t>(std::floor(wrapped / (360.0 / N) + 0.5)) % N;
+  return QCoreApplication::translate("saker::ui::FramePanel", words[sector]);
 }
 
 // The shortcuts as the platform writes them, for tooltips: "Right, .".
@@ -185,6 +199,33 @@ class FrameCanvas : public QWidget {
   QString hint_;
 };
 
+// A value of the observation's attributes. Its text does not size the panel: playback changes it
+// at every frame, and the panel keeps the width it was given. A text wider than the label is
+// elided, and given in full in the tooltip.
+class ValueLabel : public QLabel {
+ public:
+  explicit ValueLabel(QWidget* parent) : QLabel(parent) {
+    setSizePolicy(QSizePolicy::Ignored, QSizePolicy::Preferred);
+    setTextInteractionFlags(Qt::TextSelectableByMouse);
+  }
+
+ protected:
+  void paintEvent(QPaintEvent* event) override {
+    const QRect area = contentsRect();
+    const QFontMetrics metrics(font());
+    const bool fits = metrics.horizontalAdvance(text()) <= area.width();
+    setToolTip(fits ? QString() : text());
+    if (fits) {
+      QLabel::paintEvent(event);
+      return;
+    }
+    QPainter painter(this);
+    painter.setPen(palette().color(foregroundRole()));
+    painter.drawText(area, Qt::AlignLeft | Qt::AlignVCenter,
+                     metrics.elidedText(text(), Qt::ElideRight, area.width()));
+  }
+};
+
 FramePanel::FramePanel(QWidget* parent)
     : QWidget(parent), last_recall_ms_(kNaN), last_decode_ms_(kNaN) {
   recall_ = new FrameRecall(this);
@@ -228,14 +269,28 @@ FramePanel::FramePanel(QWidget* parent)
   error_label_->setStyleSheet(QStringLiteral("color: #c62828;"));
   error_label_->hide();
 
-  // Stepping and playback: actions carry the shortcuts (active while focus is in the panel, so
-  // the arrow keys keep panning the mosaic elsewhere), tool buttons show them.
+  // Stepping and playback: actions carry the shortcuts, tool buttons show them. Comma, period and
+  // Space act while the focus is in the panel. Left and Right (with Shift: ten observations) act
+  // anywhere in the window once an observation is shown, so that they step along the track picked
+  // on the map; with none shown they pan the map, and text boxes keep them.
   previous_action_ = new QAction(style()->standardIcon(QStyle::SP_MediaSkipBackward),
                                  tr("Previous Observation"), this);
-  previous_action_->setShortcuts({QKeySequence(Qt::Key_Left), QKeySequence(Qt::Key_Comma)});
+  previous_action_->setShortcut(QKeySequence(Qt::Key_Comma));
   next_action_ =
       new QAction(style()->standardIcon(QStyle::SP_MediaSkipForward), tr("Next Observation"), this);
-  next_action_->setShortcuts({QKeySequence(Qt::Key_Right), QKeySequence(Qt::Key_Period)});
+  next_action_->setShortcut(QKeySequence(Qt::Key_Period));
+  const std::pair<QKeyCombination, int> steps[] = {{Qt::Key_Left, -1},
+                                                   {Qt::Key_Right, 1},
+                                                   {Qt::ShiftModifier | Qt::Key_Left, -kLongStep},
+                                                   {Qt::ShiftModifier | Qt::Key_Right, kLongStep}};
+  for (const auto& [key, delta] : steps) {
+    auto* step = new QAction(this);
+    step->setShortcut(QKeySequence(key));
+    step->setShortcutContext(Qt::WindowShortcut);
+    connect(step, &QAction::triggered, this, [this, delta = delta] { stepObservation(delta); });
+    addAction(step);
+    step_actions_.push_back(step);
+  }
   play_action_ = new QAction(style()->standardIcon(QStyle::SP_MediaPlay), tr("Play"), this);
   play_action_->setShortcut(QKeySequence(Qt::Key_Space));
   connect(previous_action_, &QAction::triggered, this, &FramePanel::previousObservation);
@@ -268,9 +323,8 @@ FramePanel::FramePanel(QWidget* parent)
                           int span = 1) {
     auto* key = new QLabel(name, this);
     key->setForegroundRole(QPalette::PlaceholderText);
-    auto* value = new QLabel(this);
+    auto* value = new ValueLabel(this);
     value->setObjectName(QLatin1String(object_name));
-    value->setTextInteractionFlags(Qt::TextSelectableByMouse);
     info->addWidget(key, row, column * 2);
     info->addWidget(value, row, column * 2 + 1, 1, span);
     return value;
@@ -430,15 +484,17 @@ QString FramePanel::errorText() const { return error_label_->text(); }
 
 bool FramePanel::decodingHintShown() const { return !canvas_->hint().isEmpty(); }
 
-void FramePanel::previousObservation() {
-  if (!current_ || current_->second == 0) return;
-  showObservation(current_->first, current_->second - 1);
-}
+void FramePanel::previousObservation() { stepObservation(-1); }
 
-void FramePanel::nextObservation() {
+void FramePanel::nextObservation() { stepObservation(1); }
+
+void FramePanel::stepObservation(int steps) {
   if (!current_ || !mission_) return;
-  if (current_->second + 1 >= mission_->tracks[current_->first].points.size()) return;
-  showObservation(current_->first, current_->second + 1);
+  const auto last = static_cast<int64_t>(mission_->tracks[current_->first].points.size()) - 1;
+  const int64_t point =
+      std::clamp<int64_t>(static_cast<int64_t>(current_->second) + steps, 0, last);
+  if (point != static_cast<int64_t>(current_->second))
+    showObservation(current_->first, static_cast<size_t>(point));
 }
 
 void FramePanel::togglePlay() {
@@ -670,7 +726,11 @@ void FramePanel::updateInfo() {
     speed_value_->setText(tr("%1 px/s").arg(track.speed, 0, 'f', 1));
   }
   const double heading = std::fmod(std::fmod(track.heading_deg, 360.0) + 360.0, 360.0);
-  heading_value_->setText(tr("%1° %2").arg(std::lround(heading) % 360).arg(CompassPoint(heading)));
+  // A map in pixels has no north: its directions are those of its picture.
+  const QString direction = mission_->map.geo_referenced
+                                ? DirectionWord(heading, kCompassPoints)
+                                : DirectionWord(heading, kPictureDirections);
+  heading_value_->setText(tr("%1° %2").arg(std::lround(heading) % 360).arg(direction));
 
   // Time and frame: of the observation, unless playback (or a pause after it) shows another frame.
   const bool recalling = pending_ticket_ != 0 && pending_from_click_;
@@ -690,12 +750,17 @@ void FramePanel::updateInfo() {
   time_value_->setText(tr("%1 s").arg(time_s, 0, 'f', 2));
   frame_value_->setText(frame == point->frame ? QString::number(frame)
                                               : tr("%1 (track not observed)").arg(frame));
-  if (record != nullptr && record->utc_us) {
+  if (record == nullptr) {
+    // Processing has not stored the frames yet, or the video has more frames than the mission.
+    utc_value_->setText(tr("unknown (the mission has no record of this frame)"));
+  } else if (record->utc_us) {
     // ISO 8601 with the "Z" designator (Qt 6.4 writes UTC as "+00:00").
     const QDateTime utc = QDateTime::fromMSecsSinceEpoch(*record->utc_us / 1000, QTimeZone::utc());
     utc_value_->setText(utc.toString(QStringLiteral("yyyy-MM-dd'T'HH:mm:ss.zzz'Z'")));
+  } else if (record->sensor || record->metadata_corners) {
+    utc_value_->setText(tr("no time stamp in the frame's metadata"));
   } else {
-    utc_value_->setText(tr("not in the metadata"));
+    utc_value_->setText(tr("no metadata for this frame"));
   }
 }
 
@@ -711,10 +776,17 @@ void FramePanel::updateActions() {
   play_action_->setIcon(
       style()->standardIcon(playing_ ? QStyle::SP_MediaPause : QStyle::SP_MediaPlay));
   play_action_->setText(playing_ ? tr("Pause") : tr("Play"));
-  previous_action_->setToolTip(
-      tr("Previous observation of the track (%1)").arg(ShortcutText(previous_action_)));
-  next_action_->setToolTip(
-      tr("Next observation of the track (%1)").arg(ShortcutText(next_action_)));
+  for (QAction* step : step_actions_) step->setEnabled(current_.has_value());
+  previous_action_->setToolTip(tr("Previous observation of the track (%1, %2; %3: %4 back)")
+                                   .arg(ShortcutText(step_actions_[0]))
+                                   .arg(ShortcutText(previous_action_))
+                                   .arg(ShortcutText(step_actions_[2]))
+                                   .arg(kLongStep));
+  next_action_->setToolTip(tr("Next observation of the track (%1, %2; %3: %4 on)")
+                               .arg(ShortcutText(step_actions_[1]))
+                               .arg(ShortcutText(next_action_))
+                               .arg(ShortcutText(step_actions_[3]))
+                               .arg(kLongStep));
   play_action_->setToolTip((playing_ ? tr("Pause (%1)") : tr("Play the video from this frame (%1)"))
                                .arg(ShortcutText(play_action_)));
 }

@@ -3,7 +3,8 @@
 // The click-to-recall frame panel: for a moving-target observation picked on the mosaic it shows
 // the original video frame the observation was made in, decoded from the source video, with the
 // object marked (red cross at the observation, red box around it), and the track's attributes.
-// It steps through the track's observations and plays the video forward from the frame.
+// It steps through the track's observations (Left and Right anywhere in the window once one is
+// shown, Shift for ten at a time) and plays the video forward from the frame.
 //
 // Decoding runs on a FrameRecall worker; while a decode is pending the previous frame stays on
 // screen. When the mission's video is missing the panel says where it looked and offers to locate
@@ -21,6 +22,7 @@
 #include <memory>
 #include <optional>
 #include <utility>
+#include <vector>
 
 class QAction;
 class QLabel;
@@ -74,6 +76,8 @@ class FramePanel : public QWidget {
  public slots:
   void previousObservation();
   void nextObservation();
+  // Steps `steps` observations along the track (back when negative), stopping at its ends.
+  void stepObservation(int steps);
   void play();
   void pause();
   void togglePlay();
@@ -124,6 +128,8 @@ class FramePanel : public QWidget {
   QAction* previous_action_ = nullptr;
   QAction* next_action_ = nullptr;
   QAction* play_action_ = nullptr;
+  // Left, Right, Shift+Left, Shift+Right: window-wide while an observation is shown.
+  std::vector<QAction*> step_actions_;
   QTimer* hint_timer_ = nullptr;  // shows "decoding…" when a decode takes > 100 ms
   QTimer* play_timer_ = nullptr;  // holds a decoded playback frame until its time
 

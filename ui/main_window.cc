@@ -121,6 +121,11 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
     if (!status.ok()) {
       const QString path = loaded ? loaded->path : QString();
       if (path == mission_path_ && jobs_->isRunning()) return;  // mid-processing: next commit
+      // The mission shown (if any) stays open; a mission that never opened is forgotten.
+      if (path == opening_path_) opening_path_.clear();
+      if (path == mission_path_ && !mission_) forgetMission();
+      statusBar()->clearMessage();
+      updateMissionFacts();
       showError(tr("Cannot open the mission"), FromStd(status.message()));
       emit missionFailed(path, FromStd(status.message()));
       return;
@@ -387,19 +392,26 @@ void MainWindow::openPath(const QString& path) {
 
 void MainWindow::openMission(const QString& path) {
   const QString absolute = QFileInfo(path).absoluteFilePath();
-  if (absolute != mission_path_) {
-    mission_.reset();
-    track_index_.reset();
-    selected_.reset();
-    view_->clearPreview();
-    view_->setMission(nullptr, QString());
-    frame_panel_->clear();
-    mission_path_ = absolute;
-    resetFilter();
-  }
-  mission_path_ = absolute;
+  // The mission shown stays until the new one has loaded: one that fails to open leaves it open.
+  opening_path_ = absolute;
+  statusBar()->showMessage(tr("Opening %1…").arg(QFileInfo(absolute).fileName()));
   updateMissionFacts();
   startLoad(absolute);
+}
+
+void MainWindow::forgetMission() {
+  mission_.reset();
+  mission_path_.clear();
+  track_index_.reset();
+  selected_.reset();
+  plane_.reset();
+  view_->clearPreview();
+  view_->setMission(nullptr, QString());
+  frame_panel_->setMission(nullptr, QString());
+  setWindowTitle(tr("Saker"));
+  resetFilter();
+  updateMissionFacts();
+  updateActions();
 }
 
 void MainWindow::reloadMission() {
@@ -461,6 +473,13 @@ void MainWindow::startLoad(const QString& path) {
 
 void MainWindow::missionLoaded(const Loaded& loaded) {
   const bool same = loaded.path == mission_path_ && mission_ != nullptr;
+  if (loaded.path == opening_path_) opening_path_.clear();
+  if (!same) {
+    // Another mission: nothing of the one shown carries over.
+    selected_.reset();
+    view_->setMarker(std::nullopt);
+    view_->clearPreview();
+  }
   mission_ = loaded.mission;
   mission_path_ = loaded.path;
   video_path_ = loaded.video;
@@ -494,7 +513,9 @@ void MainWindow::missionLoaded(const Loaded& loaded) {
     resetFilter();
     addRecent(mission_path_);
   } else {
-    applyFilter();
+    // A reload (processing committed a stage): the ranges, unit and boxes follow the mission,
+    // the bounds the analyst set stay.
+    setFilterRanges(/*keep_bounds=*/true);
   }
   const QString name = QFileInfo(mission_path_).fileName();
   setWindowTitle(loaded.read_only ? tr("%1 (read-only) — Saker").arg(name)
@@ -609,7 +630,11 @@ void MainWindow::jobEnded(const QString& title, const Status& status) {
     if (processing) reloadMission();
   } else {
     showError(tr("%1 failed").arg(title), FromStd(status.message()));
-    if (processing && QFileInfo::exists(mission_path_)) reloadMission();
+    if (processing && QFileInfo::exists(mission_path_)) {
+      reloadMission();
+    } else if (processing && !mission_) {
+      forgetMission();  // no mission was made: not "Processing…" for ever
+    }
   }
   emit jobFinished(title, status);
 }
@@ -851,8 +876,9 @@ void MainWindow::setColourMode(activity::ColourMode mode) {
   }
 }
 
-void MainWindow::resetFilter() {
-  filter_updating_ = true;
+void MainWindow::resetFilter() { setFilterRanges(/*keep_bounds=*/false); }
+
+void MainWindow::setFilterRanges(bool keep_bounds) {
   double start = 0, end = 0, fastest = 0;
   bool geo = false;
   if (mission_) {
@@ -863,15 +889,27 @@ void MainWindow::resetFilter() {
       fastest = std::max(fastest, geo ? t.speed_mps.value_or(0) : t.speed);
     }
   }
-  end = std::ceil(end);
-  fastest = std::ceil(fastest + 0.5);
-  for (QDoubleSpinBox* box : {from_s_, to_s_}) box->setRange(start, std::max(end, 1.0));
-  for (QDoubleSpinBox* box : {min_speed_, max_speed_}) box->setRange(0, std::max(fastest, 1.0));
-  from_s_->setValue(start);
-  to_s_->setValue(std::max(end, 1.0));
-  min_speed_->setValue(0);
-  max_speed_->setValue(std::max(fastest, 1.0));
-  speed_unit_->setText(geo ? tr("m/s") : tr("px/s"));
+  end = std::max(std::ceil(end), 1.0);
+  fastest = std::max(std::ceil(fastest + 0.5), 1.0);
+  const QString unit = geo ? tr("m/s") : tr("px/s");
+  // A bound at its end of the range is no bound and follows the range; a bound set inside it is
+  // kept (within the new range) when asked, speeds only in the same unit.
+  const bool same_unit = speed_unit_->text() == unit;
+  const auto kept = [keep_bounds](QDoubleSpinBox* box, bool low, bool allowed, double none) {
+    const bool set = low ? box->value() > box->minimum() : box->value() < box->maximum();
+    return keep_bounds && allowed && set ? box->value() : none;
+  };
+  const double from = kept(from_s_, true, true, start), to = kept(to_s_, false, true, end);
+  const double slowest = kept(min_speed_, true, same_unit, 0);
+  const double quickest = kept(max_speed_, false, same_unit, fastest);
+  filter_updating_ = true;
+  for (QDoubleSpinBox* box : {from_s_, to_s_}) box->setRange(start, end);
+  for (QDoubleSpinBox* box : {min_speed_, max_speed_}) box->setRange(0, fastest);
+  from_s_->setValue(from);
+  to_s_->setValue(to);
+  min_speed_->setValue(slowest);
+  max_speed_->setValue(quickest);
+  speed_unit_->setText(unit);
   const bool has_tracks = mission_ && !mission_->tracks.empty();
   for (QDoubleSpinBox* box : {from_s_, to_s_, min_speed_, max_speed_}) box->setEnabled(has_tracks);
   filter_updating_ = false;
@@ -910,11 +948,17 @@ void MainWindow::updateCursor(const std::optional<Eigen::Vector2d>& map_point) {
 // State shown
 
 void MainWindow::updateMissionFacts() {
+  // A mission being opened, while another is shown or none.
+  const QString opening =
+      !opening_path_.isEmpty() && opening_path_ != mission_path_
+          ? tr("<p>Opening %1…</p>").arg(QFileInfo(opening_path_).fileName().toHtmlEscaped())
+          : QString();
   if (mission_path_.isEmpty()) {
-    facts_->setText(
-        tr("<p>No mission open.</p><p>Open a mission (File &gt; Open Mission…) or "
-           "process a video (File &gt; Open Video…). You can also drop either on "
-           "the window.</p>"));
+    facts_->setText(opening.isEmpty()
+                        ? tr("<p>No mission open.</p><p>Open a mission (File &gt; Open Mission…) "
+                             "or process a video (File &gt; Open Video…). You can also drop "
+                             "either on the window.</p>")
+                        : opening);
     return;
   }
   QString html = tr("<b>%1</b><br>").arg(QFileInfo(mission_path_).fileName().toHtmlEscaped());
@@ -970,7 +1014,7 @@ void MainWindow::updateMissionFacts() {
     html += tr("<p style='color:#c0392b'>%1 Frame recall needs it: File &gt; Locate Video…</p>")
                 .arg(video_problem_.toHtmlEscaped());
   }
-  facts_->setText(html);
+  facts_->setText(html + opening);
 }
 
 void MainWindow::updateActions() {

@@ -119,7 +119,12 @@ class MainWindow : public QMainWindow {
   void jobEnded(const QString& title, const Status& status);
   void setColourMode(activity::ColourMode mode);
   void applyFilter();
-  void resetFilter();
+  void resetFilter();  // the ranges of the mission shown, no bounds
+  // The ranges, unit and boxes of the mission shown; `keep_bounds` keeps the bounds set inside
+  // the ranges (the speeds only in the same unit).
+  void setFilterRanges(bool keep_bounds);
+  // Shows no mission (one that was being opened or processed and never opened).
+  void forgetMission();
   void updateMissionFacts();
   void updateActions();
   void updateCursor(const std::optional<Eigen::Vector2d>& map_point);
@@ -178,6 +183,7 @@ class MainWindow : public QMainWindow {
   Mailbox* mailbox_ = nullptr;    // the processing job's commits and key frames
   std::shared_ptr<Loaded> loading_;
   QString pending_load_;  // a load asked for while one ran
+  QString opening_path_;  // a mission being opened (the one shown stays until it has loaded)
   QString processing_video_;
 };
 

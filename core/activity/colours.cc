@@ -125,14 +125,18 @@ TrackColouring::TrackColouring(ColourMode mode, const std::vector<mission::Activ
       }
       break;
     }
-    case ColourMode::kDirection:
-      legend_.title = "Direction of travel";
+    case ColourMode::kDirection: {
+      // A map in pixels has no north: its directions are those of its picture (heading 0 is up).
+      static constexpr const char* kCompass[] = {"N", "E", "S", "W", "N"};
+      static constexpr const char* kPicture[] = {"up", "right", "down", "left", "up"};
+      legend_.title = geo_referenced ? "Direction of travel" : "Direction of travel (on the map)";
       legend_.continuous = true;
-      for (const auto& [label, p] : std::vector<std::pair<const char*, double>>{
-               {"N", 0.0}, {"E", 0.25}, {"S", 0.5}, {"W", 0.75}, {"N", 1.0}}) {
-        legend_.entries.push_back({label, RampColour(p), p});
+      for (int i = 0; i < 5; ++i) {
+        const double p = i / 4.0;
+        legend_.entries.push_back({geo_referenced ? kCompass[i] : kPicture[i], RampColour(p), p});
       }
       break;
+    }
     case ColourMode::kVisit: {
       int visits = 1;
       for (const mission::ActivityTrack& t : tracks) visits = std::max(visits, t.visit);

@@ -45,7 +45,8 @@ struct Legend {
 class TrackColouring {
  public:
   // The scale is fixed from `tracks` (speed percentiles, time span, visits seen);
-  // `geo_referenced` chooses the speed unit.
+  // `geo_referenced` chooses the speed unit and the direction words (compass points, or up,
+  // right, down, left on a map in pixels).
   TrackColouring(ColourMode mode, const std::vector<mission::ActivityTrack>& tracks,
                  bool geo_referenced);
 

@@ -31,6 +31,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <limits>
 #include <memory>
 #include <optional>
@@ -283,6 +284,47 @@ TEST(FramePanelTest, StepsThroughObservationsWithButtonsAndKeys) {
   panel.previousObservation();
   EXPECT_EQ(panel.currentObservation()->second, 0u);
   EXPECT_TRUE(next->isEnabled());
+}
+
+// The UTC row says "no metadata" only for a frame that has none: a frame the mission has no
+// record of is unknown, a frame with metadata but no time stamp says so.
+TEST(FramePanelTest, SaysNoMetadataOnlyWhenTheFrameHasNone) {
+  const TestMission* test = SmallMission();
+  ASSERT_NE(test, nullptr);
+  const size_t t = LongestTrack(test->loaded);
+  const mission::TrackPoint& point = test->loaded.tracks[t].points[0];
+  const auto record =
+      std::find_if(test->loaded.frames.begin(), test->loaded.frames.end(),
+                   [&](const mission::FrameRecord& f) { return f.index == point.frame; });
+  ASSERT_NE(record, test->loaded.frames.end());
+  ASSERT_TRUE(record->utc_us && record->sensor);
+  const size_t at = static_cast<size_t>(record - test->loaded.frames.begin());
+  // The UTC row for the track's first observation, the frames changed by `change`.
+  const auto utc_text = [&](const std::function<void(std::vector<mission::FrameRecord>&)>& change) {
+    auto copy = std::make_shared<mission::Mission>(test->loaded);
+    change(copy->frames);
+    FramePanel panel;
+    panel.setMission(copy, QString());  // no video: the row is the observation's frame
+    panel.showObservation(t, 0);
+    auto* utc = panel.findChild<QLabel*>("utcValue");
+    return utc != nullptr ? utc->text() : QString("(no UTC row)");
+  };
+  const QString with_time = utc_text([](auto&) {});
+  EXPECT_TRUE(with_time.endsWith("Z")) << with_time.toStdString();
+  // Processing has not stored the frames yet.
+  const QString unrecorded = utc_text([](auto& frames) { frames.clear(); });
+  EXPECT_FALSE(unrecorded.contains("metadata")) << unrecorded.toStdString();
+  // Metadata without the time stamp (the sensor position is there).
+  const QString no_time = utc_text([at](auto& frames) { frames[at].utc_us.reset(); });
+  EXPECT_FALSE(no_time.contains("no metadata")) << no_time.toStdString();
+  EXPECT_TRUE(no_time.contains("time stamp")) << no_time.toStdString();
+  // No metadata at all.
+  const QString none = utc_text([at](auto& frames) {
+    frames[at].utc_us.reset();
+    frames[at].sensor.reset();
+    frames[at].metadata_corners.reset();
+  });
+  EXPECT_TRUE(none.contains("no metadata")) << none.toStdString();
 }
 
 TEST(FramePanelTest, MissingVideoShowsMessageAndOffersToLocateIt) {

@@ -16,6 +16,8 @@
 
 #include <QAction>
 #include <QApplication>
+#include <QDockWidget>
+#include <QDoubleSpinBox>
 #include <QDragEnterEvent>
 #include <QDropEvent>
 #include <QElapsedTimer>
@@ -28,6 +30,7 @@
 #include <QMimeData>
 #include <QProgressBar>
 #include <QPushButton>
+#include <QRegularExpression>
 #include <QSignalSpy>
 #include <QStatusBar>
 #include <QTest>
@@ -35,8 +38,11 @@
 #include <QTimer>
 #include <QUrl>
 #include <QXmlStreamReader>
+#include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <set>
 
 namespace saker::ui {
@@ -57,6 +63,95 @@ bool OpenAndWait(MainWindow& window, const TestMission& m) {
 
 QAction* ColourAction(MainWindow& window, const char* mode) {
   return window.findChild<QAction*>(QString("colourBy_") + mode);
+}
+
+// The Mission panel's filter boxes, in their order: from, to (s), slowest, fastest.
+std::vector<QDoubleSpinBox*> FilterBoxes(MainWindow& window) {
+  auto* dock = window.findChild<QDockWidget*>("missionDock");
+  if (dock == nullptr) return {};
+  const QList<QDoubleSpinBox*> boxes = dock->findChildren<QDoubleSpinBox*>();
+  return {boxes.begin(), boxes.end()};
+}
+
+// The texts of the Mission panel's labels (to find the speed unit).
+QStringList MissionPanelTexts(MainWindow& window) {
+  QStringList texts;
+  auto* dock = window.findChild<QDockWidget*>("missionDock");
+  if (dock == nullptr) return texts;
+  for (QLabel* label : dock->findChildren<QLabel*>()) texts << label->text();
+  return texts;
+}
+
+// After a run that ends in the window: the filters span the mission's tracks, in m/s (the map is
+// geo-referenced), and can be used.
+void ExpectFiltersFitTheMission(MainWindow& window) {
+  const mission::Mission& m = *window.mission();
+  ASSERT_TRUE(m.map.geo_referenced);
+  ASSERT_FALSE(m.tracks.empty());
+  const std::vector<QDoubleSpinBox*> boxes = FilterBoxes(window);
+  ASSERT_EQ(boxes.size(), 4u);
+  double end_s = 0, fastest = 0;
+  for (const mission::ActivityTrack& t : m.tracks) {
+    end_s = std::max(end_s, t.end_s);
+    fastest = std::max(fastest, t.speed_mps.value_or(0));
+  }
+  for (QDoubleSpinBox* box : boxes) EXPECT_TRUE(box->isEnabled());
+  EXPECT_GE(boxes[1]->maximum(), std::floor(end_s));
+  EXPECT_GE(boxes[1]->value(), std::floor(end_s));
+  EXPECT_GE(boxes[3]->maximum(), fastest);
+  EXPECT_GE(boxes[3]->value(), fastest);
+  const QStringList texts = MissionPanelTexts(window);
+  EXPECT_TRUE(texts.contains("m/s")) << texts.join(" | ").toStdString();
+  EXPECT_FALSE(texts.contains("px/s")) << texts.join(" | ").toStdString();
+  EXPECT_EQ(window.mosaicView()->legend().title.find("pixels"), std::string::npos);
+  for (size_t i = 0; i < m.tracks.size(); ++i) EXPECT_TRUE(window.mosaicView()->isTrackVisible(i));
+}
+
+// The track with the most observations.
+size_t LongestTrack(const mission::Mission& mission) {
+  size_t longest = 0;
+  for (size_t i = 0; i < mission.tracks.size(); ++i) {
+    if (mission.tracks[i].points.size() > mission.tracks[longest].points.size()) longest = i;
+  }
+  return longest;
+}
+
+// Saves `mission`, changed by `change`, as a new mission file at `path` (without tiles).
+void SaveChangedCopy(const mission::Mission& mission, const fs::path& path,
+                     const std::function<void(mission::Mission&)>& change) {
+  auto store = mission::MissionStore::Create(path.string());
+  ASSERT_TRUE(store.ok()) << store.status().ToString();
+  mission::Mission copy = mission;
+  change(copy);
+  const Status saved = (*store)->Save(copy);
+  ASSERT_TRUE(saved.ok()) << saved.ToString();
+}
+
+// Opens a damaged mission file called `name`: missionFailed and an error dialog naming it, which
+// is then closed.
+void OpenDamagedMission(MainWindow& window, const std::string& name) {
+  const fs::path bad = saker::testing::MakeTempDir("saker-ui-corrupt") / name;
+  std::ofstream(bad) << "SQLite format 3 but not really; a damaged file\n";
+  QSignalSpy failed(&window, &MainWindow::missionFailed);
+  window.openMission(QString::fromStdString(bad.string()));
+  ASSERT_TRUE(failed.wait(10000));
+  EXPECT_TRUE(failed.takeFirst().at(1).toString().contains(QString::fromStdString(name)));
+  QMessageBox* box = nullptr;
+  ASSERT_TRUE(WaitUntil([&] {
+    box = window.findChild<QMessageBox*>("errorDialog");
+    return box != nullptr && box->isVisible();
+  }));
+  EXPECT_TRUE(box->text().contains(QString::fromStdString(name))) << box->text().toStdString();
+  box->accept();
+}
+
+// Compass words: the 16 points (in capitals, as Saker writes them), and north, east, south, west.
+bool HasCompassWords(const QString& text) {
+  static const QRegularExpression kPoints(
+      "\\b(N|NNE|NE|ENE|E|ESE|SE|SSE|S|SSW|SW|WSW|W|WNW|NW|NNW)\\b");
+  static const QRegularExpression kWords("\\b(north|east|south|west)",
+                                         QRegularExpression::CaseInsensitiveOption);
+  return kPoints.match(text).hasMatch() || kWords.match(text).hasMatch();
 }
 
 TEST(MainWindowTest, OpensAMissionAndSwitchesColourModesWithTheirLegends) {
@@ -318,6 +413,8 @@ TEST(MainWindowTest, ProcessingKeepsTheWindowLiveAndCancelLeavesAUsablePartialMi
   // ends; the reload after the job shows the mission without it.
   EXPECT_TRUE(WaitUntil([&] { return !resume->isEnabled(); })) << "nothing left to resume";
   EXPECT_FALSE(facts->text().contains("Resume Processing")) << facts->text().toStdString();
+  // The filters follow the resumed mission (they stayed at "0.0 to 1.0 px/s", disabled).
+  ExpectFiltersFitTheMission(window);
 }
 
 TEST(MainWindowTest, ProcessingToTheEndShowsTheMissionAsItsStagesComplete) {
@@ -340,6 +437,9 @@ TEST(MainWindowTest, ProcessingToTheEndShowsTheMissionAsItsStagesComplete) {
   EXPECT_GE(opened.count(), 2);
   EXPECT_FALSE(window.mosaicView()->showingPreview());
   EXPECT_EQ(window.mission()->tracks.size(), m->loaded.tracks.size());
+  // The filters follow the processed mission (they stayed at "0.0 to 1.0 px/s", disabled, until
+  // the mission was opened again).
+  ExpectFiltersFitTheMission(window);
 }
 
 TEST(MainWindowTest, ExportsWriteValidFilesOfTheShownTracks) {
@@ -458,22 +558,9 @@ TEST(MainWindowTest, ExportActivityMapFromTheFileMenu) {
 }
 
 TEST(MainWindowTest, CorruptMissionGivesAnErrorDialogNamingTheFile) {
-  const fs::path dir = saker::testing::MakeTempDir("saker-ui-corrupt");
-  const fs::path bad = dir / "sortie-12.saker";
-  std::ofstream(bad) << "SQLite format 3 but not really; a damaged file\n";
   MainWindow window;
   window.show();
-  QSignalSpy failed(&window, &MainWindow::missionFailed);
-  window.openMission(QString::fromStdString(bad.string()));
-  ASSERT_TRUE(failed.wait(10000));
-  EXPECT_TRUE(failed.takeFirst().at(1).toString().contains("sortie-12.saker"));
-  QMessageBox* box = nullptr;
-  ASSERT_TRUE(WaitUntil([&] {
-    box = window.findChild<QMessageBox*>("errorDialog");
-    return box != nullptr && box->isVisible();
-  }));
-  EXPECT_TRUE(box->text().contains("sortie-12.saker")) << box->text().toStdString();
-  box->accept();
+  ASSERT_NO_FATAL_FAILURE(OpenDamagedMission(window, "sortie-12.saker"));
   EXPECT_EQ(window.mission(), nullptr);
   // The window is still usable: a good mission opens after it.
   const TestMission* m = SmallMission();
@@ -487,13 +574,9 @@ TEST(MainWindowTest, AMissionWhoseVideoHasGoneOpensAndOffersToLocateIt) {
   // A copy of the mission that records a video path that no longer exists.
   const fs::path dir = saker::testing::MakeTempDir("saker-ui-moved");
   const fs::path moved = dir / "moved.saker";
-  {
-    auto store = mission::MissionStore::Create(moved.string());
-    ASSERT_TRUE(store.ok()) << store.status().ToString();
-    mission::Mission copy = m->loaded;
+  ASSERT_NO_FATAL_FAILURE(SaveChangedCopy(m->loaded, moved, [&](mission::Mission& copy) {
     copy.source.path = (dir / "gone" / "loop.ts").string();
-    ASSERT_TRUE((*store)->Save(copy).ok());
-  }
+  }));
   MainWindow window;
   window.show();
   QSignalSpy opened(&window, &MainWindow::missionOpened);
@@ -530,6 +613,188 @@ TEST(MainWindowTest, AMissionWhoseVideoHasGoneOpensAndOffersToLocateIt) {
   EXPECT_EQ(again.videoPath().toStdString(), fs::absolute(m->video).string());
 }
 
+// A mission that does not open leaves the one shown open, with its title and facts.
+TEST(MainWindowTest, AFailedOpenKeepsTheOpenMissionAndItsTitle) {
+  const TestMission* m = SmallMission();
+  ASSERT_NE(m, nullptr);
+  MainWindow window;
+  window.show();
+  ASSERT_TRUE(OpenAndWait(window, *m));
+  const auto shown = window.mission();
+  const QString path = window.missionPath();
+  const QString title = window.windowTitle();
+  ASSERT_TRUE(title.contains("loop.saker"));
+
+  ASSERT_NO_FATAL_FAILURE(OpenDamagedMission(window, "sortie-13.saker"));
+
+  EXPECT_EQ(window.mission(), shown);
+  EXPECT_EQ(window.missionPath(), path);
+  EXPECT_EQ(window.windowTitle(), title);
+  auto* facts = window.findChild<QLabel*>("missionFacts");
+  ASSERT_NE(facts, nullptr);
+  EXPECT_TRUE(facts->text().contains("loop.saker")) << facts->text().toStdString();
+  EXPECT_FALSE(facts->text().contains("Loading")) << facts->text().toStdString();
+  EXPECT_FALSE(facts->text().contains("sortie-13")) << facts->text().toStdString();
+  EXPECT_TRUE(window.mosaicView()->tilesComplete());
+  size_t visible = 0;
+  for (size_t i = 0; i < shown->tracks.size(); ++i)
+    visible += window.mosaicView()->isTrackVisible(i);
+  EXPECT_EQ(visible, shown->tracks.size());
+}
+
+// After a pick on the map, Left and Right step along the picked track wherever the focus is in the
+// window (but in a text box), Shift+Left and Shift+Right ten observations at a time.
+TEST(MainWindowTest, ArrowKeysStepAlongTheSelectedTrackAfterAPick) {
+  const TestMission* m = SmallMission();
+  ASSERT_NE(m, nullptr);
+  MainWindow window;
+  window.resize(1400, 900);
+  window.show();
+  window.activateWindow();
+  ASSERT_TRUE(QTest::qWaitForWindowActive(&window));
+  ASSERT_TRUE(OpenAndWait(window, *m));
+  const auto& tracks = window.mission()->tracks;
+  const size_t longest = LongestTrack(*window.mission());
+  ASSERT_GE(tracks[longest].points.size(), 30u);
+  MosaicView* view = window.mosaicView();
+  view->fitToWindow();
+  const Eigen::Vector2d at = tracks[longest].points[tracks[longest].points.size() / 2].map;
+  view->zoomAt(4, view->widgetFromMap(at));
+  FramePanel* panel = window.framePanel();
+  QTest::mouseClick(view, Qt::LeftButton, Qt::NoModifier, view->widgetFromMap(at).toPoint());
+  ASSERT_TRUE(panel->currentObservation().has_value()) << "the click picked nothing";
+  const auto [track, picked] = *panel->currentObservation();
+  const auto& points = tracks[track].points;
+  ASSERT_GE(picked, 10u);
+  ASSERT_LT(picked + 12, points.size());
+  EXPECT_TRUE(view->hasFocus());
+
+  const auto expect_at = [&](size_t point, const char* how) {
+    ASSERT_TRUE(panel->currentObservation().has_value()) << how;
+    EXPECT_EQ(panel->currentObservation()->first, track) << how;
+    EXPECT_EQ(panel->currentObservation()->second, point) << how;
+    ASSERT_TRUE(view->marker().has_value()) << how;
+    EXPECT_LT((*view->marker() - points[point].map).norm(), 1e-9) << how;
+  };
+  const QPointF centre = view->widgetFromMap(Eigen::Vector2d::Zero());
+  QTest::keyClick(view, Qt::Key_Right);
+  expect_at(picked + 1, "Right");
+  EXPECT_EQ(view->widgetFromMap(Eigen::Vector2d::Zero()), centre) << "Right panned the map";
+  QTest::keyClick(view, Qt::Key_Right, Qt::ShiftModifier);
+  expect_at(picked + 11, "Shift+Right");
+  QTest::keyClick(view, Qt::Key_Left);
+  expect_at(picked + 10, "Left");
+  QTest::keyClick(view, Qt::Key_Left, Qt::ShiftModifier);
+  expect_at(picked, "Shift+Left");
+  EXPECT_EQ(view->widgetFromMap(Eigen::Vector2d::Zero()), centre) << "the keys panned the map";
+  // Shift steps stop at the track's ends.
+  for (int i = 0; i < 1 + static_cast<int>(points.size()) / 10; ++i) {
+    QTest::keyClick(view, Qt::Key_Left, Qt::ShiftModifier);
+  }
+  expect_at(0, "Shift+Left to the start");
+  // Up and Down still pan the map.
+  QTest::keyClick(view, Qt::Key_Down);
+  EXPECT_NE(view->widgetFromMap(Eigen::Vector2d::Zero()), centre) << "Down did not pan";
+  expect_at(0, "Down");
+
+  // In a number box the arrow keys edit the number.
+  QDoubleSpinBox* from = FilterBoxes(window).at(0);
+  from->setFocus();
+  QTest::keyClick(from, Qt::Key_Right);
+  expect_at(0, "Right in a number box");
+  // From the frame panel as from the map.
+  panel->setFocus();
+  QTest::keyClick(panel, Qt::Key_Right);
+  expect_at(1, "Right in the frame panel");
+}
+
+// The frame panel keeps the width it was given while playback changes its frame and texts.
+TEST(MainWindowTest, TheFramePanelKeepsItsWidthWhilePlaying) {
+  const TestMission* m = SmallMission();
+  ASSERT_NE(m, nullptr);
+  MainWindow window;
+  window.resize(1400, 900);
+  window.show();
+  ASSERT_TRUE(QTest::qWaitForWindowExposed(&window));
+  ASSERT_TRUE(OpenAndWait(window, *m));
+  FramePanel* panel = window.framePanel();
+  auto* dock = window.findChild<QDockWidget*>("frameDock");
+  ASSERT_NE(dock, nullptr);
+  // An analyst narrowed the panel to see more of the map.
+  window.resizeDocks({dock}, {280}, Qt::Horizontal);
+  QTest::qWait(100);
+  const int width = panel->width();
+  ASSERT_LE(width, 300);
+
+  const auto& tracks = window.mission()->tracks;
+  const size_t longest = LongestTrack(*window.mission());
+  QSignalSpy shown(panel, &FramePanel::frameShown);
+  panel->showObservation(longest, tracks[longest].points.size() - 3);
+  ASSERT_TRUE(shown.wait(10000));
+  std::vector<int> widths = {panel->width()};
+  QObject::connect(panel, &FramePanel::frameShown, panel,
+                   [&](int64_t, double) { widths.push_back(panel->width()); });
+  panel->play();
+  ASSERT_TRUE(panel->isPlaying());
+  QTest::qWait(2500);  // about 30 frames at 12.5 fps, past the end of the track
+  panel->pause();
+  QTest::qWait(50);
+  widths.push_back(panel->width());
+  ASSERT_GE(widths.size(), 10u);
+  const auto [narrowest, widest] = std::minmax_element(widths.begin(), widths.end());
+  EXPECT_EQ(*narrowest, width);
+  EXPECT_EQ(*widest, width) << "the panel widened from " << width << " to " << *widest
+                            << " px while playing";
+}
+
+// A mission whose map is not geo-referenced has no north: directions are given on the map's
+// picture (up, right, down, left), in the frame panel and the legend.
+TEST(MainWindowTest, UngeoreferencedMissionsShowNoCompassWords) {
+  const TestMission* m = SmallMission();
+  ASSERT_NE(m, nullptr);
+  const fs::path dir = saker::testing::MakeTempDir("saker-ui-pixels");
+  const fs::path pixels = dir / "pixels.saker";
+  ASSERT_NO_FATAL_FAILURE(SaveChangedCopy(m->loaded, pixels, [](mission::Mission& copy) {
+    copy.map.geo_referenced = false;
+    copy.map.origin.reset();
+    for (mission::FrameRecord& f : copy.frames) f.metadata_corners.reset();
+    for (mission::ActivityTrack& t : copy.tracks) t.speed_mps.reset();
+  }));
+  for (const bool geo : {true, false}) {
+    SCOPED_TRACE(geo ? "geo-referenced" : "not geo-referenced");
+    MainWindow window;
+    window.show();
+    QSignalSpy opened(&window, &MainWindow::missionOpened);
+    window.openMission(QString::fromStdString(geo ? m->mission.string() : pixels.string()));
+    ASSERT_TRUE(opened.wait(30000));
+    ASSERT_EQ(window.mission()->map.geo_referenced, geo);
+    const auto& tracks = window.mission()->tracks;
+    auto* heading = window.framePanel()->findChild<QLabel*>("headingValue");
+    ASSERT_NE(heading, nullptr);
+    bool any_compass = false;
+    for (size_t t = 0; t < tracks.size(); ++t) {
+      window.framePanel()->showObservation(t, 0);
+      const bool compass = HasCompassWords(heading->text());
+      any_compass |= compass;
+      if (!geo) {
+        EXPECT_FALSE(compass) << "track " << t << ": " << heading->text().toStdString();
+      }
+    }
+    EXPECT_EQ(any_compass, geo);
+    ColourAction(window, "direction")->trigger();
+    const activity::Legend& legend = window.mosaicView()->legend();
+    QString words = QString::fromStdString(legend.title);
+    for (const activity::Legend::Entry& e : legend.entries)
+      words += " " + QString::fromStdString(e.label);
+    EXPECT_EQ(HasCompassWords(words), geo) << words.toStdString();
+    auto* facts = window.findChild<QLabel*>("missionFacts");
+    ASSERT_NE(facts, nullptr);
+    if (!geo) {
+      EXPECT_FALSE(HasCompassWords(facts->text())) << facts->text().toStdString();
+    }
+  }
+}
+
 // Not a check: the user guide's screenshots, of the demo mission, when SAKER_UI_SCREENSHOTS
 // names a folder (docs/user-guide.md says how to remake them).
 TEST(MainWindowScreenshots, DemoMission) {
@@ -555,10 +820,7 @@ TEST(MainWindowScreenshots, DemoMission) {
   // A click on the middle observation of the longest track, zoomed in around it.
   ColourAction(window, "speed")->trigger();
   const auto& tracks = window.mission()->tracks;
-  size_t longest = 0;
-  for (size_t i = 0; i < tracks.size(); ++i) {
-    if (tracks[i].points.size() > tracks[longest].points.size()) longest = i;
-  }
+  const size_t longest = LongestTrack(*window.mission());
   const Eigen::Vector2d at = tracks[longest].points[tracks[longest].points.size() / 2].map;
   view->zoomAt(2.5, view->widgetFromMap(at));
   ASSERT_TRUE(WaitUntil([&] { return view->tilesComplete(); }));
