@@ -1,14 +1,13 @@
 #include "core/pipeline/checkpoint.h"
 
 #include "core/tiles/image_decode.h"
+#include "core/util/byte_io.h"
 #include "core/video/video_reader.h"
 
 #include <opencv2/imgcodecs.hpp>
 
-#include <cstring>
 #include <map>
 #include <string>
-#include <type_traits>
 #include <vector>
 
 namespace saker::pipeline {
@@ -28,87 +27,8 @@ constexpr const char* kOpenChangeTarget = "open_change_target";
 constexpr const char* kTrackerState = "tracker_state";
 constexpr uint32_t kStateVersion = 1;
 
-// Little-endian fields appended to a byte vector.
-class Writer {
- public:
-  template <typename T>
-  void Put(T value) {
-    static_assert(std::is_arithmetic_v<T>);
-    const size_t at = bytes_.size();
-    bytes_.resize(at + sizeof(T));
-    std::memcpy(bytes_.data() + at, &value, sizeof(T));
-  }
-  template <typename Derived>
-  void PutMatrix(const Eigen::MatrixBase<Derived>& m) {
-    for (Eigen::Index r = 0; r < m.rows(); ++r) {
-      for (Eigen::Index c = 0; c < m.cols(); ++c) Put<double>(m(r, c));
-    }
-  }
-  void PutBytes(const uint8_t* data, size_t size) {
-    Put<uint64_t>(size);
-    bytes_.insert(bytes_.end(), data, data + size);
-  }
-  void PutString(const std::string& s) {
-    PutBytes(reinterpret_cast<const uint8_t*>(s.data()), s.size());
-  }
-  std::vector<uint8_t> Take() { return std::move(bytes_); }
-
- private:
-  std::vector<uint8_t> bytes_;
-};
-
-// Reads what Writer wrote, never past the end: every Get fails once the bytes run out.
-class Reader {
- public:
-  explicit Reader(const std::vector<uint8_t>& bytes) : bytes_(bytes) {}
-
-  template <typename T>
-  bool Get(T* value) {
-    if (bytes_.size() - at_ < sizeof(T)) return false;
-    std::memcpy(value, bytes_.data() + at_, sizeof(T));
-    at_ += sizeof(T);
-    return true;
-  }
-  template <typename Matrix>
-  bool GetMatrix(Matrix* m) {
-    for (Eigen::Index r = 0; r < m->rows(); ++r) {
-      for (Eigen::Index c = 0; c < m->cols(); ++c) {
-        if (!Get(&(*m)(r, c))) return false;
-      }
-    }
-    return true;
-  }
-  bool GetVector2(Eigen::Vector2d* v) { return GetMatrix(v); }
-  // A count of items of at least `item_bytes` each that the rest of the record can hold.
-  bool GetCount(size_t item_bytes, size_t* count) {
-    uint64_t n = 0;
-    if (!Get(&n) || n > (bytes_.size() - at_) / item_bytes) return false;
-    *count = static_cast<size_t>(n);
-    return true;
-  }
-  bool GetBytes(std::vector<uint8_t>* out) {
-    size_t n = 0;
-    if (!GetCount(1, &n)) return false;
-    out->assign(bytes_.begin() + static_cast<std::ptrdiff_t>(at_),
-                bytes_.begin() + static_cast<std::ptrdiff_t>(at_ + n));
-    at_ += n;
-    return true;
-  }
-  bool GetString(std::string* out) {
-    std::vector<uint8_t> b;
-    if (!GetBytes(&b)) return false;
-    out->assign(b.begin(), b.end());
-    return true;
-  }
-  bool AtEnd() const { return at_ == bytes_.size(); }
-
- private:
-  const std::vector<uint8_t>& bytes_;
-  size_t at_ = 0;
-};
-
 std::vector<uint8_t> EncodeFrame(const frontend::FrameResult& f) {
-  Writer w;
+  ByteWriter w;
   w.Put<int64_t>(f.index);
   w.Put<double>(f.time_s);
   w.Put<int64_t>(f.pts);
@@ -121,7 +41,7 @@ std::vector<uint8_t> EncodeFrame(const frontend::FrameResult& f) {
   return w.Take();
 }
 
-bool DecodeFrame(Reader& r, frontend::FrameResult* f) {
+bool DecodeFrame(ByteReader& r, frontend::FrameResult* f) {
   uint8_t flags = 0;
   if (!r.Get(&f->index) || !r.Get(&f->time_s) || !r.Get(&f->pts) || !r.Get(&flags) ||
       !r.GetMatrix(&f->current_from_previous) || !r.GetMatrix(&f->covariance) ||
@@ -134,7 +54,7 @@ bool DecodeFrame(Reader& r, frontend::FrameResult* f) {
 }
 
 std::vector<uint8_t> EncodeKeyFrame(const track::KeyFrame& k) {
-  Writer w;
+  ByteWriter w;
   w.Put<int32_t>(static_cast<int32_t>(k.id));
   w.Put<int64_t>(k.frame_index);
   w.Put<int32_t>(k.segment);
@@ -146,7 +66,7 @@ std::vector<uint8_t> EncodeKeyFrame(const track::KeyFrame& k) {
   return w.Take();
 }
 
-bool DecodeKeyFrame(Reader& r, track::KeyFrame* k) {
+bool DecodeKeyFrame(ByteReader& r, track::KeyFrame* k) {
   int32_t id = 0;
   size_t n = 0;
   if (!r.Get(&id) || !r.Get(&k->frame_index) || !r.Get(&k->segment) || !r.GetCount(24, &n)) {
@@ -156,14 +76,14 @@ bool DecodeKeyFrame(Reader& r, track::KeyFrame* k) {
   k->points.resize(n);
   for (track::StationaryPoint& p : k->points) {
     int64_t point_id = 0;
-    if (!r.Get(&point_id) || !r.GetVector2(&p.second)) return false;
+    if (!r.Get(&point_id) || !r.GetMatrix(&p.second)) return false;
     p.first = static_cast<track::FeatureTrackId>(point_id);
   }
   return true;
 }
 
 StatusOr<std::vector<uint8_t>> EncodeImage(const frontend::KeyFramePreview& p) {
-  Writer w;
+  ByteWriter w;
   w.Put<int32_t>(static_cast<int32_t>(p.image.id));
   w.Put<int64_t>(p.image.frame_index);
   w.Put<double>(p.image.scale);
@@ -182,7 +102,7 @@ StatusOr<std::vector<uint8_t>> EncodeImage(const frontend::KeyFramePreview& p) {
 // `where` names the record. A key frame image is a downscaled copy of a video frame, so its PNG
 // may declare no more pixels than the largest picture the video reader accepts; the header is
 // checked before anything is decoded (a decompression bomb is refused, not allocated).
-StatusOr<bool> DecodeImage(Reader& r, const std::string& where, frontend::KeyFramePreview* p) {
+StatusOr<bool> DecodeImage(ByteReader& r, const std::string& where, frontend::KeyFramePreview* p) {
   int32_t id = 0;
   std::vector<uint8_t> png;
   if (!r.Get(&id) || !r.Get(&p->image.frame_index) || !r.Get(&p->image.scale) ||
@@ -202,7 +122,7 @@ StatusOr<bool> DecodeImage(Reader& r, const std::string& where, frontend::KeyFra
 }
 
 std::vector<uint8_t> EncodeLink(const track::SequentialLink& l) {
-  Writer w;
+  ByteWriter w;
   w.Put<int32_t>(static_cast<int32_t>(l.from));
   w.Put<int32_t>(static_cast<int32_t>(l.to));
   w.Put<uint8_t>(l.chained);
@@ -217,7 +137,7 @@ std::vector<uint8_t> EncodeLink(const track::SequentialLink& l) {
   return w.Take();
 }
 
-bool DecodeLink(Reader& r, track::SequentialLink* l) {
+bool DecodeLink(ByteReader& r, track::SequentialLink* l) {
   int32_t from = 0, to = 0;
   uint8_t chained = 0;
   size_t n = 0;
@@ -231,25 +151,25 @@ bool DecodeLink(Reader& r, track::SequentialLink* l) {
   l->correspondences.resize(n);
   for (track::Correspondence& c : l->correspondences) {
     int64_t id = 0;
-    if (!r.Get(&id) || !r.GetVector2(&c.source) || !r.GetVector2(&c.target)) return false;
+    if (!r.Get(&id) || !r.GetMatrix(&c.source) || !r.GetMatrix(&c.target)) return false;
     c.id = static_cast<track::FeatureTrackId>(id);
   }
   return true;
 }
 
 std::vector<uint8_t> EncodeBreak(const track::ChainBreak& b) {
-  Writer w;
+  ByteWriter w;
   w.Put<int64_t>(b.frame_index);
   w.PutString(b.reason);
   return w.Take();
 }
 
-bool DecodeBreak(Reader& r, track::ChainBreak* b) {
+bool DecodeBreak(ByteReader& r, track::ChainBreak* b) {
   return r.Get(&b->frame_index) && r.GetString(&b->reason);
 }
 
 std::vector<uint8_t> EncodeTarget(const track::TargetTrack& t) {
-  Writer w;
+  ByteWriter w;
   w.Put<int64_t>(static_cast<int64_t>(t.id));
   w.Put<uint8_t>(t.confirmed);
   w.Put<uint64_t>(t.max_features);
@@ -268,13 +188,13 @@ std::vector<uint8_t> EncodeTarget(const track::TargetTrack& t) {
   return w.Take();
 }
 
-bool DecodeTarget(Reader& r, track::TargetTrack* t) {
+bool DecodeTarget(ByteReader& r, track::TargetTrack* t) {
   int64_t id = 0;
   uint8_t confirmed = 0;
   uint64_t max_features = 0;
   size_t n = 0;
   if (!r.Get(&id) || !r.Get(&confirmed) || !r.Get(&max_features) ||
-      !r.GetVector2(&t->image_velocity) || !r.GetCount(81, &n)) {
+      !r.GetMatrix(&t->image_velocity) || !r.GetCount(81, &n)) {
     return false;
   }
   t->id = static_cast<track::TargetTrackId>(id);
@@ -284,8 +204,8 @@ bool DecodeTarget(Reader& r, track::TargetTrack* t) {
   for (track::TargetObservation& o : t->observations) {
     uint8_t change = 0;
     size_t features = 0;
-    if (!r.Get(&o.frame) || !r.GetVector2(&o.position) || !r.GetVector2(&o.box_min) ||
-        !r.GetVector2(&o.box_max) || !r.GetVector2(&o.velocity) || !r.Get(&change) ||
+    if (!r.Get(&o.frame) || !r.GetMatrix(&o.position) || !r.GetMatrix(&o.box_min) ||
+        !r.GetMatrix(&o.box_max) || !r.GetMatrix(&o.velocity) || !r.Get(&change) ||
         change > static_cast<uint8_t>(track::ChangeEvidence::kChanged) ||
         !r.GetCount(8, &features)) {
       return false;
@@ -302,7 +222,8 @@ bool DecodeTarget(Reader& r, track::TargetTrack* t) {
 }
 
 // The state record: Unsupported for another version of the layout, false when malformed.
-StatusOr<bool> DecodeState(Reader& r, const std::string& where, frontend::FrontEndCheckpoint* c) {
+StatusOr<bool> DecodeState(ByteReader& r, const std::string& where,
+                           frontend::FrontEndCheckpoint* c) {
   uint32_t version = 0;
   uint8_t complete = 0;
   if (r.Get(&version) && version != kStateVersion) {
@@ -331,7 +252,7 @@ Status CheckpointWriter::Write(const frontend::FrontEndCheckpoint& c) {
   std::vector<mission::CheckpointRecord> records;
   std::vector<std::string> replace = {kOpenTarget, kOpenChangeTarget, kTrackerState};
   {
-    Writer w;
+    ByteWriter w;
     w.Put<uint32_t>(kStateVersion);
     w.Put<int64_t>(c.through_frame);
     w.Put<uint8_t>(c.complete);
@@ -388,7 +309,7 @@ StatusOr<std::optional<frontend::FrontEndCheckpoint>> ReadCheckpoint(
       c.state = record.bytes;  // the front end reads it (it says when it is malformed)
       continue;
     }
-    Reader r(record.bytes);
+    ByteReader r(record.bytes);
     bool ok = false;
     const std::string& kind = record.kind;
     if (kind == kState) {
@@ -438,7 +359,7 @@ StatusOr<std::optional<CheckpointState>> ReadCheckpointState(const mission::Miss
   for (const mission::CheckpointRecord& record : records) {
     key_frames += record.kind == kKeyFrame;
     if (record.kind != kState) continue;
-    Reader r(record.bytes);
+    ByteReader r(record.bytes);
     frontend::FrontEndCheckpoint c;
     SAKER_ASSIGN_OR_RETURN(const bool ok, DecodeState(r, where, &c));
     if (!ok || !r.AtEnd()) return InvalidDataError(where + ": the state record is malformed");

@@ -10,6 +10,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
+#include <string>
 #include <type_traits>
 #include <vector>
 
@@ -36,6 +37,14 @@ class ByteWriter {
   void PutVector(const std::vector<T>& items) {
     Put<uint64_t>(items.size());
     for (const T& item : items) Put<T>(item);
+  }
+  // A count, then the bytes.
+  void PutBytes(const uint8_t* data, size_t size) {
+    Put<uint64_t>(size);
+    bytes_.insert(bytes_.end(), data, data + size);
+  }
+  void PutString(const std::string& s) {
+    PutBytes(reinterpret_cast<const uint8_t*>(s.data()), s.size());
   }
   const std::vector<uint8_t>& bytes() const { return bytes_; }
   std::vector<uint8_t> Take() { return std::move(bytes_); }
@@ -80,6 +89,21 @@ class ByteReader {
     for (T& item : *items) {
       if (!Get(&item)) return false;
     }
+    return true;
+  }
+  bool GetBytes(std::vector<uint8_t>* out) {
+    size_t n = 0;
+    if (!GetCount(1, &n)) return false;
+    out->assign(bytes_.begin() + static_cast<std::ptrdiff_t>(at_),
+                bytes_.begin() + static_cast<std::ptrdiff_t>(at_ + n));
+    at_ += n;
+    return true;
+  }
+  bool GetString(std::string* out) {
+    size_t n = 0;
+    if (!GetCount(1, &n)) return false;
+    out->assign(reinterpret_cast<const char*>(bytes_.data() + at_), n);
+    at_ += n;
     return true;
   }
   bool AtEnd() const { return at_ == bytes_.size(); }

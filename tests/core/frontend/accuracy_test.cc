@@ -10,6 +10,7 @@
 #include "core/frontend/front_end.h"
 #include "core/sim/simulator.h"
 #include "core/sim/truth.h"
+#include "tests/testing/sanitizers.h"
 #include "tests/testing/test_data.h"
 
 #include <gtest/gtest.h>
@@ -30,9 +31,9 @@ struct World {
 };
 
 void ExpectDetection(const World& world) {
-#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
-  GTEST_SKIP() << "accuracy over whole flights is measured in the release build";
-#endif
+  if (saker::testing::kUnderAddressSanitizer || saker::testing::kUnderThreadSanitizer) {
+    GTEST_SKIP() << "accuracy over whole flights is measured in the release build";
+  }
   const std::filesystem::path dir = saker::testing::MakeTempDir("saker-accuracy");
   sim::SimulationOptions options;  // the demo's: roundabout-loop, 1280x720, 25 fps
   options.output = dir / "world.ts";

@@ -9,6 +9,7 @@
 #include "core/util/check.h"
 #include "core/util/memory.h"
 #include "core/video/video_reader.h"
+#include "tests/testing/sanitizers.h"
 #include "tests/testing/test_data.h"
 
 #include <Eigen/Geometry>
@@ -35,6 +36,9 @@ sim::SimulationOptions SmallOptions(const std::filesystem::path& output, double 
   return options;
 }
 
+// One simulated clip and one front end run for the whole suite (CTest runs the suite in one
+// process: tests/CMakeLists.txt, SHARED_SUITES). The run hands out a checkpoint at every key
+// frame, which the resume tests replay; the tests that run the clip again compare with it.
 class FrontEndTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
@@ -42,7 +46,14 @@ class FrontEndTest : public ::testing::Test {
     const sim::SimulationOptions options = SmallOptions(*dir_ / "town.ts", 12);
     StatusOr<sim::SimulationSummary> summary = sim::Simulate(options);
     ASSERT_TRUE(summary.ok()) << summary.status().ToString();
-    StatusOr<FrontEndResult> result = RunFrontEnd(options.output.string(), {});
+    checkpoints_ = new std::vector<FrontEndCheckpoint>;
+    FrontEndOptions checkpointed;
+    checkpointed.checkpoint_interval_s = 0;  // at every key frame
+    checkpointed.on_checkpoint = [](const FrontEndCheckpoint& c) {
+      checkpoints_->push_back(c);
+      return Status::Ok();
+    };
+    StatusOr<FrontEndResult> result = RunFrontEnd(options.output.string(), checkpointed);
     ASSERT_TRUE(result.ok()) << result.status().ToString();
     result_ = new FrontEndResult(std::move(result).value());
     StatusOr<sim::Truth> truth = sim::ReadTruth(options.TruthPath());
@@ -55,15 +66,20 @@ class FrontEndTest : public ::testing::Test {
   static void TearDownTestSuite() {
     delete result_;
     delete evaluation_;
+    delete checkpoints_;
     delete dir_;
   }
+  static std::string Video() { return (*dir_ / "town.ts").string(); }
+
   static std::filesystem::path* dir_;
   static FrontEndResult* result_;
   static eval::FrontEndEvaluation* evaluation_;
+  static std::vector<FrontEndCheckpoint>* checkpoints_;  // as the run handed them out
 };
 std::filesystem::path* FrontEndTest::dir_ = nullptr;
 FrontEndResult* FrontEndTest::result_ = nullptr;
 eval::FrontEndEvaluation* FrontEndTest::evaluation_ = nullptr;
+std::vector<FrontEndCheckpoint>* FrontEndTest::checkpoints_ = nullptr;
 
 TEST_F(FrontEndTest, FrameToFrameHomographiesMatchTheTruth) {
   ASSERT_NE(evaluation_, nullptr);
@@ -142,7 +158,7 @@ TEST_F(FrontEndTest, OutcomesAgreeWithTheFigures) {
 // frame, instead of letting the machine run out of memory; under it, nothing changes.
 TEST_F(FrontEndTest, MemoryLimitStopsWithAClearMessage) {
   ASSERT_NE(result_, nullptr);
-  const std::string video = (*dir_ / "town.ts").string();
+  const std::string video = Video();
   FrontEndOptions options;
   options.max_memory_mib = 1;  // below any process's resident memory
   const StatusOr<FrontEndResult> stopped = RunFrontEnd(video, options);
@@ -166,7 +182,7 @@ TEST_F(FrontEndTest, MemoryLimitStopsWithAClearMessage) {
 // here, long queues of 640x360 frames that would take the process over its limit.
 TEST_F(FrontEndTest, MemoryLimitIsCheckedBeforeDecodingAgainstThePictureSize) {
   ASSERT_NE(result_, nullptr);
-  const std::string video = (*dir_ / "town.ts").string();
+  const std::string video = Video();
   FrontEndOptions options;
   options.queue_frames = 256;
   options.change_queue_frames = 256;
@@ -190,13 +206,14 @@ TEST_F(FrontEndTest, MemoryLimitIsCheckedBeforeDecodingAgainstThePictureSize) {
 
 // Change detection runs on its own thread and its answers are applied at a fixed lag: however the
 // threads run, the result is the same. Queues of one frame make the three threads wait for each
-// other all the time; the default ones let them drift apart.
+// other all the time; the default ones let them drift apart. The suite's run also handed out a
+// checkpoint at every key frame and this one none: checkpoints do not change the result either.
 TEST_F(FrontEndTest, TheResultDoesNotDependOnHowTheThreadsRun) {
   ASSERT_NE(result_, nullptr);
   FrontEndOptions tight;
   tight.queue_frames = 1;
   tight.change_queue_frames = 1;
-  StatusOr<FrontEndResult> other = RunFrontEnd((*dir_ / "town.ts").string(), tight);
+  StatusOr<FrontEndResult> other = RunFrontEnd(Video(), tight);
   ASSERT_TRUE(other.ok()) << other.status().ToString();
   ASSERT_EQ(other->frames.size(), result_->frames.size());
   for (size_t i = 0; i < other->frames.size(); ++i) {
@@ -229,25 +246,18 @@ TEST_F(FrontEndTest, TheResultDoesNotDependOnHowTheThreadsRun) {
 // quarters of the way through.
 TEST_F(FrontEndTest, ResumedRunEqualsTheUninterruptedOneObservationForObservation) {
   ASSERT_NE(result_, nullptr);
-  const std::string video = (*dir_ / "town.ts").string();
-  std::vector<FrontEndCheckpoint> deliveries;
-  FrontEndOptions options;
-  options.checkpoint_interval_s = 0;  // at every key frame
-  options.on_checkpoint = [&](const FrontEndCheckpoint& c) {
-    deliveries.push_back(c);
-    return Status::Ok();
-  };
-  StatusOr<FrontEndResult> full = RunFrontEnd(video, options);
-  ASSERT_TRUE(full.ok()) << full.status().ToString();
+  const std::string video = Video();
+  const std::vector<FrontEndCheckpoint>& deliveries = *checkpoints_;
+  const FrontEndResult* full = result_;
   ASSERT_GE(deliveries.size(), 5u);
-  options.on_checkpoint = nullptr;
+  FrontEndOptions options;
+  options.checkpoint_interval_s = 0;       // as the suite's run, without keeping them
   const size_t n = deliveries.size() - 1;  // the last one is complete
-#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
   // One kill point under the sanitizers, where each resume costs a whole run of the clip.
-  const std::vector<size_t> kills = {n / 2};
-#else
-  const std::vector<size_t> kills = {n / 4, n / 2, 3 * n / 4};
-#endif
+  const std::vector<size_t> kills =
+      saker::testing::kUnderAddressSanitizer || saker::testing::kUnderThreadSanitizer
+          ? std::vector<size_t>{n / 2}
+          : std::vector<size_t>{n / 4, n / 2, 3 * n / 4};
   for (const size_t kill : kills) {
     FrontEndCheckpoint stopped;
     for (size_t d = 0; d <= kill; ++d) stopped.Append(deliveries[d]);
@@ -288,18 +298,11 @@ TEST_F(FrontEndTest, ResumedRunEqualsTheUninterruptedOneObservationForObservatio
 // frame.
 TEST_F(FrontEndTest, ResumesFromACheckpointAsIfNeverStopped) {
   ASSERT_NE(result_, nullptr);
-  const std::string video = (*dir_ / "town.ts").string();
-  std::vector<FrontEndCheckpoint> deliveries;
+  const std::string video = Video();
+  const std::vector<FrontEndCheckpoint>& deliveries = *checkpoints_;
+  const FrontEndResult* full = result_;
   FrontEndOptions options;
   options.checkpoint_interval_s = 0;  // at every key frame
-  options.on_checkpoint = [&](const FrontEndCheckpoint& c) {
-    deliveries.push_back(c);
-    return Status::Ok();
-  };
-  StatusOr<FrontEndResult> full = RunFrontEnd(video, options);
-  ASSERT_TRUE(full.ok()) << full.status().ToString();
-  ASSERT_EQ(full->targets.size(), result_->targets.size());
-  ASSERT_EQ(full->key_frames.size(), result_->key_frames.size());
   ASSERT_GE(deliveries.size(), 4u);
   ASSERT_TRUE(deliveries.back().complete);
   FrontEndCheckpoint all;
@@ -437,6 +440,7 @@ TEST_F(FrontEndTest, ResumesFromACheckpointAsIfNeverStopped) {
 // Walkers from 200 m at 0.2 m per pixel: change detection sees people in frames where the feature
 // tracks miss them, without adding false tracks.
 TEST(FrontEndRunTest, ChangeDetectionFindsWalkers) {
+  SAKER_SKIP_UNDER_TSAN("FrontEndTest, whose runs detect changes on the change thread");
   const std::filesystem::path dir = saker::testing::MakeTempDir("saker-frontend-walkers");
   sim::SimulationOptions options = SmallOptions(dir / "walkers.ts", 16);
   options.targets.cars = 10;

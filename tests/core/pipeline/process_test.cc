@@ -6,6 +6,7 @@
 #include "core/pipeline/export_mission.h"
 #include "core/sim/simulator.h"
 #include "core/video/video_reader.h"
+#include "tests/testing/sanitizers.h"
 #include "tests/testing/small_loop.h"
 #include "tests/testing/test_data.h"
 
@@ -140,6 +141,7 @@ TEST_F(ProcessTest, CancelKeepsTheStagesThatCompleted) {
 // The front end's checkpoints go through the mission file unchanged: read back, they are what
 // the front end handed out, merged.
 TEST_F(ProcessTest, CheckpointsRoundTripThroughTheMissionFile) {
+  SAKER_SKIP_UNDER_TSAN("ProcessesIntoAMissionThatReopensWithTheTruthsActivity");
   const std::string path = (*dir_ / "checkpoint.saker").string();
   auto store = mission::MissionStore::Create(path);
   ASSERT_TRUE(store.ok()) << store.status().ToString();
@@ -327,6 +329,7 @@ TEST_F(ProcessTest, AnInterruptedJobResumesFromItsCheckpoint) {
 // Save As: a complete copy, tiles included; never over the source or over a file that is not a
 // mission.
 TEST_F(ProcessTest, CopyMissionCopiesEverythingAndRefusesToOverwriteOtherFiles) {
+  SAKER_SKIP_UNDER_TSAN("ProcessesIntoAMissionThatReopensWithTheTruthsActivity");
   const std::string source = (*dir_ / "to-copy.saker").string();
   ProcessOptions options;
   options.saker_version = "test";
@@ -384,6 +387,7 @@ TEST_F(ProcessTest, NotAVideoLeavesNoMission) {
 // kill -9 of `saker-cli process` at random moments: the mission, when there is one, always
 // reopens in a committed state.
 TEST_F(ProcessTest, KillNineDuringProcessingLeavesAReadableMission) {
+  SAKER_SKIP_UNDER_TSAN("the tests that process in this process");
   std::mt19937_64 random(20261121);
   int runs = 0, failures = 0, with_file = 0;
   for (int run = 0; run < 8; ++run) {
