@@ -264,7 +264,9 @@ int main(int argc, char** argv) {
 
     const double decode_fps = DecodeOnlyFps(sim.output.string());
     const double rss_before = PeakMb();
-    for (const bool overlays : compare_overlays ? std::vector{false, true} : std::vector{true}) {
+    for (const bool overlays :
+         compare_overlays ? std::vector{false, true}
+                          : std::vector{saker::frontend::FrontEndOptions{}.overlays.enabled}) {
       saker::frontend::FrontEndOptions options;
       options.overlays.enabled = overlays;
       auto result = saker::frontend::RunFrontEnd(sim.output.string(), options);

@@ -61,7 +61,7 @@ struct FrontEndOptions {
   track::ChangeEchoOptions change_echoes;  // change-only tracks beside a car are dropped
   // Screen-fixed overlays (HUD text, reticles, logos), found from the change detector's evidence
   // and kept out of the ground motion, the change tracks and the targets (docs/front-end.md,
-  // "Overlays"). Needs change detection.
+  // "Overlays"). Off by default for now (its recall cost, docs/accuracy.md "Overlays").
   track::OverlayOptions overlays;
   bool parallax_check = true;    // estimate the epipole (fundamental matrix) for the MTI test
   int min_parallax_points = 20;  // matches on F but off the ground plane needed to use F's epipole

@@ -34,6 +34,7 @@ track::ChangeFrame Answer(int64_t frame, const cv::Rect& changed, double shift_p
 
 TEST(OverlayDetectorTest, ScreenFixedChangeBecomesOverlayAndMoversDoNot) {
   track::OverlayOptions options;
+  options.enabled = true;
   track::OverlayDetector detector(options, 25);
   const cv::Rect hud(16, 16, 64, 16);
   for (int64_t f = 0; f < 75; ++f) {
@@ -76,7 +77,9 @@ TEST(OverlayDetectorTest, ScreenFixedChangeBecomesOverlayAndMoversDoNot) {
 }
 
 TEST(OverlayDetectorTest, FeaturesThatStayPutWhileTheGroundMovesAreOverlay) {
-  track::OverlayDetector detector({}, 25);
+  track::OverlayOptions options;
+  options.enabled = true;
+  track::OverlayDetector detector(options, 25);
   Eigen::Matrix3d ground = Eigen::Matrix3d::Identity();
   ground(0, 2) = 3;  // the ground moves 3 px a frame to the right
   for (int64_t f = 0; f < 30; ++f) {
@@ -92,7 +95,7 @@ TEST(OverlayDetectorTest, FeaturesThatStayPutWhileTheGroundMovesAreOverlay) {
   EXPECT_FALSE(detector.Contains({103, 100}));
   EXPECT_FALSE(detector.Contains({200, 55}));
   // Without ground motion nothing is learnt.
-  track::OverlayDetector hover({}, 25);
+  track::OverlayDetector hover(options, 25);
   for (int64_t f = 0; f < 30; ++f) {
     hover.AddFeatures({{track::FeatureTrackId{1}, {4, 4}, {4, 4}}}, Eigen::Matrix3d::Identity(),
                       cv::Size(320, 240));
@@ -158,13 +161,14 @@ TEST(OverlayFrontEndTest, NoTargetOnTheOverlayAndTheMaskCoversIt) {
     }
     return count;
   };
-  // The clip is a test: without the overlay detection, the overlay makes targets.
-  FrontEndOptions without;
-  without.overlays.enabled = false;
-  StatusOr<FrontEndResult> plain = RunFrontEnd(options.output.string(), without);
+  // The clip is a test: without the overlay detection (the default for now), the overlay makes
+  // targets.
+  StatusOr<FrontEndResult> plain = RunFrontEnd(options.output.string(), {});
   ASSERT_TRUE(plain.ok()) << plain.status().ToString();
   EXPECT_TRUE(plain->overlays.empty());
-  StatusOr<FrontEndResult> result = RunFrontEnd(options.output.string(), {});
+  FrontEndOptions with;
+  with.overlays.enabled = true;
+  StatusOr<FrontEndResult> result = RunFrontEnd(options.output.string(), with);
   ASSERT_TRUE(result.ok()) << result.status().ToString();
   std::cout << "without overlay detection: " << plain->targets.size() << " targets, "
             << on_overlay(*plain) << " on the overlay; with: " << result->targets.size()
