@@ -241,6 +241,10 @@ int main(int argc, char** argv) {
                  "--memory-minutes: join this many copies of the simulated video end to end")
       ->capture_default_str()
       ->check(CLI::Range(1, 1000));
+  bool compare_overlays = false;
+  app.add_flag("--compare-overlays", compare_overlays,
+               "Also run the front end without overlay detection (FrontEndOptions::overlays) on "
+               "the same video, first, for the cost of the overlay mask in the same run");
   CLI11_PARSE(app, argc, argv);
   if (memory_minutes > 0) return MeasureMemory(memory_minutes, memory_height, memory_repeat);
 
@@ -260,40 +264,48 @@ int main(int argc, char** argv) {
 
     const double decode_fps = DecodeOnlyFps(sim.output.string());
     const double rss_before = PeakMb();
-    auto result = saker::frontend::RunFrontEnd(sim.output.string(), {});
-    if (!result.ok()) {
-      std::cerr << result.status().message() << "\n";
-      return 1;
-    }
-    const auto& t = result->timing;
-    const double front_fps = static_cast<double>(t.frames) / t.wall_s;
-    if (json) {
-      out.push_back({{"width", w},
-                     {"height", h},
-                     {"frames", t.frames},
-                     {"decode_only_fps", decode_fps},
-                     {"front_end_fps", front_fps},
-                     {"cost_vs_decode", decode_fps / front_fps},
-                     {"decode_ms", t.decode_ms},
-                     {"track_ms", t.track_ms},
-                     {"homography_ms", t.homography_ms},
-                     {"segment_ms", t.segment_ms},
-                     {"change_ms", t.change_ms},
-                     {"change_tracks_ms", t.change_tracks_ms},
-                     {"change_wait_ms", t.change_wait_ms},
-                     {"key_frames_ms", t.key_frames_ms},
-                     {"peak_rss_mb", PeakMb()},
-                     {"peak_rss_before_mb", rss_before}});
-    } else {
-      std::printf(
-          "%dx%d, %lld frames: front end %.1f fps, decode alone %.1f fps, front end time = %.2fx "
-          "decode "
-          "time; per frame: decode %.1f ms (own thread), track %.1f, homography %.1f, segment "
-          "%.1f, change %.1f (own thread), blob tracks %.2f, waiting for change %.2f, key frames "
-          "%.2f ms; peak RSS %.0f MB\n",
-          w, h, static_cast<long long>(t.frames), front_fps, decode_fps, decode_fps / front_fps,
-          t.decode_ms, t.track_ms, t.homography_ms, t.segment_ms, t.change_ms, t.change_tracks_ms,
-          t.change_wait_ms, t.key_frames_ms, PeakMb());
+    for (const bool overlays :
+         compare_overlays ? std::vector{false, true}
+                          : std::vector{saker::frontend::FrontEndOptions{}.overlays.enabled}) {
+      saker::frontend::FrontEndOptions options;
+      options.overlays.enabled = overlays;
+      auto result = saker::frontend::RunFrontEnd(sim.output.string(), options);
+      if (!result.ok()) {
+        std::cerr << result.status().message() << "\n";
+        return 1;
+      }
+      const auto& t = result->timing;
+      const double front_fps = static_cast<double>(t.frames) / t.wall_s;
+      if (json) {
+        out.push_back({{"width", w},
+                       {"height", h},
+                       {"overlays", overlays},
+                       {"frames", t.frames},
+                       {"decode_only_fps", decode_fps},
+                       {"front_end_fps", front_fps},
+                       {"cost_vs_decode", decode_fps / front_fps},
+                       {"decode_ms", t.decode_ms},
+                       {"track_ms", t.track_ms},
+                       {"homography_ms", t.homography_ms},
+                       {"segment_ms", t.segment_ms},
+                       {"change_ms", t.change_ms},
+                       {"change_tracks_ms", t.change_tracks_ms},
+                       {"change_wait_ms", t.change_wait_ms},
+                       {"key_frames_ms", t.key_frames_ms},
+                       {"peak_rss_mb", PeakMb()},
+                       {"peak_rss_before_mb", rss_before}});
+      } else {
+        std::printf(
+            "%dx%d, overlays %s, %lld frames: front end %.1f fps, decode alone %.1f fps, front end "
+            "time = %.2fx "
+            "decode "
+            "time; per frame: decode %.1f ms (own thread), track %.1f, homography %.1f, segment "
+            "%.1f, change %.1f (own thread), blob tracks %.2f, waiting for change %.2f, key frames "
+            "%.2f ms; peak RSS %.0f MB\n",
+            w, h, overlays ? "on" : "off", static_cast<long long>(t.frames), front_fps, decode_fps,
+            decode_fps / front_fps, t.decode_ms, t.track_ms, t.homography_ms, t.segment_ms,
+            t.change_ms, t.change_tracks_ms, t.change_wait_ms, t.key_frames_ms, PeakMb());
+      }
     }
   }
   if (json) std::cout << out.dump(2) << "\n";

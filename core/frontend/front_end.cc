@@ -12,6 +12,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
+#include <cmath>
 #include <limits>
 #include <memory>
 #include <optional>
@@ -35,8 +36,10 @@ constexpr int64_t kChangeLagFrames = 8;
 constexpr int64_t kMemoryCheckPixels = int64_t{25} * 1280 * 720;
 // FramePipelineBytes: the H.264 decoder keeps up to 16 reference pictures.
 constexpr int64_t kDecoderReferencePictures = 16;
-// The layout of the trackers' state in a checkpoint (FrontEndCheckpoint::state).
-constexpr uint32_t kStateLayout = 1;
+// The layout of the trackers' state in a checkpoint (FrontEndCheckpoint::state). Layout 1 (before
+// the overlay detector's state was added) is still read: its run starts without overlay evidence.
+constexpr uint32_t kStateLayout = 2;
+constexpr uint32_t kStateLayoutWithoutOverlays = 1;
 
 // The frames an exact resume gives the change detector again before the checkpoint's key frame:
 // its answers not yet applied there (kChangeLagFrames of them) and the image history each needs.
@@ -189,6 +192,9 @@ class FrontEnd {
   void ApplyChangeThrough(int64_t frame);
   void ApplyChangeAnswer(const ChangeThread::Answer& answer);
   void KeepTarget(track::TargetTrack target, int64_t cut, std::vector<track::TargetTrack>* to);
+  void SelectGroundMatches();
+  void NoteOverlayMask(int64_t frame);
+  void CloseOverlayMask(int64_t last_frame);
   bool AddToChain(const video::Frame& frame,
                   const std::optional<track::HomographyEstimate>& estimate);
   void AddKeyFrameImage(const track::KeyFrame& key, const cv::Mat& grey);
@@ -218,6 +224,13 @@ class FrontEnd {
   track::TargetTracker target_tracker_;
   track::KeyFrameChain chain_;
   track::BlobTracker change_tracks_;
+  track::OverlayDetector overlays_;
+  // The mask handed out last, still growing (its frames), and the detector's version it is.
+  std::optional<track::OverlayMask> open_overlay_;
+  int64_t open_overlay_version_ = -1;
+  int64_t overlay_min_frames_ = 1;  // frames a mask handed out covers before it may be replaced
+  // The latest frame's matches off the overlay mask: the ground motion's and the segmentation's.
+  std::vector<track::Correspondence> ground_matches_;
   bool segment_open_ = false;
   // The placement of the current frame in the preview (KeyFramePreview): the first frame's pixels.
   Eigen::Matrix3d preview_from_current_ = Eigen::Matrix3d::Identity();
@@ -249,7 +262,10 @@ FrontEnd::FrontEnd(std::unique_ptr<video::VideoReader> reader, const FrontEndOpt
       target_tracker_(options.EffectiveTargets()),
       chain_(options.key_frames),
       change_tracks_(options.change_tracks),
+      overlays_(options.overlays, reader_->info().fps),
       change_through_(start_.change_through_frame) {
+  const double fps = reader_->info().fps > 0 ? reader_->info().fps : 25;
+  overlay_min_frames_ = std::max<int64_t>(1, std::lround(options.overlays.window_s * fps));
   if (start_.resuming && !start_.complete && !start_.exact) {
     target_seam_.emplace(*resume, start_.warm_from, options.EffectiveTargets());
   }
@@ -321,11 +337,14 @@ Status FrontEnd::StartFromCheckpoint() {
   ByteReader& in = tracker_state_.emplace(resume_->state);
   uint32_t layout = 0;
   uint8_t segment_open = 0;
-  if (!in.Get(&layout) || layout != kStateLayout || !in.Get(&segment_open) ||
-      !in.Get(&change_applied_submitted_) || !segmenter_.RestoreState(&in) ||
-      !target_tracker_.RestoreState(&in) || !change_tracks_.RestoreState(&in)) {
+  const bool known =
+      in.Get(&layout) && (layout == kStateLayout || layout == kStateLayoutWithoutOverlays);
+  if (!known || !in.Get(&segment_open) || !in.Get(&change_applied_submitted_) ||
+      !segmenter_.RestoreState(&in) || !target_tracker_.RestoreState(&in) ||
+      !change_tracks_.RestoreState(&in) ||
+      (layout == kStateLayout && !overlays_.RestoreState(&in))) {
     return InvalidArgumentError(path_ + ": cannot resume: the checkpoint's tracker state is " +
-                                (layout == kStateLayout ? "malformed" : "of another Saker"));
+                                (known ? "malformed" : "of another Saker"));
   }
   segment_open_ = segment_open != 0;
   return Status::Ok();
@@ -366,6 +385,7 @@ std::vector<uint8_t> FrontEnd::SaveState() const {
   segmenter_.SaveState(&out);
   target_tracker_.SaveState(&out);
   change_tracks_.SaveState(&out);
+  overlays_.SaveState(&out);
   tracker_.SaveState(&out);
   return out.Take();
 }
@@ -427,11 +447,16 @@ Status FrontEnd::ProcessFrame(const video::Frame& frame) {
   FrontEndTiming& timing = result_.timing;
   const Stopwatch watch;
   tracker_.Process(frame.index, frame.grey);
+  SelectGroundMatches();
   timing.track_ms += watch.ElapsedMs();
   fr.tracked = static_cast<int>(tracker_.points().size());
 
   std::optional<Eigen::Vector3d> epipole;
   const std::optional<track::HomographyEstimate> estimate = EstimateGroundMotion(&epipole);
+  if (estimate) {
+    // Every match, those on the mask too: an overlay's corners keep it.
+    overlays_.AddFeatures(tracker_.matches(), estimate->target_from_source, frame.grey.size());
+  }
   SubmitForChange(frame, estimate);
   Segment(frame, estimate, epipole, &fr);
   ApplyChangeThrough(frame.index - kChangeLagFrames);
@@ -458,8 +483,8 @@ std::optional<track::HomographyEstimate> FrontEnd::EstimateGroundMotion(
     std::optional<Eigen::Vector3d>* epipole) {
   const Stopwatch watch;
   std::vector<track::Correspondence> ground;
-  ground.reserve(tracker_.matches().size());
-  for (const track::Correspondence& m : tracker_.matches()) {
+  ground.reserve(ground_matches_.size());
+  for (const track::Correspondence& m : ground_matches_) {
     if (segmenter_.LabelOf(m.id) != track::MotionLabel::kMoving) ground.push_back(m);
   }
   std::optional<track::HomographyEstimate> estimate;
@@ -497,13 +522,14 @@ void FrontEnd::Segment(const video::Frame& frame,
     frame_result->current_from_previous = estimate->target_from_source;
     frame_result->covariance = estimate->covariance;
     frame_result->inliers = static_cast<int>(estimate->inliers.size());
-    segmenter_.AddFrame(tracker_.matches(), estimate->target_from_source, epipole);
+    segmenter_.AddFrame(ground_matches_, estimate->target_from_source, epipole);
     target_tracker_.AddFrame(frame.index, segmenter_.moving());
     frame_result->moving = static_cast<int>(segmenter_.moving().size());
   } else if (segment_open_) {
     // No reliable ground motion (blank, featureless, a cut): the chain breaks here; the next
     // frame starts afresh. The targets first take the change evidence of the segment's frames.
     ApplyChangeThrough(frame.index - 1);
+    CloseOverlayMask(frame.index - 1);  // a mask applies within one chain segment
     segmenter_.Reset();
     target_tracker_.FinishAll();
     target_tracker_.EndChangeEvidence();  // the change detector starts again too
@@ -538,7 +564,15 @@ void FrontEnd::ApplyChangeAnswer(const ChangeThread::Answer& answer) {
   if (answer.restart) change_tracks_.FinishAll();
   const track::ChangeFrame& c = answer.change;
   if (c.answered()) {
-    change_tracks_.AddFrame(c.frame, c.blobs, c.frame_motion);
+    // The overlay learns from every change, then none on it goes on to the change tracks.
+    overlays_.AddChange(c, options_.change.baseline_frames);
+    NoteOverlayMask(c.frame);
+    std::vector<track::ChangeBlob> blobs;
+    blobs.reserve(c.blobs.size());
+    for (const track::ChangeBlob& b : c.blobs) {
+      if (!overlays_.Contains(b.position)) blobs.push_back(b);
+    }
+    change_tracks_.AddFrame(c.frame, blobs, c.frame_motion);
     // Within the target's box, and a few pixels round a single point.
     target_tracker_.RecordChange(c.frame, [&](const track::TargetObservation& o) {
       if (!c.Compared(o.position)) return track::ChangeEvidence::kNotLooked;
@@ -555,14 +589,50 @@ void FrontEnd::ApplyChangeAnswer(const ChangeThread::Answer& answer) {
   result_.timing.change_tracks_ms += watch.ElapsedMs();
 }
 
-// A target this run finished, cut at the seam when resuming.
+// A target this run finished, cut at the seam when resuming; none that lies on the overlay mask.
 void FrontEnd::KeepTarget(track::TargetTrack target, int64_t cut,
                           std::vector<track::TargetTrack>* to) {
+  if (overlays_.Covers(target)) return;
   if (!target_seam_) {
     to->push_back(std::move(target));
   } else if (std::optional<track::TargetTrack> kept = target_seam_->Trim(std::move(target), cut)) {
     to->push_back(std::move(*kept));
   }
+}
+
+// The tracker's matches whose latest position is off the overlay mask.
+void FrontEnd::SelectGroundMatches() {
+  ground_matches_.clear();
+  for (const track::Correspondence& m : tracker_.matches()) {
+    if (!overlays_.Contains(m.target)) ground_matches_.push_back(m);
+  }
+}
+
+// After the overlay detector took the change answer of `frame`: the mask handed out goes on to
+// cover it, or is closed and replaced when the detector's mask changed (at most once per
+// overlay window, so that flickering cells do not make a mask per frame).
+void FrontEnd::NoteOverlayMask(int64_t frame) {
+  const bool changed = overlays_.version() != open_overlay_version_;
+  if (open_overlay_ && (!changed || frame - open_overlay_->first_frame < overlay_min_frames_)) {
+    open_overlay_->last_frame = std::max(open_overlay_->last_frame, frame);
+    return;
+  }
+  CloseOverlayMask(frame - 1);
+  open_overlay_version_ = overlays_.version();
+  if (overlays_.mask().Coverage() <= 0) return;
+  open_overlay_ = overlays_.mask();
+  open_overlay_->cells = overlays_.mask().cells.clone();
+  open_overlay_->first_frame = frame;
+  open_overlay_->last_frame = frame;
+}
+
+// Ends the mask handed out at `last_frame` (when it started by then) and adds it to the result.
+void FrontEnd::CloseOverlayMask(int64_t last_frame) {
+  if (!open_overlay_) return;
+  open_overlay_->last_frame = std::max(open_overlay_->first_frame, last_frame);
+  result_.overlays.push_back(std::move(*open_overlay_));
+  open_overlay_.reset();
+  open_overlay_version_ = -1;
 }
 
 // Key frames from the stationary points. The key frames, links and breaks of the chain enter the
@@ -573,7 +643,8 @@ bool FrontEnd::AddToChain(const video::Frame& frame,
   std::vector<track::StationaryPoint> stationary;
   stationary.reserve(tracker_.points().size());
   for (const track::TrackedPoint& p : tracker_.points()) {
-    if (segmenter_.LabelOf(p.id) != track::MotionLabel::kMoving) {
+    if (segmenter_.LabelOf(p.id) != track::MotionLabel::kMoving &&
+        !overlays_.Contains(p.position)) {
       stationary.emplace_back(p.id, p.position);
     }
   }
@@ -647,6 +718,7 @@ StatusOr<FrontEndResult> FrontEnd::Finish(ingest::VideoScan scan, double decode_
   }
   if (!start_.complete) {
     FinishTargets();
+    if (!result_.frames.empty()) CloseOverlayMask(result_.frames.back().index);
     if (options_.on_checkpoint && !result_.frames.empty()) {
       SAKER_RETURN_IF_ERROR(HandOutCheckpoint(result_.frames.back().index, /*complete=*/true));
     }
@@ -730,6 +802,7 @@ Status FrontEndOptions::Validate() const {
   SAKER_RETURN_IF_ERROR(change.Validate());
   SAKER_RETURN_IF_ERROR(change_tracks.Validate());
   SAKER_RETURN_IF_ERROR(change_echoes.Validate());
+  SAKER_RETURN_IF_ERROR(overlays.Validate());
   SAKER_RETURN_IF_ERROR(metadata.Validate());
   if (!(min_change_support >= 0 && min_change_support <= 1)) {
     return InvalidArgumentError("front end: the change support fraction must be in [0, 1]");

@@ -17,6 +17,7 @@
 #include "core/track/homography.h"
 #include "core/track/key_frames.h"
 #include "core/track/motion_segmentation.h"
+#include "core/track/overlay_mask.h"
 #include "core/track/target_tracks.h"
 #include "core/util/job_context.h"
 #include "core/util/status.h"
@@ -58,6 +59,10 @@ struct FrontEndOptions {
   // change detector could look (a corner sliding along a road marking has none); 0 turns it off.
   double min_change_support = 0.5;
   track::ChangeEchoOptions change_echoes;  // change-only tracks beside a car are dropped
+  // Screen-fixed overlays (HUD text, reticles, logos), found from the change detector's evidence
+  // and kept out of the ground motion, the change tracks and the targets (docs/front-end.md,
+  // "Overlays"). Off by default for now (its recall cost, docs/accuracy.md "Overlays").
+  track::OverlayOptions overlays;
   bool parallax_check = true;    // estimate the epipole (fundamental matrix) for the MTI test
   int min_parallax_points = 20;  // matches on F but off the ground plane needed to use F's epipole
   int queue_frames = 6;          // decoded frames waiting for the tracker, at most
@@ -139,6 +144,10 @@ struct FrontEndResult {
   std::vector<track::SequentialLink> links;
   std::vector<track::ChainBreak> breaks;
   std::vector<track::TargetTrack> targets;  // confirmed target tracks, by id
+  // The screen-fixed overlay masks, in frame order: each applies to its frames, within one chain
+  // segment; frames that no mask covers had none found. A resumed run has those from the
+  // checkpoint's key frame on only.
+  std::vector<track::OverlayMask> overlays;
   // The same pass's KLV: packets, per-frame metadata (scan.MetadataOf(frame)), warnings.
   ingest::VideoScan scan;
   FrontEndTiming timing;

@@ -1,0 +1,220 @@
+#include "core/track/overlay_mask.h"
+
+#include "core/util/check.h"
+
+#include <Eigen/Geometry>
+#include <opencv2/imgproc.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+
+namespace saker::track {
+namespace {
+
+// Frames in `seconds` at `fps`, at least `floor`.
+int FramesIn(double seconds, double fps, int floor) {
+  return std::max(floor, static_cast<int>(std::lround(seconds * fps)));
+}
+
+void PutMat(const cv::Mat& m, ByteWriter* out) {
+  out->Put<int32_t>(m.rows);
+  out->Put<int32_t>(m.cols);
+  out->Put<int32_t>(m.type());
+  const cv::Mat c = m.isContinuous() ? m : m.clone();
+  const size_t bytes = c.total() * c.elemSize();
+  for (size_t i = 0; i < bytes; ++i) out->Put<uint8_t>(c.data[i]);
+}
+
+bool GetMat(ByteReader* in, cv::Mat* m) {
+  int32_t rows = 0, cols = 0, type = 0;
+  if (!in->Get(&rows) || !in->Get(&cols) || !in->Get(&type)) return false;
+  if (rows < 0 || cols < 0 || rows > 1 << 16 || cols > 1 << 16) return false;
+  if (type != CV_8U && type != CV_32F) return false;
+  *m = cv::Mat(rows, cols, type);
+  const size_t bytes = m->total() * m->elemSize();
+  for (size_t i = 0; i < bytes; ++i) {
+    if (!in->Get(&m->data[i])) return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+Status OverlayOptions::Validate() const {
+  if (!(window_s > 0 && window_s <= 60) || min_window_frames < 2 || min_window_frames > 1000) {
+    return InvalidArgumentError("overlays: the window must be in (0, 60] s and 2..1000 frames");
+  }
+  if (!(min_evidence_s >= 0 && min_evidence_s <= window_s) || min_evidence_frames < 1 ||
+      min_evidence_frames > min_window_frames) {
+    return InvalidArgumentError(
+        "overlays: the evidence needed must be in [0, window] s and 1..window frames");
+  }
+  if (!(min_ground_shift_px > 0 && min_ground_shift_px <= 1000) ||
+      !(min_feature_flow_px > 0 && min_feature_flow_px <= 1000)) {
+    return InvalidArgumentError("overlays: the ground motion needed must be in (0, 1000] px");
+  }
+  if (!(fixed_fraction > 0 && fixed_fraction < 1)) {
+    return InvalidArgumentError("overlays: the fixed fraction must be in (0, 1)");
+  }
+  if (!(off_fraction >= 0 && off_fraction <= on_fraction && on_fraction > 0 && on_fraction <= 1)) {
+    return InvalidArgumentError("overlays: need 0 <= off fraction <= on fraction, 0 < on <= 1");
+  }
+  if (cell_px < 1 || cell_px > 256 || dilate_cells < 0 || dilate_cells > 16) {
+    return InvalidArgumentError("overlays: cells must be 1..256 px, the dilation 0..16 cells");
+  }
+  if (!(max_target_fraction > 0 && max_target_fraction <= 1)) {
+    return InvalidArgumentError("overlays: the target fraction must be in (0, 1]");
+  }
+  return Status::Ok();
+}
+
+bool OverlayMask::Contains(const Eigen::Vector2d& p) const {
+  if (cells.empty() || !(p.x() >= 0 && p.y() >= 0)) return false;
+  const int x = static_cast<int>(p.x() + 0.5) / cell_px,
+            y = static_cast<int>(p.y() + 0.5) / cell_px;
+  return x < cells.cols && y < cells.rows && cells.at<uint8_t>(y, x) != 0;
+}
+
+double OverlayMask::Coverage() const {
+  if (cells.empty()) return 0;
+  return static_cast<double>(cv::countNonZero(cells)) / static_cast<double>(cells.total());
+}
+
+OverlayDetector::OverlayDetector(const OverlayOptions& options, double fps) : options_(options) {
+  SAKER_CHECK(options_.Validate().ok()) << options_.Validate().message();
+  if (!(fps > 0)) fps = 25;
+  window_frames_ = FramesIn(options_.window_s, fps, options_.min_window_frames);
+  min_evidence_frames_ = std::min(
+      window_frames_, FramesIn(options_.min_evidence_s, fps, options_.min_evidence_frames));
+  mask_.cell_px = options_.cell_px;
+}
+
+void OverlayDetector::Resize(const cv::Size& full) {
+  full_size_ = full;
+  const cv::Size cells((full.width + options_.cell_px - 1) / options_.cell_px,
+                       (full.height + options_.cell_px - 1) / options_.cell_px);
+  fraction_ = cv::Mat::zeros(cells, CV_32F);
+  count_ = cv::Mat::zeros(cells, CV_32F);
+  on_ = cv::Mat::zeros(cells, CV_8U);
+  mask_.cells = cv::Mat::zeros(cells, CV_8U);
+  ++version_;
+}
+
+void OverlayDetector::Add(int x, int y, bool changed) {
+  float& count = count_.at<float>(y, x);
+  float& fraction = fraction_.at<float>(y, x);
+  count = std::min(count + 1.0F, static_cast<float>(window_frames_));
+  fraction += ((changed ? 1.0F : 0.0F) - fraction) / count;
+  if (count < static_cast<float>(min_evidence_frames_)) return;
+  if (fraction >= options_.on_fraction) {
+    on_.at<uint8_t>(y, x) = 255;
+  } else if (fraction < options_.off_fraction) {
+    on_.at<uint8_t>(y, x) = 0;
+  }
+}
+
+void OverlayDetector::AddFeatures(const std::vector<Correspondence>& matches,
+                                  const Eigen::Matrix3d& current_from_previous,
+                                  const cv::Size& frame_size) {
+  if (!options_.enabled || frame_size.width <= 0 || frame_size.height <= 0) return;
+  if (frame_size != full_size_) Resize(frame_size);
+  for (const Correspondence& m : matches) {
+    const Eigen::Vector3d g = current_from_previous * m.source.homogeneous();
+    if (!(std::abs(g.z()) > 1e-9)) continue;
+    const Eigen::Vector2d ground = g.hnormalized();
+    const double flow = (ground - m.source).norm();
+    if (!(flow >= options_.min_feature_flow_px)) continue;
+    const double limit = options_.fixed_fraction * flow;
+    const bool fixed = (m.target - m.source).norm() < limit;
+    if (!fixed && (m.target - ground).norm() >= limit) continue;  // neither: a mover, a slip
+    const int x = static_cast<int>(m.target.x() + 0.5) / options_.cell_px;
+    const int y = static_cast<int>(m.target.y() + 0.5) / options_.cell_px;
+    if (m.target.x() < 0 || m.target.y() < 0 || x >= on_.cols || y >= on_.rows) continue;
+    Add(x, y, fixed);
+  }
+  UpdateMask();
+}
+
+void OverlayDetector::AddChange(const ChangeFrame& change, int baseline_frames) {
+  if (!options_.enabled || !change.answered() || change.changed.empty()) return;
+  const cv::Size full(static_cast<int>(std::lround(change.changed.cols * change.scale)),
+                      static_cast<int>(std::lround(change.changed.rows * change.scale)));
+  // The processing size rounds: a frame of the size known within a processing pixel is that size.
+  const double slack = std::ceil(change.scale);
+  if (std::abs(full.width - full_size_.width) > slack ||
+      std::abs(full.height - full_size_.height) > slack) {
+    Resize(full);
+  }
+  // The answer's masks at cell size: a cell changed when any of its pixels did, compared when
+  // most of them were.
+  cv::resize(change.changed, changed_, fraction_.size(), 0, 0, cv::INTER_AREA);
+  cv::resize(change.valid, valid_, fraction_.size(), 0, 0, cv::INTER_AREA);
+  const Eigen::Matrix3d& h = change.frame_motion;
+  const double cell = options_.cell_px;
+  const double min_step = options_.min_ground_shift_px / std::max(1, baseline_frames);
+  for (int y = 0; y < fraction_.rows; ++y) {
+    const uint8_t* changed = changed_.ptr<uint8_t>(y);
+    const uint8_t* valid = valid_.ptr<uint8_t>(y);
+    const double py = (y + 0.5) * cell - 0.5;
+    for (int x = 0; x < fraction_.cols; ++x) {
+      if (valid[x] < 128) continue;
+      // The ground's motion at the cell over one frame (the baseline's, spread over its frames):
+      // over a hovering camera nothing is learnt.
+      const double px = (x + 0.5) * cell - 0.5;
+      const double w = h(2, 0) * px + h(2, 1) * py + h(2, 2);
+      if (!(std::abs(w) > 1e-9)) continue;
+      const double dx = (h(0, 0) * px + h(0, 1) * py + h(0, 2)) / w - px;
+      const double dy = (h(1, 0) * px + h(1, 1) * py + h(1, 2)) / w - py;
+      if (dx * dx + dy * dy < min_step * min_step) continue;
+      Add(x, y, changed[x] > 0);
+    }
+  }
+  UpdateMask();
+}
+
+void OverlayDetector::UpdateMask() {
+  cv::Mat grown;
+  if (options_.dilate_cells > 0) {
+    const int side = 2 * options_.dilate_cells + 1;
+    cv::dilate(on_, grown, cv::getStructuringElement(cv::MORPH_RECT, cv::Size(side, side)));
+  } else {
+    grown = on_.clone();
+  }
+  if (mask_.cells.size() != grown.size() || cv::countNonZero(mask_.cells != grown) > 0) {
+    mask_.cells = grown;
+    ++version_;
+  }
+}
+
+bool OverlayDetector::Covers(const TargetTrack& target) const {
+  if (mask_.cells.empty() || target.observations.empty()) return false;
+  size_t on = 0;
+  for (const TargetObservation& o : target.observations) on += mask_.Contains(o.position);
+  return static_cast<double>(on) >=
+         options_.max_target_fraction * static_cast<double>(target.observations.size());
+}
+
+void OverlayDetector::SaveState(ByteWriter* out) const {
+  out->Put<int32_t>(full_size_.width);
+  out->Put<int32_t>(full_size_.height);
+  out->Put<int64_t>(version_);
+  PutMat(fraction_, out);
+  PutMat(count_, out);
+  PutMat(on_, out);
+  PutMat(mask_.cells, out);
+}
+
+bool OverlayDetector::RestoreState(ByteReader* in) {
+  int32_t width = 0, height = 0;
+  if (!in->Get(&width) || !in->Get(&height) || !in->Get(&version_)) return false;
+  full_size_ = cv::Size(width, height);
+  if (!GetMat(in, &fraction_) || !GetMat(in, &count_) || !GetMat(in, &on_) ||
+      !GetMat(in, &mask_.cells)) {
+    return false;
+  }
+  return fraction_.size() == count_.size() && fraction_.size() == on_.size() &&
+         (mask_.cells.empty() || mask_.cells.size() == on_.size());
+}
+
+}  // namespace saker::track

@@ -1,0 +1,120 @@
+#pragma once
+
+// Screen-fixed overlays: burned-in HUD text (its digits changing every frame), reticles, static,
+// rotating or pulsing logos, opaque or translucent, which stay where they are in the image while
+// the ground moves under them. Left alone, their corners are taken for ground that does not
+// follow the ground motion (targets) and their edges for change.
+//
+// The evidence is the change detector's (change_detector.h): once the frames before and after
+// are warped onto a frame with the ground motion, the ground cancels and an overlay does not, so
+// its pixels are marked as changed in the same place of the image frame after frame, whatever it
+// does itself (stands still, turns, pulses, shows other digits). A mover crosses a place of the
+// image in a few frames; an overlay stays. So the image is cut into cells of `cell_px`
+// full-resolution pixels and each cell keeps the fraction of the recent frames (a window in
+// seconds) in which it changed, counting only frames where it could be compared and the ground
+// moved by at least `min_ground_shift_px` between the compared frames: over a hovering camera an
+// overlay and the ground look alike, nothing can be concluded, and the previous mask is kept. A
+// The feature tracks add their own evidence, at once rather than when the change detector answers,
+// and also at the image's edges, which the change detector cannot compare while the camera moves
+// (the frames before and after do not cover them): a match that stays put (it moved less than
+// `fixed_fraction` of the ground's motion at it) where the ground moved at least
+// `min_feature_flow_px` since the previous frame counts as a change of its cell, one that followed
+// the ground as none. A cell becomes overlay once that fraction reaches `on_fraction` (after
+// `min_evidence_s` of evidence) and stops being one when it falls below `off_fraction`; the mask is
+// those cells, dilated by `dilate_cells`.
+//
+// The front end leaves the features on the mask out of the ground motion, the segmentation and
+// the key frames, the change blobs on it out of the change tracks, and drops targets that lie on
+// it in most of their frames (docs/front-end.md, "Overlays").
+
+#include "core/track/change_detector.h"
+#include "core/track/target_tracks.h"
+#include "core/track/types.h"
+#include "core/util/byte_io.h"
+#include "core/util/status.h"
+
+#include <Eigen/Core>
+#include <opencv2/core/mat.hpp>
+
+#include <cstdint>
+#include <vector>
+
+namespace saker::track {
+
+struct OverlayOptions {
+  // Off by default for now: on, it removes the tracks on overlays but costs 0.03-0.12 of recall,
+  // on clean video too, and the demo falls below its targets (docs/accuracy.md, "Overlays").
+  bool enabled = false;
+  double window_s = 3;             // a cell's change fraction is over this much recent evidence
+  int min_window_frames = 15;      // ... and at least this many frames
+  double min_evidence_s = 0.5;     // a cell is judged once it has this much evidence
+  int min_evidence_frames = 5;     // ... and at least this many frames
+  double min_ground_shift_px = 3;  // ground motion between the compared frames, full resolution
+  double on_fraction = 0.5;        // a cell changed in this fraction of its frames is overlay
+  double off_fraction = 0.2;       // an overlay cell below this fraction is not any more
+  double min_feature_flow_px = 1;  // ground motion at a feature, one frame, for its evidence
+  double fixed_fraction = 0.2;     // a feature moving less than this fraction of it stays put
+  int cell_px = 8;                 // mask cell side, full-resolution pixels
+  int dilate_cells = 1;            // the mask is grown by this many cells
+  // A target whose observations lie on the mask in at least this fraction of its frames is
+  // dropped (1 turns it off).
+  double max_target_fraction = 0.5;
+  Status Validate() const;
+};
+
+// An overlay mask and the frames it applies to (a part of one chain segment).
+struct OverlayMask {
+  int64_t first_frame = 0;
+  int64_t last_frame = 0;
+  int cell_px = 8;  // full-resolution pixels per cell
+  cv::Mat cells;    // CV_8U, non-zero on the overlay; cell (x, y) covers pixels [x, x+1) * cell_px
+  // Whether the full-resolution pixel `p` lies on the overlay.
+  bool Contains(const Eigen::Vector2d& p) const;
+  // The fraction of the image the mask covers.
+  double Coverage() const;
+};
+
+class OverlayDetector {
+ public:
+  // `fps`: the video's frame rate, for the windows in seconds (a rate <= 0 counts as 25).
+  OverlayDetector(const OverlayOptions& options, double fps);
+
+  // One answer of the change detector, whose frames are `baseline_frames` apart. Unanswered ones
+  // are ignored.
+  void AddChange(const ChangeFrame& change, int baseline_frames);
+  // The feature matches of a frame of `frame_size` pixels and the ground motion into it from the
+  // previous frame.
+  void AddFeatures(const std::vector<Correspondence>& matches,
+                   const Eigen::Matrix3d& current_from_previous, const cv::Size& frame_size);
+
+  // The current mask (cells of `options.cell_px`; empty before any evidence).
+  const OverlayMask& mask() const { return mask_; }
+  bool Contains(const Eigen::Vector2d& p) const { return mask_.Contains(p); }
+  // Counts the changes of the mask, so that a caller sees when it changed.
+  int64_t version() const { return version_; }
+  // Whether `target` lies on the mask in at least `max_target_fraction` of its observations.
+  bool Covers(const TargetTrack& target) const;
+
+  // The evidence and the mask, so that a resumed run goes on exactly from the latest frame.
+  // RestoreState is false when `in` is malformed.
+  void SaveState(ByteWriter* out) const;
+  bool RestoreState(ByteReader* in);
+
+ private:
+  void Resize(const cv::Size& full);
+  // One frame of evidence for the cell at (x, y): whether it changed.
+  void Add(int x, int y, bool changed);
+  void UpdateMask();
+
+  OverlayOptions options_;
+  int window_frames_, min_evidence_frames_;
+  cv::Size full_size_;
+  cv::Mat fraction_;  // CV_32F per cell: the change fraction over the window
+  cv::Mat count_;     // CV_32F per cell: frames of evidence, at most the window
+  cv::Mat on_;        // CV_8U per cell: overlay (before dilation)
+  OverlayMask mask_;
+  int64_t version_ = 0;
+  cv::Mat changed_, valid_;  // scratch: the answer's masks at cell size
+};
+
+}  // namespace saker::track

@@ -1,0 +1,224 @@
+// Screen-fixed overlays: the overlay detector on hand-made change answers, and the front end on a
+// small simulated clip with HUD text, a reticle and a rotating logo against its truth.
+
+#include "core/sim/overlay.h"
+
+#include "core/frontend/front_end.h"
+#include "core/sim/simulator.h"
+#include "core/sim/truth.h"
+#include "core/track/overlay_mask.h"
+#include "tests/testing/test_data.h"
+
+#include <gtest/gtest.h>
+#include <opencv2/imgproc.hpp>
+
+#include <algorithm>
+#include <filesystem>
+#include <iostream>
+
+namespace saker::frontend {
+namespace {
+
+// A change answer for a 320x240 frame at full resolution whose ground moved `shift_px` to the
+// right since the previous frame; `changed` marks where it changed.
+track::ChangeFrame Answer(int64_t frame, const cv::Rect& changed, double shift_px) {
+  track::ChangeFrame c;
+  c.frame = frame;
+  c.scale = 1;
+  c.changed = cv::Mat::zeros(240, 320, CV_8U);
+  c.changed(changed).setTo(255);
+  c.valid = cv::Mat(240, 320, CV_8U, cv::Scalar(255));
+  c.frame_motion(0, 2) = shift_px;
+  return c;
+}
+
+TEST(OverlayDetectorTest, ScreenFixedChangeBecomesOverlayAndMoversDoNot) {
+  track::OverlayOptions options;
+  options.enabled = true;
+  track::OverlayDetector detector(options, 25);
+  const cv::Rect hud(16, 16, 64, 16);
+  for (int64_t f = 0; f < 75; ++f) {
+    // The HUD changes in place every frame; a mover crosses the image, 4 px a frame.
+    // (With a window of 3 s: 75 frames.)
+    track::ChangeFrame c = Answer(f, hud, 1);
+    c.changed(cv::Rect(static_cast<int>(4 * f), 150, 12, 12) & cv::Rect(0, 0, 320, 240)).setTo(255);
+    detector.AddChange(c, 12);
+  }
+  EXPECT_TRUE(detector.Contains({40, 24}));
+  EXPECT_TRUE(detector.Contains({79, 31}));
+  EXPECT_FALSE(detector.Contains({150, 155}));  // the mover's path
+  EXPECT_FALSE(detector.Contains({200, 60}));
+  // Dilated by one cell, no more.
+  EXPECT_FALSE(detector.Contains({40, 16 + 16 + 2 * options.cell_px}));
+
+  // Hovering (the ground still): nothing is learnt, the mask stays, even with the HUD gone.
+  const track::OverlayMask before = detector.mask();
+  for (int64_t f = 75; f < 200; ++f) detector.AddChange(Answer(f, cv::Rect(0, 0, 1, 1), 0), 12);
+  EXPECT_EQ(cv::countNonZero(before.cells != detector.mask().cells), 0);
+  // Moving again without the HUD: it goes within the window.
+  for (int64_t f = 200; f < 350; ++f) detector.AddChange(Answer(f, cv::Rect(0, 0, 1, 1), 1), 12);
+  EXPECT_FALSE(detector.Contains({40, 24}));
+
+  // An overlay that appears later is found.
+  for (int64_t f = 350; f < 430; ++f) {
+    detector.AddChange(Answer(f, cv::Rect(200, 100, 30, 30), 1), 12);
+  }
+  EXPECT_TRUE(detector.Contains({215, 115}));
+
+  // The state carries over exactly.
+  ByteWriter out;
+  detector.SaveState(&out);
+  track::OverlayDetector restored(options, 25);
+  ByteReader in(out.bytes());
+  ASSERT_TRUE(restored.RestoreState(&in));
+  EXPECT_TRUE(in.AtEnd());
+  EXPECT_EQ(cv::countNonZero(restored.mask().cells != detector.mask().cells), 0);
+  EXPECT_EQ(restored.version(), detector.version());
+}
+
+TEST(OverlayDetectorTest, FeaturesThatStayPutWhileTheGroundMovesAreOverlay) {
+  track::OverlayOptions options;
+  options.enabled = true;
+  track::OverlayDetector detector(options, 25);
+  Eigen::Matrix3d ground = Eigen::Matrix3d::Identity();
+  ground(0, 2) = 3;  // the ground moves 3 px a frame to the right
+  for (int64_t f = 0; f < 30; ++f) {
+    std::vector<track::Correspondence> matches;
+    // A corner of the HUD at the image's edge stays; a ground corner follows the ground; a car
+    // goes its own way.
+    matches.push_back({track::FeatureTrackId{1}, {4, 4}, {4.05, 3.98}});
+    matches.push_back({track::FeatureTrackId{2}, {100, 100}, {103.02, 100}});
+    matches.push_back({track::FeatureTrackId{3}, {200, 50}, {200, 55}});
+    detector.AddFeatures(matches, ground, cv::Size(320, 240));
+  }
+  EXPECT_TRUE(detector.Contains({4, 4}));
+  EXPECT_FALSE(detector.Contains({103, 100}));
+  EXPECT_FALSE(detector.Contains({200, 55}));
+  // Without ground motion nothing is learnt.
+  track::OverlayDetector hover(options, 25);
+  for (int64_t f = 0; f < 30; ++f) {
+    hover.AddFeatures({{track::FeatureTrackId{1}, {4, 4}, {4, 4}}}, Eigen::Matrix3d::Identity(),
+                      cv::Size(320, 240));
+  }
+  EXPECT_FALSE(hover.Contains({4, 4}));
+}
+
+TEST(OverlayDetectorTest, OptionsAreValidated) {
+  track::OverlayOptions options;
+  EXPECT_TRUE(options.Validate().ok());
+  options.window_s = 0;
+  EXPECT_FALSE(options.Validate().ok());
+  options = {};
+  options.off_fraction = 0.8;
+  EXPECT_FALSE(options.Validate().ok());
+  options = {};
+  options.cell_px = 0;
+  EXPECT_FALSE(options.Validate().ok());
+  options = {};
+  options.min_ground_shift_px = 0;
+  EXPECT_FALSE(options.Validate().ok());
+}
+
+// The pixels an overlay draws in the frame at `time_s`: painted over black and over white.
+cv::Mat OverlayPixels(const sim::OverlayOptions& overlay, int width, int height, double time_s) {
+  sim::OverlayPainter painter(overlay, width, height);
+  cv::Mat black = cv::Mat::zeros(height, width, CV_8UC3);
+  cv::Mat white(height, width, CV_8UC3, cv::Scalar(255, 255, 255));
+  painter.Paint({}, time_s, &black);
+  painter.Paint({}, time_s, &white);
+  cv::Mat grey_black, grey_white;
+  cv::cvtColor(black, grey_black, cv::COLOR_BGR2GRAY);
+  cv::cvtColor(white, grey_white, cv::COLOR_BGR2GRAY);
+  return (grey_black > 0) | (grey_white < 255);
+}
+
+TEST(OverlayFrontEndTest, NoTargetOnTheOverlayAndTheMaskCoversIt) {
+  const std::filesystem::path dir = saker::testing::MakeTempDir("saker-overlay");
+  sim::SimulationOptions options;
+  options.output = dir / "hud.ts";
+  options.camera.width = 640;
+  options.camera.height = 360;
+  options.flight.altitude_m = 200;
+  options.duration_s = 8;
+  options.targets.cars = 60;
+  options.overlay.hud_text = true;
+  options.overlay.reticle = true;
+  options.overlay.logo = sim::LogoMotion::kRotating;
+  StatusOr<sim::SimulationSummary> summary = sim::Simulate(options);
+  ASSERT_TRUE(summary.ok()) << summary.status().ToString();
+  StatusOr<sim::Truth> truth = sim::ReadTruth(options.TruthPath());
+  ASSERT_TRUE(truth.ok());
+  ASSERT_FALSE(truth->overlays.empty());
+
+  // Targets on the overlay in half of their frames or more (as the accuracy corpus counts).
+  const auto on_overlay = [&](const FrontEndResult& result) {
+    int count = 0;
+    for (const track::TargetTrack& t : result.targets) {
+      const auto on = std::count_if(
+          t.observations.begin(), t.observations.end(),
+          [&](const track::TargetObservation& o) { return truth->OnOverlay(o.position); });
+      count += 2 * static_cast<size_t>(on) >= t.observations.size();
+    }
+    return count;
+  };
+  // The clip is a test: without the overlay detection (the default for now), the overlay makes
+  // targets.
+  StatusOr<FrontEndResult> plain = RunFrontEnd(options.output.string(), {});
+  ASSERT_TRUE(plain.ok()) << plain.status().ToString();
+  EXPECT_TRUE(plain->overlays.empty());
+  FrontEndOptions with;
+  with.overlays.enabled = true;
+  StatusOr<FrontEndResult> result = RunFrontEnd(options.output.string(), with);
+  ASSERT_TRUE(result.ok()) << result.status().ToString();
+  std::cout << "without overlay detection: " << plain->targets.size() << " targets, "
+            << on_overlay(*plain) << " on the overlay; with: " << result->targets.size()
+            << " targets, " << on_overlay(*result) << " on the overlay, " << result->overlays.size()
+            << " overlay masks\n";
+  EXPECT_GT(on_overlay(*plain), 0);
+  EXPECT_EQ(on_overlay(*result), 0);
+  EXPECT_GT(result->targets.size(), 0u);
+
+  // The masks follow one another within the video, the first within a few seconds, and the last
+  // one covers the overlay's pixels (those the overlay draws in the last frame) and little more
+  // than its boxes grown by two cells (the cells' rounding and the dilation).
+  ASSERT_FALSE(result->overlays.empty());
+  EXPECT_LT(result->overlays.front().first_frame, 3 * 25);
+  for (size_t i = 0; i < result->overlays.size(); ++i) {
+    const track::OverlayMask& m = result->overlays[i];
+    EXPECT_LE(m.first_frame, m.last_frame);
+    if (i > 0) {
+      EXPECT_GT(m.first_frame, result->overlays[i - 1].last_frame);
+    }
+  }
+  const track::OverlayMask& mask = result->overlays.back();
+  EXPECT_EQ(mask.last_frame, result->frames.back().index);
+  const double margin = 2.0 * mask.cell_px;
+  const auto near_box = [&](const Eigen::Vector2d& p) {
+    return std::any_of(truth->overlays.begin(), truth->overlays.end(), [&](const auto& box) {
+      return p.x() >= box.x - margin && p.y() >= box.y - margin &&
+             p.x() < box.x + box.width + margin && p.y() < box.y + box.height + margin;
+    });
+  };
+  const cv::Mat drawn = OverlayPixels(options.overlay, 640, 360, result->frames.back().time_s);
+  int overlay_pixels = 0, covered = 0, elsewhere = 0;
+  for (int y = 0; y < drawn.rows; ++y) {
+    for (int x = 0; x < drawn.cols; ++x) {
+      const Eigen::Vector2d p(x, y);
+      const bool in_box = near_box(p);
+      if (drawn.at<uint8_t>(y, x) != 0) {
+        ++overlay_pixels;
+        covered += mask.Contains(p);
+      } else if (!in_box) {
+        elsewhere += mask.Contains(p);
+      }
+    }
+  }
+  std::cout << "mask covers " << covered << " of " << overlay_pixels << " overlay pixels, "
+            << elsewhere << " pixels farther from the overlay boxes\n";
+  ASSERT_GT(overlay_pixels, 0);
+  EXPECT_GE(covered, 0.9 * overlay_pixels);
+  EXPECT_LT(elsewhere, 0.005 * 640 * 360);
+}
+
+}  // namespace
+}  // namespace saker::frontend
