@@ -45,4 +45,12 @@ CLI::Option* AddAcceptBadChecksumsFlag(CLI::App* command, bool* accept) {
       "hours or kilometres)");
 }
 
+CLI::Option* AddOverlayMaskFlag(CLI::App* command, bool* enabled) {
+  return command->add_flag(
+      "--overlay-mask", *enabled,
+      "Find screen-fixed overlays (burned-in HUD text, reticles, logos) and keep them out of the "
+      "ground motion, change detection and targets: for video with overlays, where they "
+      "otherwise become false tracks; it also costs some recall (docs/front-end.md, Overlays)");
+}
+
 }  // namespace saker::app

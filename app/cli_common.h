@@ -38,4 +38,8 @@ CLI::Option* AddAdjustOption(CLI::App* command, std::string* mode);
 // subcommands that tie KLV metadata to frames.
 CLI::Option* AddAcceptBadChecksumsFlag(CLI::App* command, bool* accept);
 
+// `--overlay-mask` (track::OverlayOptions::enabled), shared by the subcommands that run the front
+// end.
+CLI::Option* AddOverlayMaskFlag(CLI::App* command, bool* enabled);
+
 }  // namespace saker::app

@@ -20,6 +20,7 @@ struct EvaluateCommand::State {
   bool details = false;
   bool no_metadata = false;
   bool no_change = false;
+  bool overlay_mask = false;
   std::string adjust = "decomposed";
   mosaic::DecompositionOptions decomposition;
   eval::FrontEndEvaluationOptions evaluation;
@@ -71,6 +72,7 @@ EvaluateCommand::EvaluateCommand(CLI::App& app) : state_(std::make_unique<State>
       ->check(CLI::NonNegativeNumber);
   s.command->add_flag("--no-change-detection", s.no_change,
                       "Run the front end without change detection (feature tracks only)");
+  AddOverlayMaskFlag(s.command, &s.overlay_mask);
 }
 
 EvaluateCommand::~EvaluateCommand() = default;
@@ -85,6 +87,7 @@ int EvaluateCommand::Run() const {
   if (!truth.ok()) return Fail(truth.status());
   eval::VideoEvaluationOptions options;
   options.front_end.change.enabled = !s.no_change;
+  options.front_end.overlays.enabled = s.overlay_mask;
   options.evaluation = s.evaluation;
   options.mosaic.use_metadata = !s.no_metadata;
   options.mosaic.adjust_mode = *mosaic::ParseAdjustmentMode(s.adjust);

@@ -68,6 +68,7 @@ ProcessCommand::ProcessCommand(CLI::App& app) : state_(std::make_unique<State>()
                       "Ignore the metadata corners (map frame = the first key frame's pixels)");
   s.command->add_flag("--no-tiles", s.no_tiles, "Do not render the mosaic's tile pyramid");
   AddAcceptBadChecksumsFlag(s.command, &s.options.front_end.metadata.accept_bad_checksums);
+  AddOverlayMaskFlag(s.command, &s.options.front_end.overlays.enabled);
   AddAdjustOption(s.command, &s.adjust);
   s.command
       ->add_option("--visit-gap", s.options.activity.visit_gap_s,
