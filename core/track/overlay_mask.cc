@@ -22,20 +22,21 @@ void PutMat(const cv::Mat& m, ByteWriter* out) {
   out->Put<int32_t>(m.cols);
   out->Put<int32_t>(m.type());
   const cv::Mat c = m.isContinuous() ? m : m.clone();
-  const size_t bytes = c.total() * c.elemSize();
-  for (size_t i = 0; i < bytes; ++i) out->Put<uint8_t>(c.data[i]);
+  out->PutBytes(c.data, c.total() * c.elemSize());
 }
 
+// The pixels are read before the matrix is made, so a damaged size cannot allocate more than
+// the checkpoint holds.
 bool GetMat(ByteReader* in, cv::Mat* m) {
   int32_t rows = 0, cols = 0, type = 0;
-  if (!in->Get(&rows) || !in->Get(&cols) || !in->Get(&type)) return false;
+  std::vector<uint8_t> bytes;
+  if (!in->Get(&rows) || !in->Get(&cols) || !in->Get(&type) || !in->GetBytes(&bytes)) return false;
   if (rows < 0 || cols < 0 || rows > 1 << 16 || cols > 1 << 16) return false;
   if (type != CV_8U && type != CV_32F) return false;
+  const size_t element = type == CV_8U ? 1 : sizeof(float);
+  if (bytes.size() != static_cast<size_t>(rows) * static_cast<size_t>(cols) * element) return false;
   *m = cv::Mat(rows, cols, type);
-  const size_t bytes = m->total() * m->elemSize();
-  for (size_t i = 0; i < bytes; ++i) {
-    if (!in->Get(&m->data[i])) return false;
-  }
+  if (!bytes.empty()) std::memcpy(m->data, bytes.data(), bytes.size());
   return true;
 }
 

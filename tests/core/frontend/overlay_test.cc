@@ -13,6 +13,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
+#include <cstring>
 #include <filesystem>
 #include <iostream>
 
@@ -74,6 +75,16 @@ TEST(OverlayDetectorTest, ScreenFixedChangeBecomesOverlayAndMoversDoNot) {
   EXPECT_TRUE(in.AtEnd());
   EXPECT_EQ(cv::countNonZero(restored.mask().cells != detector.mask().cells), 0);
   EXPECT_EQ(restored.version(), detector.version());
+
+  // A state cut short, or whose first matrix claims more cells than it holds, is refused.
+  std::vector<uint8_t> cut(out.bytes().begin(), out.bytes().end() - 1);
+  ByteReader short_in(cut);
+  EXPECT_FALSE(track::OverlayDetector(options, 25).RestoreState(&short_in));
+  std::vector<uint8_t> grown = out.bytes();
+  const int32_t rows = 1 << 16;  // after width, height (int32) and version (int64)
+  std::memcpy(grown.data() + 16, &rows, sizeof(rows));
+  ByteReader grown_in(grown);
+  EXPECT_FALSE(track::OverlayDetector(options, 25).RestoreState(&grown_in));
 }
 
 TEST(OverlayDetectorTest, FeaturesThatStayPutWhileTheGroundMovesAreOverlay) {
