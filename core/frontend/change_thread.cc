@@ -6,10 +6,10 @@
 #include <utility>
 
 namespace saker::frontend {
-ChangeThread::ChangeThread(const track::ChangeOptions& options, size_t queue_frames,
-                           size_t lag_frames)
+ChangeThread::ChangeThread(const track::ChangeOptions& options, track::FrameRate rate,
+                           size_t queue_frames, size_t lag_frames)
     : inputs_(queue_frames), answers_(lag_frames + 1) {
-  thread_ = std::thread([this, options] { Run(options); });
+  thread_ = std::thread([this, options, rate] { Run(options, rate); });
 }
 
 ChangeThread::~ChangeThread() {
@@ -38,9 +38,9 @@ std::optional<ChangeThread::Answer> ChangeThread::NextThrough(int64_t frame) {
   return answer;
 }
 
-void ChangeThread::Run(const track::ChangeOptions& options) {
+void ChangeThread::Run(const track::ChangeOptions& options, track::FrameRate rate) {
   try {
-    track::ChangeDetector detector(options);
+    track::ChangeDetector detector(options, rate);
     while (std::optional<Input> input = inputs_.Pop()) {
       const Stopwatch watch;
       Answer answer;

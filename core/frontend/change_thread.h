@@ -32,7 +32,8 @@ class ChangeThread {
     double ms = 0;              // time the change thread spent on it
   };
 
-  ChangeThread(const track::ChangeOptions& options, size_t queue_frames, size_t lag_frames);
+  ChangeThread(const track::ChangeOptions& options, track::FrameRate rate, size_t queue_frames,
+               size_t lag_frames);
   // Stops the thread (it finishes the frame in hand) and joins it.
   ~ChangeThread();
   ChangeThread(const ChangeThread&) = delete;
@@ -53,7 +54,7 @@ class ChangeThread {
     std::optional<Eigen::Matrix3d> motion;
   };
 
-  void Run(const track::ChangeOptions& options);
+  void Run(const track::ChangeOptions& options, track::FrameRate rate);
   [[noreturn]] void RethrowOrFail();
 
   BoundedQueue<Input> inputs_;

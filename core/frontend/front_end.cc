@@ -31,6 +31,8 @@ namespace {
 // baseline + this lag (20 frames with the default baseline of 12: still within the 25 frames a
 // target lives on unseen).
 constexpr int64_t kChangeLagFrames = 8;
+// The resume warm-up (FrontEndOptions::resume_warmup_s) is at least this many frames at any rate.
+constexpr int kMinWarmupFrames = 10;
 // How often the memory limit is checked: reading /proc costs about 10 us. Every 25 frames of
 // 720p: every frame for pictures of this many pixels and more (8K).
 constexpr int64_t kMemoryCheckPixels = int64_t{25} * 1280 * 720;
@@ -43,10 +45,10 @@ constexpr uint32_t kStateLayoutWithoutOverlays = 1;
 
 // The frames an exact resume gives the change detector again before the checkpoint's key frame:
 // its answers not yet applied there (kChangeLagFrames of them) and the image history each needs.
-int ChangeReplayFrames(const track::ChangeOptions& change) {
+int ChangeReplayFrames(const track::ChangeOptions& change, track::FrameRate rate) {
   if (!change.enabled) return 0;
   return static_cast<int>(kChangeLagFrames) +
-         2 * std::max(change.baseline_frames, change.long_baseline_frames);
+         2 * track::ChangeDetector::BaselineFrames(change, rate).back();
 }
 
 // Decoding on a thread of its own: ingest::ScanVideo reads every frame and KLV packet of the
@@ -138,7 +140,8 @@ std::optional<Eigen::Vector3d> ParallaxEpipole(const std::vector<track::Correspo
 std::vector<track::TargetTrack> CombineTargets(std::vector<track::TargetTrack> by_features,
                                                std::vector<track::TargetTrack> by_change,
                                                const std::vector<FrameResult>& frames,
-                                               const FrontEndOptions& options) {
+                                               const FrontEndOptions& options,
+                                               track::FrameRate rate) {
   std::vector<track::TargetTrack> all;
   for (track::TargetTrack& t : by_features) {
     if (track::SupportedByChange(t, options.min_change_support)) all.push_back(std::move(t));
@@ -151,8 +154,8 @@ std::vector<track::TargetTrack> CombineTargets(std::vector<track::TargetTrack> b
     all[i].id = static_cast<track::TargetTrackId>(static_cast<int64_t>(i) + 1);
   track::GroundMotion ground;
   for (const FrameResult& f : frames) ground.Add(f.index, f.homography_ok, f.current_from_previous);
-  all = track::LinkFragments(std::move(all), options.EffectiveTargets(), &ground);
-  all = track::DropChangeEchoes(std::move(all), options.change_echoes);
+  all = track::LinkFragments(std::move(all), options.EffectiveTargets(), rate, &ground);
+  all = track::DropChangeEchoes(std::move(all), options.change_echoes, rate);
   for (size_t i = 0; i < all.size(); ++i)
     all[i].id = static_cast<track::TargetTrackId>(static_cast<int64_t>(i) + 1);
   return all;
@@ -204,6 +207,9 @@ class FrontEnd {
 
   std::unique_ptr<video::VideoReader> reader_;  // until Run() hands it to the decode thread
   const std::string path_;
+  // The video's frame rate, at which the options' durations and speeds apply (a rate the video
+  // does not give counts as 25 frames a second).
+  const track::FrameRate rate_;
   const FrontEndOptions options_;  // the run's own copy, callbacks included
   JobContext* const job_;
   const FrontEndCheckpoint* const resume_;
@@ -251,23 +257,23 @@ FrontEnd::FrontEnd(std::unique_ptr<video::VideoReader> reader, const FrontEndOpt
                    JobContext* job, const FrontEndCheckpoint* resume)
     : reader_(std::move(reader)),
       path_(reader_->info().path),
+      rate_(reader_->info().fps),
       options_(options),
       job_(job),
       resume_(resume),
-      start_(
-          ResumePointOf(resume, options.resume_warmup_frames, ChangeReplayFrames(options.change))),
+      start_(ResumePointOf(resume, rate_.Frames(options.resume_warmup_s, kMinWarmupFrames),
+                           ChangeReplayFrames(options.change, rate_))),
       chain_seam_(resume),
-      tracker_(options.EffectiveTracker()),
-      segmenter_(options.segmentation),
-      target_tracker_(options.EffectiveTargets()),
+      tracker_(options.EffectiveTracker(), rate_),
+      segmenter_(options.segmentation, rate_),
+      target_tracker_(options.EffectiveTargets(), rate_),
       chain_(options.key_frames),
-      change_tracks_(options.change_tracks),
-      overlays_(options.overlays, reader_->info().fps),
+      change_tracks_(options.change_tracks, rate_),
+      overlays_(options.overlays, rate_),
       change_through_(start_.change_through_frame) {
-  const double fps = reader_->info().fps > 0 ? reader_->info().fps : 25;
-  overlay_min_frames_ = std::max<int64_t>(1, std::lround(options.overlays.window_s * fps));
+  overlay_min_frames_ = rate_.Frames(options.overlays.window_s, 1);
   if (start_.resuming && !start_.complete && !start_.exact) {
-    target_seam_.emplace(*resume, start_.warm_from, options.EffectiveTargets());
+    target_seam_.emplace(*resume, start_.warm_from, options.EffectiveTargets(), rate_);
   }
   result_.video = reader_->info();
   // For progress only: the declared count, else duration x rate.
@@ -285,7 +291,7 @@ StatusOr<FrontEndResult> FrontEnd::Run() {
   const Stopwatch wall;
   since_checkpoint_.Restart();
   if (options_.change.enabled) {
-    change_.emplace(options_.change, static_cast<size_t>(options_.change_queue_frames),
+    change_.emplace(options_.change, rate_, static_cast<size_t>(options_.change_queue_frames),
                     static_cast<size_t>(kChangeLagFrames));
   }
   while (std::optional<video::Frame> frame = decode.Pop()) {
@@ -565,7 +571,7 @@ void FrontEnd::ApplyChangeAnswer(const ChangeThread::Answer& answer) {
   const track::ChangeFrame& c = answer.change;
   if (c.answered()) {
     // The overlay learns from every change, then none on it goes on to the change tracks.
-    overlays_.AddChange(c, options_.change.baseline_frames);
+    overlays_.AddChange(c, track::ChangeDetector::BaselineFrames(options_.change, rate_).front());
     NoteOverlayMask(c.frame);
     std::vector<track::ChangeBlob> blobs;
     blobs.reserve(c.blobs.size());
@@ -745,7 +751,7 @@ void FrontEnd::FinishTargets() {
     KeepTarget(std::move(t), start_.change_through_frame, &targets_by_change_);
   }
   result_.targets = CombineTargets(std::move(result_.targets), std::move(targets_by_change_),
-                                   result_.frames, options_);
+                                   result_.frames, options_, rate_);
 }
 
 // The options and the checkpoint of a run on `path`.
@@ -822,8 +828,8 @@ Status FrontEndOptions::Validate() const {
   if (!(checkpoint_interval_s >= 0)) {
     return InvalidArgumentError("front end: the checkpoint interval must be >= 0 s");
   }
-  if (resume_warmup_frames < 0) {
-    return InvalidArgumentError("front end: the resume warm-up must be >= 0 frames");
+  if (!(resume_warmup_s >= 0 && resume_warmup_s <= 3600)) {
+    return InvalidArgumentError("front end: the resume warm-up must be in [0, 3600] s");
   }
   return Status::Ok();
 }

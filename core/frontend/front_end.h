@@ -88,9 +88,10 @@ struct FrontEndOptions {
   double checkpoint_interval_s = 30;
   std::function<Status(const FrontEndCheckpoint&)> on_checkpoint;
   // Resuming from a checkpoint without the trackers' state (one of an older Saker), the run starts
-  // tracking this many frames before the checkpoint's key frame, so that the trackers are nearly
-  // as warm there as in a run that never stopped. A checkpoint with the state needs no warm-up.
-  int resume_warmup_frames = 100;
+  // tracking this long before the checkpoint's key frame (at least 10 frames), so that the
+  // trackers are nearly as warm there as in a run that never stopped. A checkpoint with the state
+  // needs no warm-up.
+  double resume_warmup_s = 4;
   Status Validate() const;
 
   // What the reader and the trackers run with, derived from the fields above rather than set by

@@ -114,8 +114,9 @@ ResumePoint ResumePointOf(const FrontEndCheckpoint* checkpoint, int warmup_frame
 }
 
 TargetSeam::TargetSeam(const FrontEndCheckpoint& checkpoint, int64_t warm_from,
-                       const track::TargetTrackOptions& options)
-    : gate_px_(options.association_gate_px), min_frames_(options.min_frames) {
+                       const track::TargetTrackOptions& options, track::FrameRate rate)
+    : gate_px_(options.association_gate_px),
+      min_frames_(track::TargetTrackTiming(options, rate).min_frames) {
   for (const auto* list : {&checkpoint.targets, &checkpoint.change_targets,
                            &checkpoint.open_targets, &checkpoint.open_change_targets}) {
     for (const track::TargetTrack& t : *list) {

@@ -46,7 +46,7 @@ ResumePoint ResumePointOf(const FrontEndCheckpoint* checkpoint, int warmup_frame
 class TargetSeam {
  public:
   TargetSeam(const FrontEndCheckpoint& checkpoint, int64_t warm_from,
-             const track::TargetTrackOptions& options);
+             const track::TargetTrackOptions& options, track::FrameRate rate);
 
   // The part of `target` to keep, cut after frame `cut`, or nothing.
   std::optional<track::TargetTrack> Trim(track::TargetTrack target, int64_t cut) const;

@@ -67,9 +67,9 @@ float MeanGain(const cv::Mat& centre, const cv::Mat& warped, const cv::Mat& cove
 }  // namespace
 
 Status ChangeOptions::Validate() const {
-  if (baseline_frames < 1 || baseline_frames > 100 || long_baseline_frames < 0 ||
-      long_baseline_frames > 100) {
-    return InvalidArgumentError("change detection: the baselines must be 1..100 frames");
+  if (!(baseline_s > 0 && baseline_s <= 60) || !(long_baseline_s >= 0 && long_baseline_s <= 60)) {
+    return InvalidArgumentError(
+        "change detection: the baseline must be in (0, 60] s and the long one in [0, 60] s");
   }
   if (processing_width < 0) {
     return InvalidArgumentError("change detection: the processing width must be >= 0");
@@ -85,8 +85,19 @@ Status ChangeOptions::Validate() const {
   return Status::Ok();
 }
 
-ChangeDetector::ChangeDetector(const ChangeOptions& options) : options_(options) {
+ChangeDetector::ChangeDetector(const ChangeOptions& options, FrameRate rate) : options_(options) {
   SAKER_CHECK(options_.Validate().ok()) << options_.Validate().message();
+  for (const int b : BaselineFrames(options, rate)) baselines_.push_back(static_cast<size_t>(b));
+}
+
+std::vector<int> ChangeDetector::BaselineFrames(const ChangeOptions& options, FrameRate rate) {
+  constexpr int kMaxBaselineFrames = 100;  // 201 frames held, at most
+  std::vector<int> frames = {std::min(rate.Frames(options.baseline_s, 1), kMaxBaselineFrames)};
+  if (options.long_baseline_s > 0) {
+    const int long_frames = std::min(rate.Frames(options.long_baseline_s, 1), kMaxBaselineFrames);
+    if (long_frames > frames[0]) frames.push_back(long_frames);
+  }
+  return frames;
 }
 
 void ChangeDetector::Reset() { history_.clear(); }
@@ -105,10 +116,7 @@ ChangeFrame ChangeDetector::Process(int64_t frame, const cv::Mat& grey,
 
   // The centre frame is the one `longest` back; each baseline compares it with the frames that
   // many before and after it.
-  std::vector<size_t> baselines = {static_cast<size_t>(options_.baseline_frames)};
-  if (options_.long_baseline_frames > options_.baseline_frames) {
-    baselines.push_back(static_cast<size_t>(options_.long_baseline_frames));
-  }
+  const std::vector<size_t>& baselines = baselines_;
   const size_t longest = baselines.back();
   Remember(frame, grey, current_from_previous, 2 * longest + 1);
   if (history_.size() < 2 * longest + 1) return result;
@@ -348,19 +356,26 @@ bool ChangeFrame::ChangedNear(const Eigen::Vector2d& p, double radius_px) const 
 }
 
 Status BlobTrackOptions::Validate() const {
-  if (!(gate_px > 0 && min_travel_px >= 0 && max_fit_rms_px > 0 && max_speed_px > 0 &&
-        box_margin_px >= 0)) {
+  if (!(gate_px > 0 && min_travel_px >= 0 && max_fit_rms_px > 0 && max_speed_px_s > 0 &&
+        box_margin_px >= 0 && gate_growth_px_s >= 0)) {
     return InvalidArgumentError(
-        "blob tracks: gate, fit RMS and speed must be positive, travel and margin >= 0");
+        "blob tracks: gate, fit RMS and speed must be positive, travel, margin and the gate's "
+        "growth >= 0");
   }
-  if (max_gap_frames < 0 || min_frames < 2 || !(min_hit_fraction > 0 && min_hit_fraction <= 1)) {
+  if (!(max_gap_s >= 0 && max_gap_s <= 3600) || !(min_duration_s >= 0 && min_duration_s <= 3600) ||
+      !(min_hit_fraction > 0 && min_hit_fraction <= 1)) {
     return InvalidArgumentError(
-        "blob tracks: need max gap >= 0, min frames >= 2 and a hit fraction in (0, 1]");
+        "blob tracks: need the gap and the duration in [0, 3600] s and a hit fraction in (0, 1]");
   }
   return Status::Ok();
 }
 
-BlobTracker::BlobTracker(const BlobTrackOptions& options) : options_(options) {
+BlobTracker::BlobTracker(const BlobTrackOptions& options, FrameRate rate)
+    : options_(options),
+      gate_growth_px_(rate.PerFrame(options.gate_growth_px_s)),
+      max_gap_frames_(rate.Frames(options.max_gap_s, 2)),
+      min_frames_(rate.Frames(options.min_duration_s, 3)),
+      max_speed_px_(rate.PerFrame(options.max_speed_px_s)) {
   SAKER_CHECK(options_.Validate().ok()) << options_.Validate().message();
 }
 
@@ -402,7 +417,7 @@ void BlobTracker::AddFrame(int64_t frame, const std::vector<ChangeBlob>& blobs,
   std::vector<std::tuple<double, size_t, size_t>> pairs;
   for (size_t i = 0; i < active_.size(); ++i) {
     const double gap = static_cast<double>(frame - active_[i].target.last_frame() - 1);
-    const double gate = options_.gate_px + 0.25 * gap;
+    const double gate = options_.gate_px + gate_growth_px_ * gap;
     for (size_t j = 0; j < blobs.size(); ++j) {
       const double d = (blobs[j].position - predicted[i]).norm();
       if (d <= gate) pairs.emplace_back(d, i, j);
@@ -424,12 +439,12 @@ void BlobTracker::AddFrame(int64_t frame, const std::vector<ChangeBlob>& blobs,
     t->velocity = t->fit.Velocity();
     o.velocity = t->velocity;  // anchor pixels: close to image pixels over a track's life
     t->target.observations.push_back(std::move(o));
-    if (!t->confirmed && t->hits >= options_.min_frames) {
+    if (!t->confirmed && t->hits >= min_frames_) {
       const double span = static_cast<double>(frame - t->first_frame + 1);
       const double travel = t->velocity.norm() * static_cast<double>(frame - t->first_frame);
       t->confirmed = static_cast<double>(t->hits) / span >= options_.min_hit_fraction &&
                      travel >= options_.min_travel_px && t->fit.Rms() <= options_.max_fit_rms_px &&
-                     t->velocity.norm() <= options_.max_speed_px;
+                     t->velocity.norm() <= max_speed_px_;
       t->target.confirmed = t->confirmed;
     }
   };
@@ -442,7 +457,7 @@ void BlobTracker::AddFrame(int64_t frame, const std::vector<ChangeBlob>& blobs,
   // Tracks unseen too long end; unpaired blobs start tracks.
   std::vector<Track> still;
   for (Track& t : active_) {
-    if (frame - t.target.last_frame() > options_.max_gap_frames) {
+    if (frame - t.target.last_frame() > max_gap_frames_) {
       End(&t);
     } else {
       still.push_back(std::move(t));
@@ -484,7 +499,7 @@ bool SupportedByChange(const TargetTrack& track, double min_fraction) {
 }
 
 Status ChangeEchoOptions::Validate() const {
-  if (!(distance_px > 0 && velocity_px > 0 && min_mover_speed_px >= 0 && min_fraction > 0 &&
+  if (!(distance_px > 0 && velocity_px_s > 0 && min_mover_speed_px_s >= 0 && min_fraction > 0 &&
         min_fraction <= 1)) {
     return InvalidArgumentError(
         "change echoes: distance and velocity must be positive, the mover's speed >= 0 and the "
@@ -504,11 +519,11 @@ bool FoundByChangeOnly(const TargetTrack& track) {
 
 // The frames of `echo` where `mover` is seen near it and moving alike (both in frame order).
 size_t FramesAlongside(const TargetTrack& echo, const TargetTrack& mover,
-                       const ChangeEchoOptions& options) {
+                       const ChangeEchoOptions& options, double velocity_px) {
   size_t alongside = 0;
   ForCommonFrames(echo, mover, [&](const TargetObservation& e, const TargetObservation& m) {
     alongside += (m.position - e.position).norm() < options.distance_px &&
-                 (m.velocity - e.velocity).norm() < options.velocity_px;
+                 (m.velocity - e.velocity).norm() < velocity_px;
   });
   return alongside;
 }
@@ -516,12 +531,13 @@ size_t FramesAlongside(const TargetTrack& echo, const TargetTrack& mover,
 }  // namespace
 
 std::vector<TargetTrack> DropChangeEchoes(std::vector<TargetTrack> tracks,
-                                          const ChangeEchoOptions& options) {
+                                          const ChangeEchoOptions& options, FrameRate rate) {
   if (!options.enabled) return tracks;
+  const double velocity_px = rate.PerFrame(options.velocity_px_s);  // per frame, as tracks keep it
   std::vector<const TargetTrack*> movers;
   for (const TargetTrack& t : tracks) {
     if (!t.observations.empty() && !FoundByChangeOnly(t) &&
-        MeanSpeed(t) >= options.min_mover_speed_px) {
+        MeanSpeed(t) >= rate.PerFrame(options.min_mover_speed_px_s)) {
       movers.push_back(&t);
     }
   }
@@ -535,7 +551,7 @@ std::vector<TargetTrack> DropChangeEchoes(std::vector<TargetTrack> tracks,
           m->observations.front().frame > t.observations.back().frame) {
         continue;
       }
-      if (static_cast<double>(FramesAlongside(t, *m, options)) >= needed) {
+      if (static_cast<double>(FramesAlongside(t, *m, options, velocity_px)) >= needed) {
         echo[i] = true;
         break;
       }

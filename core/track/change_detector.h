@@ -9,15 +9,15 @@
 // earlier frame is warped onto the current one with the ground motion, the ground cancels and the
 // walker leaves a difference where it is now and one where it was.
 //
-// ChangeDetector compares a frame with the frames `baseline_frames` before and after it, both
-// warped onto it by the chained frame-to-frame ground homographies (so its answer comes that many
-// frames late). A pixel has *changed* when both differences are significant and have the same
-// sign: the mover is there in the middle frame and in neither of the others. Where it was before
-// or will be after, only one of the two differs, so it leaves no ghost, even when it is longer
-// than the distance it moves (comparing with two earlier frames would leave one behind a slow
-// car). "Significant" is relative to the noise and to the local gradient times an allowance
-// for misregistration (an edge off by a tenth of a pixel differs too), after matching the earlier
-// frames' mean grey level (gain drift). Changed pixels are grouped into blobs.
+// ChangeDetector compares a frame with the frames `baseline_s` before and after it, both warped
+// onto it by the chained frame-to-frame ground homographies (so its answer comes that late). A
+// pixel has *changed* when both differences are significant and have the same sign: the mover is
+// there in the middle frame and in neither of the others. Where it was before or will be after,
+// only one of the two differs, so it leaves no ghost, even when it is longer than the distance it
+// moves (comparing with two earlier frames would leave one behind a slow car). "Significant" is
+// relative to the noise and to the local gradient times an allowance for misregistration (an edge
+// off by a tenth of a pixel differs too), after matching the earlier frames' mean grey level (gain
+// drift). Changed pixels are grouped into blobs.
 //
 // Two uses: ChangeFrame::ChangedNear() lets a feature target be checked against the image (a corner
 // sliding along a road marking has no change under it; a car or a walker does), and BlobTracker
@@ -41,9 +41,11 @@ namespace saker::track {
 
 struct ChangeOptions {
   bool enabled = true;
-  int baseline_frames = 12;      // a frame is compared with those this many before and after
-  int long_baseline_frames = 0;  // ... and also this many (0: no second baseline), for slower
-                                 // or longer movers (a walker and its shadow)
+  // A frame is compared with those this long before and after [1 frame, at most 100 frames]: the
+  // default is the 12 frames tuned at 25 frames a second.
+  double baseline_s = 0.48;
+  double long_baseline_s = 0;    // ... and also this long (0: no second baseline), for slower or
+                                 // longer movers (a walker and its shadow)
   int processing_width = 960;    // on a copy this wide (never enlarged); 0 = full resolution
   double noise_grey = 2.5;       // grey-level noise of one pixel's difference (sensor, compression)
   double threshold = 4;          // a difference above this many times its noise is significant
@@ -87,7 +89,10 @@ struct ChangeFrame {
 
 class ChangeDetector {
  public:
-  explicit ChangeDetector(const ChangeOptions& options);
+  ChangeDetector(const ChangeOptions& options, FrameRate rate);
+
+  // The baselines at `rate`, in frames: the short one, then the long one when it is longer.
+  static std::vector<int> BaselineFrames(const ChangeOptions& options, FrameRate rate);
 
   // One frame (8-bit grey, full resolution; frame indices increase). `current_from_previous` is
   // the ground motion since the previous frame in full-resolution pixels; nullopt when unknown
@@ -121,9 +126,10 @@ class ChangeDetector {
   std::vector<ChangeBlob> FindBlobs(const cv::Mat& changed);
 
   ChangeOptions options_;
+  std::vector<size_t> baselines_;  // BaselineFrames(), shortest first
   cv::Size full_size_, small_size_;
   double scale_ = 1;           // full / processing
-  std::deque<Entry> history_;  // the last 2 x baseline_frames + 1 frames of the segment
+  std::deque<Entry> history_;  // the last 2 x the longest baseline + 1 frames of the segment
   // Buffers reused from frame to frame (the masks handed out are allocated per answer).
   std::vector<std::array<Other, 2>> pairs_;  // per baseline: before and after
   std::vector<cv::Mat> covers_;              // per baseline: where both cover the centre frame
@@ -132,14 +138,17 @@ class ChangeDetector {
   cv::Mat strength_;                         // CV_32F signed change of the changed pixels
 };
 
+// Durations in seconds, speeds in pixels a second (FrameRate), floors in frames in brackets; the
+// defaults are the frame counts tuned at 25 frames a second.
 struct BlobTrackOptions {
-  double gate_px = 3;             // a blob continues a track within this of its predicted position
-  int max_gap_frames = 10;        // frames a track may go without a blob
-  int min_frames = 25;            // blobs seen before a track can be confirmed
-  double min_hit_fraction = 0.6;  // of the frames since the track began
-  double min_travel_px = 4;       // ground-relative displacement of the straight-line fit
-  double max_fit_rms_px = 1.2;    // positions about that line, at most (steady motion)
-  double max_speed_px = 2;        // per frame; faster things are the feature tracks' (cars)
+  double gate_px = 3;  // a blob continues a track within this of its predicted position,
+  double gate_growth_px_s = 6.25;  // growing by this for each second unseen after the first frame
+  double max_gap_s = 0.4;          // time a track may go without a blob [2 frames]
+  double min_duration_s = 1;       // blobs seen this long before a track can be confirmed [3]
+  double min_hit_fraction = 0.6;   // of the frames since the track began
+  double min_travel_px = 4;        // ground-relative displacement of the straight-line fit
+  double max_fit_rms_px = 1.2;     // positions about that line, at most (steady motion)
+  double max_speed_px_s = 50;      // faster things are the feature tracks' (cars)
   double box_margin_px = 2;
   Status Validate() const;
 };
@@ -148,7 +157,7 @@ struct BlobTrackOptions {
 // Confirmed tracks come out as target tracks without supporting features.
 class BlobTracker {
  public:
-  explicit BlobTracker(const BlobTrackOptions& options);
+  BlobTracker(const BlobTrackOptions& options, FrameRate rate);
 
   // The blobs of frame `frame` and the ground motion since the previous frame (full resolution).
   void AddFrame(int64_t frame, const std::vector<ChangeBlob>& blobs,
@@ -186,6 +195,11 @@ class BlobTracker {
   void End(Track* track);
 
   BlobTrackOptions options_;
+  // The options at the video's frame rate.
+  double gate_growth_px_ = 0;  // per frame unseen
+  int max_gap_frames_ = 0;
+  int min_frames_ = 0;
+  double max_speed_px_ = 0;  // per frame
   std::vector<Track> active_;
   std::vector<TargetTrack> finished_;
   int64_t next_id_ = 1;
@@ -199,15 +213,15 @@ bool SupportedByChange(const TargetTrack& track, double min_fraction);
 // follow each other the differences merge: the change detector can follow such a blob as if it
 // were an object of its own, at the car's speed and a few metres from it. A track found by change
 // detection alone (no observation with features) is such an echo when, on at least
-// `min_fraction` of its frames, a feature-tracked target that moves at `min_mover_speed_px` or
-// more (mean, per frame) is within `distance_px` of it with a velocity within `velocity_px` of its
-// own. Slow feature tracks are not taken as movers: walkers side by side are each other's
-// neighbours, not echoes.
+// `min_fraction` of its frames, a feature-tracked target that moves at `min_mover_speed_px_s` or
+// more (mean, pixels a second) is within `distance_px` of it with a velocity within
+// `velocity_px_s` of its own. Slow feature tracks are not taken as movers: walkers side by side
+// are each other's neighbours, not echoes.
 struct ChangeEchoOptions {
   bool enabled = true;
   double distance_px = 40;
-  double velocity_px = 0.5;
-  double min_mover_speed_px = 1;
+  double velocity_px_s = 12.5;
+  double min_mover_speed_px_s = 25;
   double min_fraction = 0.8;
   Status Validate() const;
 };
@@ -215,6 +229,6 @@ struct ChangeEchoOptions {
 // `tracks` less the change-only tracks that echo a feature-tracked mover (see ChangeEchoOptions),
 // in their order. Observations must be in increasing frame order, as TargetTrack keeps them.
 std::vector<TargetTrack> DropChangeEchoes(std::vector<TargetTrack> tracks,
-                                          const ChangeEchoOptions& options);
+                                          const ChangeEchoOptions& options, FrameRate rate);
 
 }  // namespace saker::track

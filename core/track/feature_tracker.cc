@@ -131,13 +131,15 @@ Status TrackerOptions::Validate() const {
   if (grid_cols < 1 || grid_cols > 64 || grid_rows < 1 || grid_rows > 64) {
     return InvalidArgumentError("tracker: the detection grid must have 1..64 columns and rows");
   }
-  if (redetect_interval < 1) {
-    return InvalidArgumentError("tracker: the re-detection interval must be at least 1 frame");
+  if (!(redetect_interval_s >= 0 && redetect_interval_s <= 3600)) {
+    return InvalidArgumentError("tracker: the re-detection interval must be in [0, 3600] s");
   }
   if (!(refill_fraction > 0 && refill_fraction <= 1)) {
     return InvalidArgumentError("tracker: the refill fraction must be in (0, 1]");
   }
-  if (max_frame_gap < 0) return InvalidArgumentError("tracker: the frame gap must be >= 0");
+  if (!(max_frame_gap_s >= 0 && max_frame_gap_s <= 3600)) {
+    return InvalidArgumentError("tracker: the frame gap must be in [0, 3600] s");
+  }
   if (max_history < 1) return InvalidArgumentError("tracker: the history must hold >= 1 position");
   if (min_finished_length < 1) {
     return InvalidArgumentError("tracker: the minimum finished track length must be >= 1");
@@ -150,10 +152,13 @@ const Eigen::Vector2d* FeatureTrack::PositionAt(int64_t frame) const {
   return &positions[static_cast<size_t>(frame - history_start)];
 }
 
-FeatureTracker::FeatureTracker(const TrackerOptions& options) : options_(options) {
+FeatureTracker::FeatureTracker(const TrackerOptions& options, FrameRate rate)
+    : options_(options),
+      redetect_interval_(rate.Frames(options.redetect_interval_s, 1)),
+      max_frame_gap_(rate.Frames(options.max_frame_gap_s, 1)) {
   const Status valid = options_.Validate();
   SAKER_CHECK(valid.ok()) << valid.ToString();
-  frames_since_detection_ = options_.redetect_interval;
+  frames_since_detection_ = redetect_interval_;
 }
 
 Eigen::Vector2d FeatureTracker::ToFull(const cv::Point2f& p) const {
@@ -206,9 +211,8 @@ void FeatureTracker::Process(int64_t frame_index, const cv::Mat& grey) {
   const Stopwatch start;
   timing_ = Timing{};
 
-  if (have_previous_ &&
-      (grey.size() != full_size_ ||
-       frame_index - last_frame_ - 1 > static_cast<int64_t>(options_.max_frame_gap))) {
+  if (have_previous_ && (grey.size() != full_size_ ||
+                         frame_index - last_frame_ - 1 > static_cast<int64_t>(max_frame_gap_))) {
     EndAll();
   }
   if (!SetFrame(grey)) {
@@ -232,7 +236,7 @@ void FeatureTracker::Process(int64_t frame_index, const cv::Mat& grey) {
   // step (on water, say) must not set off a detection every frame.
   if (frames_since_detection_ == 0) reference_count_ = live_.size();
   ++frames_since_detection_;
-  if (frames_since_detection_ >= options_.redetect_interval ||
+  if (frames_since_detection_ >= redetect_interval_ ||
       static_cast<double>(live_.size()) <
           options_.refill_fraction * static_cast<double>(reference_count_)) {
     const Stopwatch detect_start;
@@ -449,7 +453,7 @@ void FeatureTracker::EndAll() {
   live_patches_.clear();
   matches_.clear();
   have_previous_ = false;
-  frames_since_detection_ = options_.redetect_interval;
+  frames_since_detection_ = redetect_interval_;
   reference_count_ = 0;
 }
 

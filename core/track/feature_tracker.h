@@ -17,7 +17,7 @@
 //     and offset it does not end tracks when the camera's exposure changes.
 //  3. New corners are detected only where tracks have run out: the image is split into a grid,
 //     each cell has a share of `max_corners`, and cells holding too few tracks are refilled every
-//     `redetect_interval` frames (at once when the total drops). The Harris quality threshold is
+//     `redetect_interval_s` (at once when the total drops). The Harris quality threshold is
 //     relative to the strongest corner of each cell, so weak-texture areas (fields, roofs) still
 //     get corners; new corners keep `min_distance_px` from every live one and need some contrast
 //     (`min_contrast`), so sensor noise on a featureless area (sky, water, cloud) gets none.
@@ -73,15 +73,18 @@ struct TrackerOptions {
   double min_contrast = 3;
   int grid_cols = 8;  // detection grid over the image
   int grid_rows = 6;
-  int redetect_interval = 5;  // frames between refills of the cells that ran short
+  // Time between refills of the cells that ran short (FrameRate; at least 1 frame): the default
+  // is the 5 frames tuned at 25 frames a second.
+  double redetect_interval_s = 0.2;
   // A cell holding fewer tracks than this fraction of its share is refilled; and detection runs
   // at once, not waiting for the interval, when the total falls below this fraction of the count
   // one frame after the latest detection.
   double refill_fraction = 0.75;
-  int max_frame_gap = 10;       // more frames skipped between two calls end every track (as Reset)
-  int max_history = 2000;       // positions kept per live track (the latest; see FeatureTrack)
-  bool keep_finished = true;    // collect lost tracks for TakeFinished()
-  int min_finished_length = 2;  // lost tracks seen in fewer frames are not kept
+  double max_frame_gap_s = 0.4;  // a longer time skipped between two calls (at least 1 frame)
+                                 // ends every track (as Reset)
+  int max_history = 2000;        // positions kept per live track (the latest; see FeatureTrack)
+  bool keep_finished = true;     // collect lost tracks for TakeFinished()
+  int min_finished_length = 2;   // lost tracks seen in fewer frames are not kept
 
   Status Validate() const;
 };
@@ -112,11 +115,11 @@ struct FeatureTrack {
 class FeatureTracker {
  public:
   // `options` must be valid (Validate()); a bad one is a bug (CheckError).
-  explicit FeatureTracker(const TrackerOptions& options);
+  FeatureTracker(const TrackerOptions& options, FrameRate rate);
 
   // Tracks the previous frame's points into `grey` (CV_8UC1, full resolution) and detects new
   // corners where tracks ran out. Frame indices must increase between resets (CheckError
-  // otherwise); gaps are allowed up to `max_frame_gap`. A change of image size or a longer gap
+  // otherwise); gaps are allowed up to `max_frame_gap_s`. A change of image size or a longer gap
   // ends every track first. Frames under 16 pixels wide or high (after shrinking) get no tracks.
   void Process(int64_t frame_index, const cv::Mat& grey);
 
@@ -166,6 +169,8 @@ class FeatureTracker {
   Eigen::Vector2d ToFull(const cv::Point2f& p) const;
 
   TrackerOptions options_;
+  int redetect_interval_ = 1;  // redetect_interval_s and max_frame_gap_s at the video's rate
+  int max_frame_gap_ = 1;
   int64_t last_frame_ = -1;
   int64_t next_id_ = 1;
   int frames_since_detection_ = 0;

@@ -12,11 +12,11 @@ Status SegmentationOptions::Validate() const {
   if (!(residual_threshold_px > 0)) {
     return InvalidArgumentError("segmentation: the residual threshold must be positive");
   }
-  if (window_frames < 2 || window_frames > 250) {
-    return InvalidArgumentError("segmentation: the window must be 2..250 frames");
+  if (!(window_s > 0 && window_s <= 10)) {
+    return InvalidArgumentError("segmentation: the window must be in (0, 10] s");
   }
-  if (short_frames < 1 || short_frames > window_frames) {
-    return InvalidArgumentError("segmentation: the short window must be 1..window frames");
+  if (!(short_s > 0 && short_s <= window_s)) {
+    return InvalidArgumentError("segmentation: the short window must be in (0 s, the window]");
   }
   if (!(min_significant_fraction > 0 && min_significant_fraction <= 1) ||
       !(release_fraction >= 0 && release_fraction < min_significant_fraction)) {
@@ -47,7 +47,10 @@ const char* MotionLabelName(MotionLabel label) {
   return "unknown";
 }
 
-MotionSegmenter::MotionSegmenter(const SegmentationOptions& options) : options_(options) {}
+MotionSegmenter::MotionSegmenter(const SegmentationOptions& options, FrameRate rate)
+    : options_(options),
+      short_frames_(std::min(rate.Frames(options.short_s, 1), 250)),
+      window_frames_(std::clamp(rate.Frames(options.window_s, 3), short_frames_, 250)) {}
 
 void MotionSegmenter::Reset() {
   tracks_.clear();
@@ -60,7 +63,7 @@ void MotionSegmenter::AddFrame(const std::vector<Correspondence>& matches,
   ++calls_;
   moving_.clear();
   const double cos_limit = std::cos(options_.epipolar_angle_deg * M_PI / 180.0);
-  const size_t window = static_cast<size_t>(options_.window_frames);
+  const size_t window = static_cast<size_t>(window_frames_);
   for (const Correspondence& m : matches) {
     TrackState& state = tracks_[static_cast<int64_t>(m.id)];
     state.updated = calls_;
@@ -82,10 +85,10 @@ void MotionSegmenter::AddFrame(const std::vector<Correspondence>& matches,
     current = step;
     const size_t held = state.steps.size();
 
-    // Stage 1: motion relative to the ground over the last short_frames frames.
+    // Stage 1: motion relative to the ground over the last short_frames_ frames.
     Eigen::Vector2d motion(0, 0), flow(0, 0);
     double largest_step = 0;
-    const size_t n = std::min(held, static_cast<size_t>(options_.short_frames));
+    const size_t n = std::min(held, static_cast<size_t>(short_frames_));
     for (size_t k = held - n; k < held; ++k) {
       const Step& s = state.at(k);
       motion += s.residual;
@@ -184,7 +187,7 @@ bool MotionSegmenter::RestoreState(ByteReader* in) {
     if (!in->Get(&id) || !in->Get(&first) || !in->Get(&state.updated) || !in->Get(&label) ||
         !in->GetCount(33, &steps) || label < 0 ||
         label > static_cast<int32_t>(MotionLabel::kMoving) ||
-        steps > static_cast<size_t>(options_.window_frames) || (steps > 0 && first >= steps)) {
+        steps > static_cast<size_t>(window_frames_) || (steps > 0 && first >= steps)) {
       return false;
     }
     state.first = static_cast<size_t>(first);

@@ -7,7 +7,7 @@
 // on a tall structure (parallax), or is a tracking error. Two stages separate them:
 //
 //  1. Per frame, each feature's residual r = x_now - H x_before against the dominant ground motion
-//     H. Its motion over the last `short_frames` frames is the sum of those residuals (to first
+//     H. Its motion over the last `short_s` seconds is the sum of those residuals (to first
 //     order the feature's displacement relative to the ground; tracking noise telescopes rather
 //     than adds up), spread over those frames (a single jump is a tracking slip, not motion),
 //     which is significant above a threshold set by the feature noise, unless it is
@@ -36,11 +36,12 @@
 
 namespace saker::track {
 
+// Windows in seconds (FrameRate), with their floors in frames in brackets; the defaults are the
+// frame counts tuned at 25 frames a second.
 struct SegmentationOptions {
-  int short_frames = 8;  // stage 1: frames the motion is summed over
-  double residual_threshold_px =
-      1.5;                 // stage 1: motion over short_frames above this is significant
-  int window_frames = 12;  // stage 2: frames looked back on (>= short_frames)
+  double short_s = 0.32;               // stage 1: time the motion is summed over [1 frame]
+  double residual_threshold_px = 1.5;  // stage 1: motion over short_s above this is significant
+  double window_s = 0.48;  // stage 2: time looked back on (>= short_s) [3 frames, <= 250]
   double min_significant_fraction = 0.6;    // of the window, to become moving
   double min_window_displacement_px = 2.5;  // ground-relative motion summed over the window
   double release_fraction = 0.25;           // a moving track with fewer significant frames stops
@@ -66,7 +67,7 @@ struct MovingPoint {
 
 class MotionSegmenter {
  public:
-  explicit MotionSegmenter(const SegmentationOptions& options);
+  MotionSegmenter(const SegmentationOptions& options, FrameRate rate);
 
   // One frame: `matches` previous -> current for the tracks alive in both, `current_from_previous`
   // the ground motion, and the epipole in the current frame (homogeneous; nullopt when unknown,
@@ -93,7 +94,7 @@ class MotionSegmenter {
     bool significant = false;        // the stage 1 verdict
   };
   struct TrackState {
-    // The last window_frames steps, a ring: the oldest at `first`.
+    // The last window_frames_ steps, a ring: the oldest at `first`.
     std::vector<Step> steps;
     size_t first = 0;
     int64_t updated = -1;  // the AddFrame call that saw the track last
@@ -103,6 +104,8 @@ class MotionSegmenter {
   };
 
   SegmentationOptions options_;
+  int short_frames_ = 0;   // short_s and window_s at the video's frame rate
+  int window_frames_ = 0;  // (window_frames_ >= short_frames_)
   // Kept from frame to frame, so that a track's state is not allocated again every frame.
   std::unordered_map<int64_t, TrackState> tracks_;
   int64_t calls_ = 0;

@@ -13,10 +13,6 @@ namespace saker::track {
 namespace {
 
 // Frames in `seconds` at `fps`, at least `floor`.
-int FramesIn(double seconds, double fps, int floor) {
-  return std::max(floor, static_cast<int>(std::lround(seconds * fps)));
-}
-
 void PutMat(const cv::Mat& m, ByteWriter* out) {
   out->Put<int32_t>(m.rows);
   out->Put<int32_t>(m.cols);
@@ -82,12 +78,12 @@ double OverlayMask::Coverage() const {
   return static_cast<double>(cv::countNonZero(cells)) / static_cast<double>(cells.total());
 }
 
-OverlayDetector::OverlayDetector(const OverlayOptions& options, double fps) : options_(options) {
+OverlayDetector::OverlayDetector(const OverlayOptions& options, FrameRate rate)
+    : options_(options) {
   SAKER_CHECK(options_.Validate().ok()) << options_.Validate().message();
-  if (!(fps > 0)) fps = 25;
-  window_frames_ = FramesIn(options_.window_s, fps, options_.min_window_frames);
-  min_evidence_frames_ = std::min(
-      window_frames_, FramesIn(options_.min_evidence_s, fps, options_.min_evidence_frames));
+  window_frames_ = rate.Frames(options_.window_s, options_.min_window_frames);
+  min_evidence_frames_ =
+      std::min(window_frames_, rate.Frames(options_.min_evidence_s, options_.min_evidence_frames));
   mask_.cell_px = options_.cell_px;
 }
 

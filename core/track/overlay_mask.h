@@ -76,8 +76,8 @@ struct OverlayMask {
 
 class OverlayDetector {
  public:
-  // `fps`: the video's frame rate, for the windows in seconds (a rate <= 0 counts as 25).
-  OverlayDetector(const OverlayOptions& options, double fps);
+  // `rate`: the video's, for the windows in seconds.
+  OverlayDetector(const OverlayOptions& options, FrameRate rate);
 
   // One answer of the change detector, whose frames are `baseline_frames` apart. Unanswered ones
   // are ignored.

@@ -31,10 +31,12 @@ class Groups {
 // moving alike. Both limits scale with speed: a car is long and its corners far apart, a walker
 // is a few pixels and walkers passing each other must stay apart; velocity noise is relative.
 bool Alike(const Eigen::Vector2d& pa, const Eigen::Vector2d& va, const Eigen::Vector2d& pb,
-           const Eigen::Vector2d& vb, const TargetTrackOptions& options) {
+           const Eigen::Vector2d& vb, const TargetTrackOptions& options,
+           const TargetTrackTiming& timing) {
   const double speed = std::max(va.norm(), vb.norm());
-  const double distance = options.group_distance_px * std::clamp(speed / 1.5, 0.35, 1.0);
-  const double velocity = std::max(options.group_velocity_px, 0.6 * speed);
+  const double distance =
+      options.group_distance_px * std::clamp(speed / timing.group_full_speed_px, 0.35, 1.0);
+  const double velocity = std::max(timing.group_velocity_px, 0.6 * speed);
   return (pa - pb).squaredNorm() <= distance * distance &&
          (va - vb).squaredNorm() <= velocity * velocity;
 }
@@ -74,20 +76,23 @@ bool Touching(const TargetObservation& a, const TargetObservation& b, double mar
 // How far apart two tracks of one object may run on average: as for grouping features (walkers
 // side by side stay two, a car's two halves are one), and up to 30 % more than the grouping
 // distance for pieces of one long vehicle (a van's front and rear corners keep their distance).
-double PiecesApart(const TargetTrackOptions& options, double speed_a, double speed_b) {
-  return options.group_distance_px * std::clamp(std::max(speed_a, speed_b) / 1.5 * 1.3, 0.35, 1.3);
+double PiecesApart(const TargetTrackOptions& options, const TargetTrackTiming& timing,
+                   double speed_a, double speed_b) {
+  return options.group_distance_px *
+         std::clamp(std::max(speed_a, speed_b) / timing.group_full_speed_px * 1.3, 0.35, 1.3);
 }
 
 // The moving features of `frame` grouped into observations (features alike in place and motion,
 // Alike), in a deterministic order.
 std::vector<TargetObservation> GroupMoving(int64_t frame, const std::vector<MovingPoint>& moving,
-                                           const TargetTrackOptions& options) {
+                                           const TargetTrackOptions& options,
+                                           const TargetTrackTiming& timing) {
   const size_t n = moving.size();
   Groups groups(n);
   for (size_t i = 0; i < n; ++i) {
     for (size_t j = i + 1; j < n; ++j) {
       if (Alike(moving[i].position, moving[i].residual_velocity, moving[j].position,
-                moving[j].residual_velocity, options)) {
+                moving[j].residual_velocity, options, timing)) {
         groups.Join(i, j);
       }
     }
@@ -124,25 +129,46 @@ std::vector<TargetObservation> GroupMoving(int64_t frame, const std::vector<Movi
 }  // namespace
 
 Status TargetTrackOptions::Validate() const {
-  if (!(group_distance_px > 0 && group_velocity_px > 0 && association_gate_px > 0)) {
-    return InvalidArgumentError("targets: grouping distances and the gate must be positive");
+  if (!(group_distance_px > 0 && group_speed_px_s > 0 && group_full_speed_px_s > 0 &&
+        association_gate_px > 0)) {
+    return InvalidArgumentError(
+        "targets: grouping distances, speeds and the gate must be positive");
   }
-  if (max_gap_frames < 0 || min_frames < 1) {
-    return InvalidArgumentError("targets: need max gap >= 0 and min frames >= 1");
+  if (!(max_gap_s >= 0 && max_gap_s <= 3600) || !(min_duration_s >= 0 && min_duration_s <= 3600) ||
+      !(min_duration_single_s >= 0 && min_duration_single_s <= 3600)) {
+    return InvalidArgumentError(
+        "targets: the gap and the confirmation durations must be in [0, 3600] s");
   }
   if (!(box_margin_px >= 0)) return InvalidArgumentError("targets: box margin must be >= 0");
-  if (link_gap_frames < 0 || ground_link_gap_frames < 0 || duplicate_overlap_frames < 1 ||
-      !(ground_link_growth_px >= 0) || !(ground_link_max_speed_px >= 0)) {
+  if (!(link_gap_s >= 0 && link_gap_s <= 3600) ||
+      !(ground_link_gap_s >= 0 && ground_link_gap_s <= 3600) ||
+      !(duplicate_overlap_s >= 0 && duplicate_overlap_s <= 3600) || !(gate_growth_px_s >= 0) ||
+      !(ground_link_growth_px_s >= 0) || !(ground_link_max_speed_px_s >= 0)) {
     return InvalidArgumentError(
-        "targets: link gaps and the gate's growth must be >= 0, the duplicate overlap >= 1 frame");
+        "targets: link gaps and overlaps must be in [0, 3600] s, the gates' growth and the ground "
+        "link speed >= 0");
   }
   return Status::Ok();
 }
 
-TargetTracker::TargetTracker(const TargetTrackOptions& options) : options_(options) {}
+TargetTrackTiming::TargetTrackTiming(const TargetTrackOptions& options, FrameRate rate)
+    : group_full_speed_px(rate.PerFrame(options.group_full_speed_px_s)),
+      group_velocity_px(rate.PerFrame(options.group_speed_px_s)),
+      gate_growth_px(rate.PerFrame(options.gate_growth_px_s)),
+      max_gap_frames(rate.Frames(options.max_gap_s, 2)),
+      min_frames(rate.Frames(options.min_duration_s, 3)),
+      min_frames_single(rate.Frames(options.min_duration_single_s, 4)),
+      link_gap_frames(rate.Frames(options.link_gap_s, 2)),
+      duplicate_overlap_frames(rate.Frames(options.duplicate_overlap_s, 2)),
+      ground_link_max_speed_px(rate.PerFrame(options.ground_link_max_speed_px_s)),
+      ground_link_gap_frames(rate.Frames(options.ground_link_gap_s, 2)),
+      ground_link_growth_px(rate.PerFrame(options.ground_link_growth_px_s)) {}
+
+TargetTracker::TargetTracker(const TargetTrackOptions& options, FrameRate rate)
+    : options_(options), timing_(options, rate) {}
 
 void TargetTracker::AddFrame(int64_t frame, const std::vector<MovingPoint>& moving) {
-  std::vector<TargetObservation> observations = GroupMoving(frame, moving, options_);
+  std::vector<TargetObservation> observations = GroupMoving(frame, moving, options_, timing_);
   const std::vector<int> assigned = Assign(frame, observations);
   Extend(frame, std::move(observations), assigned);
   MergeAlike(frame);
@@ -188,8 +214,8 @@ std::vector<int> TargetTracker::Assign(int64_t frame,
     for (size_t t = 0; t < active_.size(); ++t) {
       if (target_taken[t]) continue;
       const TargetObservation& last = active_[t].observations.back();
-      const double gate =
-          options_.association_gate_px + static_cast<double>(frame - last.frame - 1);
+      const double gate = options_.association_gate_px +
+                          timing_.gate_growth_px * static_cast<double>(frame - last.frame - 1);
       const Eigen::Vector2d predicted =
           last.position + active_[t].image_velocity * static_cast<double>(frame - last.frame);
       const double distance = (observations[g].position - predicted).norm();
@@ -225,7 +251,7 @@ void TargetTracker::Extend(int64_t frame, std::vector<TargetObservation> observa
 
 void TargetTracker::Confirm() {
   for (TargetTrack& target : active_) {
-    const int needed = target.max_features >= 2 ? options_.min_frames : options_.min_frames_single;
+    const int needed = target.max_features >= 2 ? timing_.min_frames : timing_.min_frames_single;
     double travel = 0;
     for (const TargetObservation& o : target.observations) travel += o.velocity.norm();
     target.confirmed |=
@@ -236,7 +262,7 @@ void TargetTracker::Confirm() {
 void TargetTracker::EndUnseen(int64_t frame) {
   std::vector<TargetTrack> still;
   for (TargetTrack& target : active_) {
-    if (frame - target.last_frame() > options_.max_gap_frames) {
+    if (frame - target.last_frame() > timing_.max_gap_frames) {
       if (target.confirmed) End(std::move(target));
     } else {
       still.push_back(std::move(target));
@@ -256,7 +282,7 @@ void TargetTracker::MergeAlike(int64_t frame) {
       // catching up with a van at a junction) must not become one, with both histories averaged
       // into a track between them.
       const double speed = std::max(oa.velocity.norm(), ob.velocity.norm());
-      const double velocity = std::max(options_.group_velocity_px, 0.6 * speed);
+      const double velocity = std::max(timing_.group_velocity_px, 0.6 * speed);
       if (!Touching(oa, ob, options_.box_margin_px) ||
           (oa.velocity - ob.velocity).norm() > velocity) {
         continue;
@@ -418,8 +444,9 @@ std::optional<Eigen::Vector2d> GroundMotion::Map(const Eigen::Vector2d& point, i
 }
 
 std::vector<TargetTrack> LinkFragments(std::vector<TargetTrack> tracks,
-                                       const TargetTrackOptions& options,
+                                       const TargetTrackOptions& options, FrameRate rate,
                                        const GroundMotion* ground) {
+  const TargetTrackTiming timing(options, rate);
   // Merges are made one at a time, always the first in a fixed order: duplicates before
   // continuations, each by track index, the tracks ordered by their first frame. Merging keeps
   // that order (a track only ever absorbs one that starts no earlier), and after a merge only
@@ -441,8 +468,8 @@ std::vector<TargetTrack> LinkFragments(std::vector<TargetTrack> tracks,
   const auto duplicates = [&](size_t a, size_t b) {
     if (first(b) > last(a) || first(a) > last(b)) return false;  // no frame in common
     const auto [distance, frames] = SideBySide(tracks[a], tracks[b]);
-    return frames >= options.duplicate_overlap_frames &&
-           distance <= PiecesApart(options, speed[a], speed[b]);
+    return frames >= timing.duplicate_overlap_frames &&
+           distance <= PiecesApart(options, timing, speed[a], speed[b]);
   };
   // Folds track `from` into track `into` (into < from) and removes it.
   const auto fold = [&](size_t into, size_t from) {
@@ -483,10 +510,10 @@ std::vector<TargetTrack> LinkFragments(std::vector<TargetTrack> tracks,
         tracks.begin(), tracks.end(),
         [&](const TargetTrack& t) { return t.observations.front().frame <= end.frame; });
     // Walkers stop and go on; a car that is lost is looked for where it was heading.
-    const bool on_ground = ground != nullptr && speed[a] <= options.ground_link_max_speed_px;
+    const bool on_ground = ground != nullptr && speed[a] <= timing.ground_link_max_speed_px;
     const int64_t max_gap = on_ground
-                                ? std::max(options.link_gap_frames, options.ground_link_gap_frames)
-                                : options.link_gap_frames;
+                                ? std::max(timing.link_gap_frames, timing.ground_link_gap_frames)
+                                : timing.link_gap_frames;
     for (size_t b = static_cast<size_t>(after - tracks.begin()); b < tracks.size(); ++b) {
       const TargetObservation& start = tracks[b].observations.front();
       const int64_t gap = start.frame - end.frame;
@@ -501,10 +528,10 @@ std::vector<TargetTrack> LinkFragments(std::vector<TargetTrack> tracks,
       if (stopped && went_on) {
         distance = DistanceToSegment(start.position, *stopped, *went_on);
         gate =
-            options.association_gate_px + options.ground_link_growth_px * static_cast<double>(gap);
-      } else if (gap <= options.link_gap_frames) {
+            options.association_gate_px + timing.ground_link_growth_px * static_cast<double>(gap);
+      } else if (gap <= timing.link_gap_frames) {
         distance = (start.position - (end.position + velocity * static_cast<double>(gap))).norm();
-        gate = options.association_gate_px + static_cast<double>(gap);
+        gate = options.association_gate_px + timing.gate_growth_px * static_cast<double>(gap);
       }
       if (distance <= gate && distance < best) best = distance, best_b = b;
     }

@@ -26,35 +26,57 @@
 
 namespace saker::track {
 
+// Durations are in seconds and speeds in pixels a second (FrameRate); the defaults are the
+// frame counts that were tuned at 25 frames a second. Floors in frames are given in brackets.
 struct TargetTrackOptions {
-  // Features closer than this and moving alike are one object. The distance applies from 1.5 px
-  // per frame of ground-relative speed (a car) and shrinks to 35 % of it for slow things (a
-  // walker); the velocity difference allowed is this or 30 % of the speed, whichever is larger.
+  // Features closer than this and moving alike are one object. The distance applies from
+  // group_full_speed_px_s of ground-relative speed (a car) and shrinks to 35 % of it for slow
+  // things (a walker); the velocity difference allowed is group_speed_px_s or 30 % of the speed,
+  // whichever is larger.
   double group_distance_px = 22;
-  double group_velocity_px = 0.5;
+  double group_full_speed_px_s = 37.5;
+  double group_speed_px_s = 12.5;
   double association_gate_px = 18;  // predicted-position gate for linking a group to a target,
-                                    // growing by 1 px per frame unseen
-  int max_gap_frames = 25;          // frames a target may go unseen before it ends
-  int min_frames = 6;               // frames seen before a target with 2+ features is confirmed
-  int min_frames_single = 32;       // ... and one only ever seen as a single feature
-  double min_travel_px = 8;         // ground-relative distance travelled before confirmation
-  double box_margin_px = 4;         // added around the features for the target's box
-  // LinkFragments: a track that starts within this many frames of another's end, near where
-  // that one was heading, continues it; tracks side by side for this many frames are one.
-  int link_gap_frames = 60;
-  int duplicate_overlap_frames = 5;
+  double gate_growth_px_s = 25;     // growing by this for each second unseen after the first frame
+  double max_gap_s = 1;             // time a target may go unseen before it ends [2 frames]
+  double min_duration_s = 0.24;     // seen this long before a target with 2+ features is confirmed
+                                    // [3 frames]
+  double min_duration_single_s = 1.28;  // ... and one only ever seen as a single feature [4]
+  double min_travel_px = 8;             // ground-relative distance travelled before confirmation
+  double box_margin_px = 4;             // added around the features for the target's box
+  // LinkFragments: a track that starts within link_gap_s of another's end, near where that one
+  // was heading, continues it [2 frames]; tracks side by side for duplicate_overlap_s are one
+  // [2 frames].
+  double link_gap_s = 2.4;
+  double duplicate_overlap_s = 0.2;
   // With the ground's motion (GroundMotion), the pieces of slow objects (mean ground speed up to
-  // ground_link_max_speed_px per frame: people) are joined on the ground across gaps of up to
-  // ground_link_gap_frames, the gate growing by ground_link_growth_px per frame of gap (see
-  // LinkFragments).
-  double ground_link_max_speed_px = 1;
-  int ground_link_gap_frames = 200;
-  double ground_link_growth_px = 0.25;
+  // ground_link_max_speed_px_s: people) are joined on the ground across gaps of up to
+  // ground_link_gap_s [2 frames], the gate growing by ground_link_growth_px_s for each second of
+  // gap (see LinkFragments).
+  double ground_link_max_speed_px_s = 25;
+  double ground_link_gap_s = 8;
+  double ground_link_growth_px_s = 6.25;
   // Change evidence (RecordChange) comes some frames late. When set, a target that ends waits
   // until RecordChange has reached its last frame, or EndChangeEvidence() says that no more will
   // come, before it is finished: it leaves with the evidence of every frame that gets one.
   bool wait_for_change = false;
   Status Validate() const;
+};
+
+// TargetTrackOptions at one frame rate: durations in frames, speeds in pixels a frame.
+struct TargetTrackTiming {
+  TargetTrackTiming(const TargetTrackOptions& options, FrameRate rate);
+  double group_full_speed_px = 0;
+  double group_velocity_px = 0;
+  double gate_growth_px = 0;  // per frame unseen
+  int max_gap_frames = 0;
+  int min_frames = 0;
+  int min_frames_single = 0;
+  int link_gap_frames = 0;
+  int duplicate_overlap_frames = 0;
+  double ground_link_max_speed_px = 0;
+  int ground_link_gap_frames = 0;
+  double ground_link_growth_px = 0;  // per frame of gap
 };
 
 // What the change detector (change_detector.h) saw at an observation.
@@ -85,7 +107,7 @@ struct TargetTrack {
 
 class TargetTracker {
  public:
-  explicit TargetTracker(const TargetTrackOptions& options);
+  TargetTracker(const TargetTrackOptions& options, FrameRate rate);
 
   // The moving features of frame `frame` (frames increase).
   void AddFrame(int64_t frame, const std::vector<MovingPoint>& moving);
@@ -125,12 +147,13 @@ class TargetTracker {
   void MergeAlike(int64_t frame);
   // Confirms the targets seen often enough that have travelled far enough.
   void Confirm();
-  // Ends the targets unseen for more than max_gap_frames.
+  // Ends the targets unseen for longer than max_gap_s.
   void EndUnseen(int64_t frame);
   // A confirmed target that ended: finished, or waiting for its change evidence.
   void End(TargetTrack&& target);
 
   TargetTrackOptions options_;
+  TargetTrackTiming timing_;
   std::vector<TargetTrack> active_;
   std::vector<TargetTrack> waiting_;  // ended, waiting for change evidence (in order of ending)
   std::vector<TargetTrack> finished_;
@@ -181,18 +204,18 @@ class GroundMotion {
 
 // Joins the pieces of one object's track, once the video is over. A track that starts shortly
 // after another ended, where that one was heading, continues it. Without `ground`: the image
-// position extrapolated with the image velocity, within association_gate_px plus 1 px per frame
-// of gap, for gaps up to link_gap_frames. With it, a slow object (a walker) is followed on the
-// ground: it may have gone on at its ground speed or slowed down, even stopped, so the later
-// track must start near the path between where it was last seen and where it would be at its
-// last speed, both carried into the later frame by the ground's motion; within
-// association_gate_px plus ground_link_growth_px per frame of gap, for gaps up to
-// ground_link_gap_frames (across a chain break, the image test applies). Cars keep the image
-// test: along a road the path of a lost car reaches the car ahead of it. Two tracks that run side
-// by side (within group_distance_px) for at least duplicate_overlap_frames frames are one. Ids of
-// the earlier pieces are kept; the result is ordered by id.
+// position extrapolated with the image velocity, within association_gate_px plus
+// gate_growth_px_s for each second of gap, for gaps up to link_gap_s. With it, a slow object (a
+// walker) is followed on the ground: it may have gone on at its ground speed or slowed down, even
+// stopped, so the later track must start near the path between where it was last seen and where
+// it would be at its last speed, both carried into the later frame by the ground's motion; within
+// association_gate_px plus ground_link_growth_px_s for each second of gap, for gaps up to
+// ground_link_gap_s (across a chain break, the image test applies). Cars keep the image test:
+// along a road the path of a lost car reaches the car ahead of it. Two tracks that run side by
+// side (within group_distance_px) for at least duplicate_overlap_s are one. Ids of the earlier
+// pieces are kept; the result is ordered by id. `rate` is the video's.
 std::vector<TargetTrack> LinkFragments(std::vector<TargetTrack> tracks,
-                                       const TargetTrackOptions& options,
+                                       const TargetTrackOptions& options, FrameRate rate,
                                        const GroundMotion* ground = nullptr);
 
 }  // namespace saker::track

@@ -36,7 +36,7 @@ track::ChangeFrame Answer(int64_t frame, const cv::Rect& changed, double shift_p
 TEST(OverlayDetectorTest, ScreenFixedChangeBecomesOverlayAndMoversDoNot) {
   track::OverlayOptions options;
   options.enabled = true;
-  track::OverlayDetector detector(options, 25);
+  track::OverlayDetector detector(options, track::FrameRate(25));
   const cv::Rect hud(16, 16, 64, 16);
   for (int64_t f = 0; f < 75; ++f) {
     // The HUD changes in place every frame; a mover crosses the image, 4 px a frame.
@@ -69,7 +69,7 @@ TEST(OverlayDetectorTest, ScreenFixedChangeBecomesOverlayAndMoversDoNot) {
   // The state carries over exactly.
   ByteWriter out;
   detector.SaveState(&out);
-  track::OverlayDetector restored(options, 25);
+  track::OverlayDetector restored(options, track::FrameRate(25));
   ByteReader in(out.bytes());
   ASSERT_TRUE(restored.RestoreState(&in));
   EXPECT_TRUE(in.AtEnd());
@@ -79,18 +79,18 @@ TEST(OverlayDetectorTest, ScreenFixedChangeBecomesOverlayAndMoversDoNot) {
   // A state cut short, or whose first matrix claims more cells than it holds, is refused.
   std::vector<uint8_t> cut(out.bytes().begin(), out.bytes().end() - 1);
   ByteReader short_in(cut);
-  EXPECT_FALSE(track::OverlayDetector(options, 25).RestoreState(&short_in));
+  EXPECT_FALSE(track::OverlayDetector(options, track::FrameRate(25)).RestoreState(&short_in));
   std::vector<uint8_t> grown = out.bytes();
   const int32_t rows = 1 << 16;  // after width, height (int32) and version (int64)
   std::memcpy(grown.data() + 16, &rows, sizeof(rows));
   ByteReader grown_in(grown);
-  EXPECT_FALSE(track::OverlayDetector(options, 25).RestoreState(&grown_in));
+  EXPECT_FALSE(track::OverlayDetector(options, track::FrameRate(25)).RestoreState(&grown_in));
 }
 
 TEST(OverlayDetectorTest, FeaturesThatStayPutWhileTheGroundMovesAreOverlay) {
   track::OverlayOptions options;
   options.enabled = true;
-  track::OverlayDetector detector(options, 25);
+  track::OverlayDetector detector(options, track::FrameRate(25));
   Eigen::Matrix3d ground = Eigen::Matrix3d::Identity();
   ground(0, 2) = 3;  // the ground moves 3 px a frame to the right
   for (int64_t f = 0; f < 30; ++f) {
@@ -106,7 +106,7 @@ TEST(OverlayDetectorTest, FeaturesThatStayPutWhileTheGroundMovesAreOverlay) {
   EXPECT_FALSE(detector.Contains({103, 100}));
   EXPECT_FALSE(detector.Contains({200, 55}));
   // Without ground motion nothing is learnt.
-  track::OverlayDetector hover(options, 25);
+  track::OverlayDetector hover(options, track::FrameRate(25));
   for (int64_t f = 0; f < 30; ++f) {
     hover.AddFeatures({{track::FeatureTrackId{1}, {4, 4}, {4, 4}}}, Eigen::Matrix3d::Identity(),
                       cv::Size(320, 240));

@@ -12,6 +12,9 @@
 namespace saker::track {
 namespace {
 
+// The frame rate the tests' frame counts were written for.
+const FrameRate kRate(25);
+
 constexpr int kWidth = 320, kHeight = 240;
 const Eigen::Vector2d kCameraStep(1.5, 0.7);  // ground pixels per frame
 
@@ -84,7 +87,7 @@ ChangeOptions SmallFrameOptions() {
 TEST(ChangeDetectorTest, StaticGroundWithGainDriftChangesNowhere) {
   const cv::Mat ground = Ground();
   std::mt19937 random(1);
-  ChangeDetector detector(SmallFrameOptions());
+  ChangeDetector detector(SmallFrameOptions(), kRate);
   int compared = 0;
   for (int n = 0; n < 60; ++n) {
     const double gain = 1.0 + 0.004 * n;  // 24 % brighter by the end
@@ -100,7 +103,7 @@ TEST(ChangeDetectorTest, StaticGroundWithGainDriftChangesNowhere) {
 TEST(ChangeDetectorTest, AWalkerIsFoundWhereItIsAndNowhereElse) {
   const cv::Mat ground = Ground();
   std::mt19937 random(2);
-  ChangeDetector detector(SmallFrameOptions());
+  ChangeDetector detector(SmallFrameOptions(), kRate);
   // Two pixels by three, a quarter of a pixel per frame: a walker from 400 m.
   const auto walker = [](int n) {
     return Mover{Eigen::Vector2d(250, 180) + Eigen::Vector2d(0.25, -0.1) * n,
@@ -151,7 +154,7 @@ TEST(ChangeDetectorTest, NoGhostBehindASlowLongMover) {
   // feature tracks' to find.)
   const cv::Mat ground = Ground();
   std::mt19937 random(3);
-  ChangeDetector detector(SmallFrameOptions());
+  ChangeDetector detector(SmallFrameOptions(), kRate);
   const auto bar = [](int n) {
     return Mover{Eigen::Vector2d(120, 150) + Eigen::Vector2d(0.5, 0) * n, Eigen::Vector2d(4, 2)};
   };
@@ -178,7 +181,7 @@ TEST(ChangeDetectorTest, NoGhostBehindASlowLongMover) {
 TEST(ChangeDetectorTest, AChainBreakStartsAgain) {
   const cv::Mat ground = Ground();
   std::mt19937 random(4);
-  ChangeDetector detector(SmallFrameOptions());
+  ChangeDetector detector(SmallFrameOptions(), kRate);
   ChangeFrame result;
   for (int n = 0; n < 30; ++n) {
     result =
@@ -209,7 +212,7 @@ TEST(ChangeDetectorTest, AnswersAtTheProcessingSizeMapToFullResolution) {
   std::mt19937 random(6);
   ChangeOptions options;
   options.processing_width = kWidth;
-  ChangeDetector detector(options);
+  ChangeDetector detector(options, kRate);
   const auto walker = [](int n) {
     return Mover{Eigen::Vector2d(250, 180) + Eigen::Vector2d(0.25, -0.1) * n,
                  Eigen::Vector2d(1.0, 1.5)};
@@ -240,7 +243,7 @@ TEST(ChangeDetectorTest, AnswersAtTheProcessingSizeMapToFullResolution) {
 TEST(ChangeDetectorTest, OptionsAreChecked) {
   ChangeOptions options;
   EXPECT_TRUE(options.Validate().ok());
-  options.baseline_frames = 0;
+  options.baseline_s = 0;
   EXPECT_FALSE(options.Validate().ok());
   options = {};
   options.max_area_px = 0;
@@ -262,7 +265,7 @@ ChangeBlob BlobAt(const Eigen::Vector2d& p) {
 }
 
 TEST(BlobTrackerTest, ASteadyMoverIsConfirmedAndJitterIsNot) {
-  BlobTracker tracker({});
+  BlobTracker tracker({}, kRate);
   std::mt19937 random(5);
   std::normal_distribution<double> jitter(0, 0.4);
   std::uniform_real_distribution<double> anywhere(0, 300);
@@ -338,14 +341,14 @@ TEST(DropChangeEchoesTest, DropsOnlyChangeTracksRidingAlongACar) {
   for (size_t i = 0; i < tracks.size(); ++i)
     tracks[i].id = static_cast<TargetTrackId>(static_cast<int64_t>(i) + 1);
 
-  std::vector<TargetTrack> kept = DropChangeEchoes(tracks, {});
+  std::vector<TargetTrack> kept = DropChangeEchoes(tracks, {}, kRate);
   std::vector<int64_t> ids;
   for (const TargetTrack& t : kept) ids.push_back(static_cast<int64_t>(t.id));
   EXPECT_EQ(ids, (std::vector<int64_t>{1, 3, 4, 5}));
 
   ChangeEchoOptions off;
   off.enabled = false;
-  EXPECT_EQ(DropChangeEchoes(tracks, off).size(), tracks.size());
+  EXPECT_EQ(DropChangeEchoes(tracks, off, kRate).size(), tracks.size());
 }
 
 TEST(DropChangeEchoesTest, WalkersBesideASlowFeatureTrackStay) {
@@ -353,10 +356,10 @@ TEST(DropChangeEchoesTest, WalkersBesideASlowFeatureTrackStay) {
   std::vector<TargetTrack> tracks;
   tracks.push_back(Moving(0, 200, {50, 50}, {0.4, 0}, true));
   tracks.push_back(Moving(0, 200, {50, 62}, {0.4, 0}, false));
-  EXPECT_EQ(DropChangeEchoes(tracks, {}).size(), 2u);
+  EXPECT_EQ(DropChangeEchoes(tracks, {}, kRate).size(), 2u);
   ChangeEchoOptions any_speed;
-  any_speed.min_mover_speed_px = 0;
-  EXPECT_EQ(DropChangeEchoes(tracks, any_speed).size(), 1u);
+  any_speed.min_mover_speed_px_s = 0;
+  EXPECT_EQ(DropChangeEchoes(tracks, any_speed, kRate).size(), 1u);
 }
 
 TEST(DropChangeEchoesTest, RejectsInvalidOptions) {
@@ -375,7 +378,7 @@ TEST(DropChangeEchoesTest, RejectsInvalidOptions) {
 std::vector<std::pair<int64_t, TargetTrack>> EndingTarget(bool wait_for_change, int lag) {
   TargetTrackOptions options;
   options.wait_for_change = wait_for_change;
-  TargetTracker tracker(options);
+  TargetTracker tracker(options, kRate);
   std::vector<std::pair<int64_t, TargetTrack>> finished;
   for (int64_t n = 0; n < 80; ++n) {
     std::vector<MovingPoint> moving;
@@ -399,8 +402,8 @@ std::vector<std::pair<int64_t, TargetTrack>> EndingTarget(bool wait_for_change, 
 }
 
 TEST(ChangeEvidenceTest, AnEndedTargetWaitsForTheEvidenceOfItsLastFrame) {
-  // The target ends 26 frames after its last sighting (max_gap_frames 25); evidence 30 frames late
-  // has then reached frame 5 only.
+  // The target ends 26 frames after its last sighting (max_gap_s 1 s: 25 frames); evidence 30
+  // frames late has then reached frame 5 only.
   const auto without = EndingTarget(false, 30);
   ASSERT_EQ(without.size(), 1u);
   EXPECT_EQ(without[0].first, 9 + 26);
@@ -425,7 +428,7 @@ TEST(ChangeEvidenceTest, AnEndedTargetWaitsForTheEvidenceOfItsLastFrame) {
 TEST(ChangeEvidenceTest, WaitingEndsWhenNoMoreEvidenceWillCome) {
   TargetTrackOptions options;
   options.wait_for_change = true;
-  TargetTracker tracker(options);
+  TargetTracker tracker(options, kRate);
   for (int64_t n = 0; n < 12; ++n) {
     std::vector<MovingPoint> moving(2);
     for (int i = 0; i < 2; ++i) {

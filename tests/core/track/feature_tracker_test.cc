@@ -24,6 +24,9 @@
 namespace saker::track {
 namespace {
 
+// The frame rate the tests' frame counts were written for.
+const FrameRate kRate(25);
+
 // Smooth random texture (blurred noise stretched to the full grey range): corners everywhere,
 // and smooth enough that cubic resampling moves it without bias.
 cv::Mat Texture(cv::Size size, uint64_t seed, double blur_px = 2.0) {
@@ -108,14 +111,14 @@ TEST(TrackerOptionsTest, ValidateRejectsNonsense) {
   bad([](TrackerOptions& o) { o.min_correlation = 1.5; });
   bad([](TrackerOptions& o) { o.min_contrast = -1; });
   bad([](TrackerOptions& o) { o.grid_rows = 0; });
-  bad([](TrackerOptions& o) { o.redetect_interval = 0; });
+  bad([](TrackerOptions& o) { o.redetect_interval_s = -1; });
   bad([](TrackerOptions& o) { o.refill_fraction = 1.5; });
-  bad([](TrackerOptions& o) { o.max_frame_gap = -1; });
+  bad([](TrackerOptions& o) { o.max_frame_gap_s = -1; });
   bad([](TrackerOptions& o) { o.max_history = 0; });
   bad([](TrackerOptions& o) { o.min_finished_length = 0; });
   TrackerOptions invalid;
   invalid.window_px = 4;
-  EXPECT_THROW(FeatureTracker{invalid}, CheckError);
+  EXPECT_THROW((FeatureTracker{invalid, kRate}), CheckError);
 }
 
 // Sub-pixel translation plus rotation, frame after frame: every frame-to-frame match lands on
@@ -128,7 +131,7 @@ TEST(FeatureTrackerTest, FollowsSubPixelTranslationAndRotation) {
   const auto frame_from_base = [&](int k) {
     return FrameFromBase(size, origin, velocity * k, degrees_per_frame * k);
   };
-  FeatureTracker tracker(FullResolution(400));
+  FeatureTracker tracker(FullResolution(400), kRate);
   Errors errors;
   std::map<int64_t, Eigen::Vector2d> previous;  // id -> position in the previous frame
   std::set<int64_t> ended;
@@ -203,7 +206,7 @@ TEST(FeatureTrackerTest, ChecksEndTracksOnAChangingRegion) {
     TrackerOptions options = FullResolution(400);
     options.max_forward_backward_px = max_forward_backward_px;
     options.min_correlation = min_correlation;
-    FeatureTracker tracker(options);
+    FeatureTracker tracker(options, kRate);
     std::set<int64_t> inside, outside;
     int survived_inside = 0, survived_outside = 0;
     for (int k = 0; k <= 6; ++k) {
@@ -251,8 +254,8 @@ TEST(FeatureTrackerTest, RedetectsWhereTracksRanOut) {
   cv::RNG(5).fill(cloud, cv::RNG::NORMAL, 128, 1.5);
   cloud.copyTo(half_flat(cv::Rect(0, 0, 320, 480)));
   TrackerOptions options = FullResolution(300);
-  options.redetect_interval = 3;
-  FeatureTracker tracker(options);
+  options.redetect_interval_s = 3 / kRate.fps();  // 3 frames
+  FeatureTracker tracker(options, kRate);
   const auto count_left = [&](int64_t born_from) {
     int n = 0;
     for (const TrackedPoint& p : tracker.points()) {
@@ -268,7 +271,7 @@ TEST(FeatureTrackerTest, RedetectsWhereTracksRanOut) {
     if (k >= 5 && k < 10) {
       EXPECT_EQ(count_left(0), 0) << "frame " << k;
     }
-    if (k >= 10 + options.redetect_interval) {
+    if (k >= 10 + 3) {
       EXPECT_GT(count_left(10), 100) << "frame " << k;
       EXPECT_GT(tracker.points().size(), 0.8 * options.max_corners) << "frame " << k;
     }
@@ -282,7 +285,7 @@ TEST(FeatureTrackerTest, KeepsTheCountUpOverALongPanWithBoundedHistories) {
   const cv::Size size(640, 480);
   TrackerOptions options = FullResolution(400);
   options.max_history = 20;
-  FeatureTracker tracker(options);
+  FeatureTracker tracker(options, kRate);
   std::set<int64_t> finished_ids;
   size_t fewest = options.max_corners;
   const int kFrames = 150;
@@ -329,7 +332,7 @@ TEST(FeatureTrackerTest, ProcessingWidthKeepsFrameToFrameAccuracy) {
     TrackerOptions options;
     options.processing_width = width;
     options.max_corners = 500;
-    FeatureTracker tracker(options);
+    FeatureTracker tracker(options, kRate);
     Errors errors;
     for (int k = 0; k < static_cast<int>(frames.size()); ++k) {
       tracker.Process(k, frames[static_cast<size_t>(k)]);
@@ -386,7 +389,7 @@ TEST(FeatureTrackerTest, ProcessingWidthKeepsPositionsAbsolute) {
     options.processing_width = width;
     options.quality = 0.1;  // the blobs, not the faint saddles between them
     options.max_corners = 2000;
-    FeatureTracker tracker(options);
+    FeatureTracker tracker(options, kRate);
     Errors errors;
     size_t found = 0;
     for (int k = 0; k < 6; ++k) {
@@ -420,8 +423,8 @@ TEST(FeatureTrackerTest, GapsJumpsResetAndIds) {
     return View(base, FrameFromBase(size, Eigen::Vector2d(50, 50), velocity * k, 0), size);
   };
   TrackerOptions options = FullResolution(200);
-  options.max_frame_gap = 3;
-  FeatureTracker tracker(options);
+  options.max_frame_gap_s = 3 / kRate.fps();  // 3 frames
+  FeatureTracker tracker(options, kRate);
   EXPECT_EQ(tracker.last_frame(), -1);
   tracker.Process(0, frame(0));
   tracker.Process(1, frame(1));
@@ -494,7 +497,7 @@ TEST(FeatureTrackerTest, GapsJumpsResetAndIds) {
 
   // Lost tracks are not collected when nobody wants them.
   options.keep_finished = false;
-  FeatureTracker quiet(options);
+  FeatureTracker quiet(options, kRate);
   quiet.Process(0, frame(0));
   quiet.Reset();
   EXPECT_TRUE(quiet.TakeFinished().empty());
@@ -545,7 +548,7 @@ TEST(FeatureTrackerTest, FollowsTheGroundInSimulatedVideo) {
     TrackerOptions tracker_options;
     tracker_options.processing_width = width;
     tracker_options.min_distance_px = 8;
-    FeatureTracker tracker(tracker_options);
+    FeatureTracker tracker(tracker_options, kRate);
     Errors errors;
     int excluded = 0;
     for (size_t i = 0; i < frames.size(); ++i) {

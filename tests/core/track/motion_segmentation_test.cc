@@ -5,10 +5,14 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <random>
 
 namespace saker::track {
 namespace {
+
+// The frame rate the tests' frame counts were written for.
+const FrameRate kRate(25);
 
 // A synthetic scene: ground points translating by `flow` per frame (the camera flying), with
 // per-frame noise, and objects that add their own motion.
@@ -38,7 +42,7 @@ struct Scene {
 
 TEST(MotionSegmenterTest, MovingObjectsSeparateFromGroundAndNoise) {
   Scene scene;
-  MotionSegmenter segmenter({});
+  MotionSegmenter segmenter({}, kRate);
   std::vector<std::pair<int64_t, Eigen::Vector2d>> points;
   std::vector<Eigen::Vector2d> own;
   for (int i = 0; i < 40; ++i)
@@ -69,7 +73,7 @@ TEST(MotionSegmenterTest, MovingObjectsSeparateFromGroundAndNoise) {
 TEST(MotionSegmenterTest, ParallaxAlongTheEpipolarLineIsNotMotion) {
   Scene scene;
   scene.flow = {0, 8};  // fast ground flow: a roof 12 % of the height up drifts 1 px per frame
-  MotionSegmenter with_epipole({}), without({});
+  MotionSegmenter with_epipole({}, kRate), without({}, kRate);
   // The camera translates forward (up the image): the epipole is far up, at infinity along y.
   const Eigen::Vector3d epipole(0, 1, 0);
   std::vector<std::pair<int64_t, Eigen::Vector2d>> points{{1, {200, 200}}, {2, {400, 200}}};
@@ -90,7 +94,7 @@ TEST(MotionSegmenterTest, ParallaxAlongTheEpipolarLineIsNotMotion) {
 
 TEST(MotionSegmenterTest, AStoppingCarBecomesStationaryAgain) {
   Scene scene;
-  MotionSegmenter segmenter({});
+  MotionSegmenter segmenter({}, kRate);
   std::vector<std::pair<int64_t, Eigen::Vector2d>> points{{5, {100, 100}}};
   std::vector<Eigen::Vector2d> now;
   for (int frame = 0; frame < 40; ++frame) {
@@ -108,11 +112,69 @@ TEST(MotionSegmenterTest, AStoppingCarBecomesStationaryAgain) {
 TEST(MotionSegmenterTest, ValidatesOptions) {
   SegmentationOptions options;
   EXPECT_TRUE(options.Validate().ok());
-  options.window_frames = 1;
+  options.window_s = 0;
   EXPECT_FALSE(options.Validate().ok());
   options = {};
   options.release_fraction = 0.9;
   EXPECT_FALSE(options.Validate().ok());
+}
+
+// Seconds until a walker (7 px a second on the ground, 1.4 m/s at 0.2 m a pixel) among still
+// ground points is labelled moving, for video of `fps` frames a second segmented at `rate`; -1
+// when it never is within 4 s. The ground moves 75 px a second through the image.
+double SecondsToLabelWalker(double fps, FrameRate rate) {
+  Scene scene;
+  scene.flow = Eigen::Vector2d(0, 75 / fps);
+  MotionSegmenter segmenter({}, rate);
+  std::vector<std::pair<int64_t, Eigen::Vector2d>> points;
+  std::vector<Eigen::Vector2d> own;
+  for (int i = 0; i < 30; ++i) points.push_back({i, Eigen::Vector2d(20.0 * i, 100)});
+  own.assign(points.size(), Eigen::Vector2d(0, 0));
+  points.push_back({99, Eigen::Vector2d(300, 300)});
+  own.push_back(Eigen::Vector2d(7 / fps, 0));
+  std::vector<Eigen::Vector2d> now;
+  for (int frame = 1; frame <= static_cast<int>(4 * fps); ++frame) {
+    segmenter.AddFrame(scene.Step(points, own, &now), scene.Homography(), std::nullopt);
+    for (size_t i = 0; i < points.size(); ++i) points[i].second = now[i];
+    for (int i = 0; i < 30; ++i) {
+      EXPECT_NE(segmenter.LabelOf(FeatureTrackId{i}), MotionLabel::kMoving) << "ground " << i;
+    }
+    if (segmenter.LabelOf(FeatureTrackId{99}) == MotionLabel::kMoving) return frame / fps;
+  }
+  return -1;
+}
+
+// The windows are in seconds: a walker is labelled as soon at 5 or 10 frames a second as at 25
+// (at 5 frames a second, the 25 frames-a-second windows counted in frames took 1.6 s).
+TEST(MotionSegmenterTest, WindowsAreInSecondsNotFrames) {
+  const double at_25 = SecondsToLabelWalker(25, FrameRate(25));
+  ASSERT_GT(at_25, 0);
+  EXPECT_LT(at_25, 0.7);
+  for (const double fps : {5.0, 10.0, 30.0, 60.0}) {
+    const double seconds = SecondsToLabelWalker(fps, FrameRate(fps));
+    ASSERT_GT(seconds, 0) << fps << " fps";
+    EXPECT_NEAR(seconds, at_25, 0.25) << fps << " fps";
+  }
+  // What counting frames did: the windows of 25 frames a second stretched to 2.4 s at 5.
+  EXPECT_GT(SecondsToLabelWalker(5, FrameRate(25)), at_25 + 0.5);
+}
+
+TEST(FrameRateTest, DurationsBecomeFramesWithAFloor) {
+  const FrameRate rate(25);
+  EXPECT_EQ(rate.Frames(0.48, 3), 12);
+  EXPECT_EQ(rate.Frames(0.01, 3), 3);
+  EXPECT_EQ(FrameRate(2).Frames(0.48, 1), 1);
+  EXPECT_EQ(FrameRate(5).Frames(1.0, 2), 5);
+  EXPECT_DOUBLE_EQ(rate.PerFrame(12.5), 0.5);
+  EXPECT_DOUBLE_EQ(FrameRate(5).Seconds(10), 2);
+  // Rates a stream does not give, or a damaged header's, never make windows of thousands of
+  // frames.
+  EXPECT_DOUBLE_EQ(FrameRate(0).fps(), FrameRate::kDefaultFps);
+  EXPECT_DOUBLE_EQ(FrameRate(-3).fps(), FrameRate::kDefaultFps);
+  EXPECT_DOUBLE_EQ(FrameRate(std::nan("")).fps(), FrameRate::kDefaultFps);
+  EXPECT_DOUBLE_EQ(FrameRate(90000).fps(), FrameRate::kMaxFps);
+  EXPECT_DOUBLE_EQ(FrameRate(1e-9).fps(), FrameRate::kMinFps);
+  EXPECT_LE(FrameRate(90000).Frames(1e300, 1), static_cast<int>(1e6 * FrameRate::kMaxFps));
 }
 
 MovingPoint Point(int64_t id, double x, double y, double vx = 2, double vy = 0) {
@@ -120,7 +182,7 @@ MovingPoint Point(int64_t id, double x, double y, double vx = 2, double vy = 0) 
 }
 
 TEST(TargetTrackerTest, GroupsFeaturesIntoObjectsAndFollowsThem) {
-  TargetTracker tracker({});
+  TargetTracker tracker({}, kRate);
   for (int frame = 0; frame < 30; ++frame) {
     const double x = 100 + 5 * frame;  // image motion: camera + own
     std::vector<MovingPoint> moving{Point(1, x, 50), Point(2, x + 6, 52), Point(3, x + 3, 47),
@@ -138,7 +200,7 @@ TEST(TargetTrackerTest, GroupsFeaturesIntoObjectsAndFollowsThem) {
 }
 
 TEST(TargetTrackerTest, SurvivesFeatureTurnoverAndShortGaps) {
-  TargetTracker tracker({});
+  TargetTracker tracker({}, kRate);
   int64_t next_feature = 100;
   for (int frame = 0; frame < 40; ++frame) {
     if (frame >= 20 && frame < 25) {
@@ -155,12 +217,34 @@ TEST(TargetTrackerTest, SurvivesFeatureTurnoverAndShortGaps) {
   EXPECT_EQ(tracker.active()[0].observations.size(), 35u);
 }
 
+// A car followed at 5 frames a second survives a gap of 0.6 s (3 frames) and ends once unseen for
+// more than max_gap_s (1 s: 5 frames), not after 25 frames (5 s) as when the gap counted frames.
+TEST(TargetTrackerTest, GapsAreInSecondsNotFrames) {
+  const FrameRate rate(5);
+  TargetTracker tracker({}, rate);
+  const auto car = [](int frame) {
+    const double x = 100 + 20 * frame;  // 100 px a second in the image
+    return std::vector<MovingPoint>{Point(1, x, 50, 10), Point(2, x + 6, 52, 10),
+                                    Point(3, x + 3, 47, 10)};
+  };
+  int frame = 0;
+  for (; frame < 10; ++frame) tracker.AddFrame(frame, car(frame));
+  for (; frame < 13; ++frame) tracker.AddFrame(frame, {});  // unseen for 0.6 s
+  for (; frame < 20; ++frame) tracker.AddFrame(frame, car(frame));
+  ASSERT_EQ(tracker.active().size(), 1u);
+  EXPECT_TRUE(tracker.active()[0].confirmed);
+  EXPECT_EQ(tracker.active()[0].observations.size(), 17u);
+  for (int k = 0; k < 6; ++k, ++frame) tracker.AddFrame(frame, {});  // 1.2 s
+  EXPECT_TRUE(tracker.active().empty());
+  EXPECT_EQ(tracker.TakeFinished().size(), 1u);
+}
+
 // Slow things (half a pixel a frame) whose corners are too far apart to be grouped but whose boxes
 // touch, moving alike. A car that catches up with a van at a junction stays apart from it:
 // merging the two would average both histories into a track between them. An object whose
 // corners were found as two groups from the start is one.
 TEST(TargetTrackerTest, ObjectsThatMeetStayTwoButPiecesOfOneAreOne) {
-  TargetTracker tracker({});
+  TargetTracker tracker({}, kRate);
   for (int frame = 0; frame < 60; ++frame) {
     const double van = 200 + 0.5 * frame;
     const bool caught_up = frame >= 40;
@@ -186,7 +270,7 @@ TEST(TargetTrackerTest, ObjectsThatMeetStayTwoButPiecesOfOneAreOne) {
 }
 
 TEST(TargetTrackerTest, ShortBlipsAreNeverConfirmed) {
-  TargetTracker tracker({});
+  TargetTracker tracker({}, kRate);
   for (int frame = 0; frame < 3; ++frame) tracker.AddFrame(frame, {Point(1, 100, 100)});
   for (int frame = 3; frame < 30; ++frame) tracker.AddFrame(frame, {});
   EXPECT_TRUE(tracker.active().empty());
@@ -222,7 +306,7 @@ TEST(LinkFragmentsTest, JoinsContinuationsAndDuplicatesButNotPassersBy) {
   tracks.push_back(Track(5, 0, 100, {515, 500}, {3, 0.3}, {0, 0.3}));
   // A car elsewhere, heading another way.
   tracks.push_back(Track(6, 70, 90, {100, 400}, {0, 4}, {0, 2}));
-  const std::vector<TargetTrack> linked = LinkFragments(tracks, options);
+  const std::vector<TargetTrack> linked = LinkFragments(tracks, options, kRate);
   ASSERT_EQ(linked.size(), 4u);
   EXPECT_EQ(linked[0].id, TargetTrackId{1});
   EXPECT_EQ(linked[0].observations.front().frame, 0);
@@ -273,16 +357,16 @@ TEST(LinkFragmentsTest, OnTheGroundAStoppedWalkerIsJoinedAcrossALongGap) {
   tracks.push_back(Track(2, 160, 220, {254, 301}, {-0.7, 0}, {0.3, 0}));  // that spot: (252, 300)
   tracks.push_back(Track(3, 165, 220, {250, 380}, {-0.7, 0}, {0.3, 0}));
   const GroundMotion ground = Panning(300);
-  const std::vector<TargetTrack> linked = LinkFragments(tracks, options, &ground);
+  const std::vector<TargetTrack> linked = LinkFragments(tracks, options, kRate, &ground);
   ASSERT_EQ(linked.size(), 2u);
   EXPECT_EQ(linked[0].id, TargetTrackId{1});
   EXPECT_EQ(linked[0].observations.back().frame, 220);
   EXPECT_EQ(linked[0].observations.size(), 41u + 61u);
   EXPECT_EQ(linked[1].id, TargetTrackId{3});
   // Without the ground's motion, or across a chain break, the gap is too long to bridge.
-  EXPECT_EQ(LinkFragments(tracks, options).size(), 3u);
+  EXPECT_EQ(LinkFragments(tracks, options, kRate).size(), 3u);
   const GroundMotion broken = Panning(300, /*chain_break=*/100);
-  EXPECT_EQ(LinkFragments(tracks, options, &broken).size(), 3u);
+  EXPECT_EQ(LinkFragments(tracks, options, kRate, &broken).size(), 3u);
 }
 
 // An hour of video gives thousands of fragments: each of 1000 cars, ten on screen at a time,
@@ -308,7 +392,7 @@ TEST(LinkFragmentsTest, ThousandsOfFragmentsLinkIntoTheirTargets) {
     piece(id + 3, 10, 50, -12);  // the rear corners, alongside the first piece
   }
   std::shuffle(tracks.begin(), tracks.end(), std::mt19937(7));
-  const std::vector<TargetTrack> linked = LinkFragments(tracks, options);
+  const std::vector<TargetTrack> linked = LinkFragments(tracks, options, kRate);
   ASSERT_EQ(linked.size(), static_cast<size_t>(kCars));
   for (int i = 0; i < kCars; ++i) {
     EXPECT_EQ(linked[i].id, TargetTrackId{10 * i + 1});
