@@ -65,7 +65,8 @@ QAction* ColourAction(MainWindow& window, const char* mode) {
   return window.findChild<QAction*>(QString("colourBy_") + mode);
 }
 
-// The Mission panel's filter boxes, in their order: from, to (s), slowest, fastest.
+// The Mission panel's filter boxes, in their order: from, to (s), slowest, fastest, least
+// confidence.
 std::vector<QDoubleSpinBox*> FilterBoxes(MainWindow& window) {
   auto* dock = window.findChild<QDockWidget*>("missionDock");
   if (dock == nullptr) return {};
@@ -89,7 +90,9 @@ void ExpectFiltersFitTheMission(MainWindow& window) {
   ASSERT_TRUE(m.map.geo_referenced);
   ASSERT_FALSE(m.tracks.empty());
   const std::vector<QDoubleSpinBox*> boxes = FilterBoxes(window);
-  ASSERT_EQ(boxes.size(), 4u);
+  ASSERT_EQ(boxes.size(), 5u);
+  EXPECT_EQ(boxes[4]->objectName(), "minConfidence");
+  EXPECT_EQ(boxes[4]->value(), 0);
   double end_s = 0, fastest = 0;
   for (const mission::ActivityTrack& t : m.tracks) {
     end_s = std::max(end_s, t.end_s);
@@ -104,6 +107,36 @@ void ExpectFiltersFitTheMission(MainWindow& window) {
   EXPECT_TRUE(texts.contains("m/s")) << texts.join(" | ").toStdString();
   EXPECT_FALSE(texts.contains("px/s")) << texts.join(" | ").toStdString();
   EXPECT_EQ(window.mosaicView()->legend().title.find("pixels"), std::string::npos);
+  for (size_t i = 0; i < m.tracks.size(); ++i) EXPECT_TRUE(window.mosaicView()->isTrackVisible(i));
+}
+
+// The confidence filter, set just above the least confident track's confidence, hides that track
+// and keeps the others at or above it, in the view and in the count of tracks shown.
+void ExpectConfidenceFilterHidesTheLeastConfidentTrack(MainWindow& window) {
+  const mission::Mission& m = *window.mission();
+  ASSERT_GE(m.tracks.size(), 2u);
+  size_t least = 0;
+  for (size_t i = 0; i < m.tracks.size(); ++i) {
+    ASSERT_TRUE(m.tracks[i].confidence.has_value()) << "track " << i;
+    if (*m.tracks[i].confidence < *m.tracks[least].confidence) least = i;
+  }
+  auto* box = window.findChild<QDoubleSpinBox*>("minConfidence");
+  ASSERT_NE(box, nullptr);
+  ASSERT_TRUE(box->isEnabled());
+  // The box has two decimals: the next step above the least confidence.
+  const double threshold = std::floor(*m.tracks[least].confidence * 100 + 1) / 100;
+  ASSERT_LE(threshold, 1.0);
+  box->setValue(threshold);
+  EXPECT_FALSE(window.mosaicView()->isTrackVisible(least));
+  size_t shown = 0;
+  for (size_t i = 0; i < m.tracks.size(); ++i) {
+    EXPECT_EQ(window.mosaicView()->isTrackVisible(i), *m.tracks[i].confidence >= box->value())
+        << "track " << i << " of confidence " << *m.tracks[i].confidence;
+    shown += window.mosaicView()->isTrackVisible(i);
+  }
+  EXPECT_TRUE(MissionPanelTexts(window).contains(
+      QString("%1 of %2 tracks shown").arg(shown).arg(m.tracks.size())));
+  box->setValue(0);
   for (size_t i = 0; i < m.tracks.size(); ++i) EXPECT_TRUE(window.mosaicView()->isTrackVisible(i));
 }
 
@@ -165,6 +198,7 @@ TEST(MainWindowTest, OpensAMissionAndSwitchesColourModesWithTheirLegends) {
   EXPECT_TRUE(window.windowTitle().contains("loop.saker"));
   EXPECT_TRUE(window.recentFiles().contains(window.missionPath()));
   ASSERT_FALSE(m->loaded.tracks.empty());
+  ExpectConfidenceFilterHidesTheLeastConfidentTrack(window);
 
   struct Seen {
     std::string title;
@@ -440,6 +474,7 @@ TEST(MainWindowTest, ProcessingToTheEndShowsTheMissionAsItsStagesComplete) {
   // The filters follow the processed mission (they stayed at "0.0 to 1.0 px/s", disabled, until
   // the mission was opened again).
   ExpectFiltersFitTheMission(window);
+  ExpectConfidenceFilterHidesTheLeastConfidentTrack(window);
 }
 
 TEST(MainWindowTest, ExportsWriteValidFilesOfTheShownTracks) {
