@@ -830,6 +830,35 @@ TEST(MainWindowTest, UngeoreferencedMissionsShowNoCompassWords) {
   }
 }
 
+// A mission whose tracks' confidence is unknown (as missions of schema 3 and older read): the
+// Frame panel says "unknown", the confidence filter at 0 shows every track and above 0 none.
+TEST(MainWindowTest, UnknownConfidenceShowsAsUnknownAndOnlyWithoutAThreshold) {
+  const TestMission* m = SmallMission();
+  ASSERT_NE(m, nullptr);
+  const fs::path dir = saker::testing::MakeTempDir("saker-ui-unknown");
+  const fs::path old = dir / "old.saker";
+  ASSERT_NO_FATAL_FAILURE(SaveChangedCopy(m->loaded, old, [](mission::Mission& copy) {
+    for (mission::ActivityTrack& t : copy.tracks) t.confidence.reset();
+  }));
+  MainWindow window;
+  window.show();
+  QSignalSpy opened(&window, &MainWindow::missionOpened);
+  window.openMission(QString::fromStdString(old.string()));
+  ASSERT_TRUE(opened.wait(30000));
+  const size_t total = window.mission()->tracks.size();
+  ASSERT_GT(total, 0u);
+  window.framePanel()->showObservation(0, 0);
+  auto* confidence = window.framePanel()->findChild<QLabel*>("confidenceValue");
+  ASSERT_NE(confidence, nullptr);
+  EXPECT_EQ(confidence->text(), "unknown");
+  auto* box = window.findChild<QDoubleSpinBox*>("minConfidence");
+  ASSERT_NE(box, nullptr);
+  for (size_t i = 0; i < total; ++i) EXPECT_TRUE(window.mosaicView()->isTrackVisible(i));
+  box->setValue(0.05);
+  for (size_t i = 0; i < total; ++i) EXPECT_FALSE(window.mosaicView()->isTrackVisible(i));
+  EXPECT_TRUE(MissionPanelTexts(window).contains(QString("0 of %1 tracks shown").arg(total)));
+}
+
 // Not a check: the user guide's screenshots, of the demo mission, when SAKER_UI_SCREENSHOTS
 // names a folder (docs/user-guide.md says how to remake them).
 TEST(MainWindowScreenshots, DemoMission) {
