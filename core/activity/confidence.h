@@ -1,6 +1,7 @@
 #pragma once
 
-// Plausibility and confidence of a mapped target track (docs/activity.md, "Confidence").
+// Plausibility and confidence of a mapped target track (docs/activity.md, "Confidence and
+// plausibility").
 //
 // There is no class label, so a track is judged on what any real ground mover shows and a false
 // alarm (parallax, a flickering texture, a tracker that jumped between targets) does not:
