@@ -2,6 +2,8 @@
 
 #include <unistd.h>
 
+#include <cmath>
+#include <cstdlib>
 #include <iostream>
 
 namespace saker::app {
@@ -51,6 +53,29 @@ CLI::Option* AddOverlayMaskFlag(CLI::App* command, bool* enabled) {
       "Find screen-fixed overlays (burned-in HUD text, reticles, logos) and keep them out of the "
       "ground motion, change detection and targets: for video with overlays, where they "
       "otherwise become false tracks; it also costs some recall (docs/front-end.md, Overlays)");
+}
+
+CLI::Option* AddMinConfidenceOption(CLI::App* command, double* min_confidence,
+                                    const std::string& what) {
+  const CLI::Validator zero_to_one(
+      [](const std::string& text) -> std::string {
+        char* end = nullptr;
+        const double value = std::strtod(text.c_str(), &end);
+        if (text.empty() || end != text.c_str() + text.size() || !std::isfinite(value) ||
+            value < 0 || value > 1) {
+          return "\"" + text + "\" is not a confidence: give a number from 0 to 1";
+        }
+        return {};
+      },
+      "0..1");
+  return command
+      ->add_option("--min-confidence", *min_confidence,
+                   "Tracks whose confidence (0 to 1: how long they were seen, how steadily they "
+                   "moved, feature and change support, a plausible speed; docs/activity.md) is "
+                   "below this " +
+                       what + "; with a value above 0, tracks of unknown confidence too")
+      ->capture_default_str()
+      ->check(zero_to_one);
 }
 
 }  // namespace saker::app

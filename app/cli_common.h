@@ -42,4 +42,9 @@ CLI::Option* AddAcceptBadChecksumsFlag(CLI::App* command, bool* accept);
 // end.
 CLI::Option* AddOverlayMaskFlag(CLI::App* command, bool* enabled);
 
+// `--min-confidence X`: a number from 0 to 1 (activity/confidence.h); anything else is refused
+// with a message naming the value. `what` says what happens to the tracks below it.
+CLI::Option* AddMinConfidenceOption(CLI::App* command, double* min_confidence,
+                                    const std::string& what);
+
 }  // namespace saker::app

@@ -4,6 +4,7 @@
 #include "app/cli_interrupt.h"
 #include "app/cli_mosaic.h"
 #include "core/activity/colours.h"
+#include "core/activity/confidence.h"
 #include "core/mission/mission_store.h"
 #include "core/mosaic/decomposition.h"
 #include "core/pipeline/checkpoint.h"
@@ -41,7 +42,8 @@ ProcessCommand::ProcessCommand(CLI::App& app) : state_(std::make_unique<State>()
       "process",
       "Process a video into a mission file: front end (moving targets, key frames), loop\n"
       "closure and bundle adjustment, every frame placed on the map, activity mapping (speed,\n"
-      "direction, visit of every track), and the mosaic's tile pyramid. Each stage is saved as it\n"
+      "direction, visit and confidence of every track; tracks faster than 70 m/s on the ground\n"
+      "are not reported), and the mosaic's tile pyramid. Each stage is saved as it\n"
       "completes; Ctrl-C cancels cleanly and leaves a valid mission holding the stages that\n"
       "completed. The front end checkpoints its work into the mission (every 30 s, at a key\n"
       "frame): after Ctrl-C, a crash or a power cut, --resume carries on from the last\n"
@@ -76,6 +78,8 @@ ProcessCommand::ProcessCommand(CLI::App& app) : state_(std::make_unique<State>()
                    "visit")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
+  AddMinConfidenceOption(s.command, &s.options.activity.confidence.min_confidence,
+                         "are not stored in the mission");
   s.options.front_end.max_memory_mib = DefaultMemoryLimitMiB();
   s.command
       ->add_option("--max-memory", s.options.front_end.max_memory_mib,
@@ -117,6 +121,8 @@ int ProcessCommand::RunOn(const std::string& video, const std::string& mission,
                                 {"key_frames", p.key_frames},
                                 {"cross_links", p.cross_links},
                                 {"tracks", p.tracks},
+                                {"tracks_implausible", p.tracks_implausible},
+                                {"tracks_low_confidence", p.tracks_low_confidence},
                                 {"tiles", p.tiles},
                                 {"geo_referenced", p.geo_referenced},
                                 {"front_end_s", p.front_end_s},
@@ -146,6 +152,7 @@ struct ExportCommand::State {
   int level = 0;
   render::ActivityMapOptions map;
   double start_s = -1, end_s = -1;
+  double min_confidence = 0;
 };
 
 ExportCommand::ExportCommand(CLI::App& app) : state_(std::make_unique<State>()) {
@@ -155,7 +162,8 @@ ExportCommand::ExportCommand(CLI::App& app) : state_(std::make_unique<State>()) 
       "Export a mission for other tools: the activity map picture (mosaic with the tracks\n"
       "coloured, legend, scale bar and north arrow when geo-referenced), the mosaic as GeoTIFF\n"
       "(UTM of the map origin when geo-referenced), the tracks as GeoJSON (WGS84), KML and CSV\n"
-      "with every attribute. Give one or more outputs; \"-\" writes one to standard output.\n"
+      "with every attribute, confidence included. Give one or more outputs; \"-\" writes one to\n"
+      "standard output.\n"
       "An output may not be the mission or its video. Ctrl-C cancels and leaves no partial\n"
       "file. See docs/exports.md.");
   s.command->add_option("MISSION", s.mission, "Mission file (.saker)")->required();
@@ -178,6 +186,8 @@ ExportCommand::ExportCommand(CLI::App& app) : state_(std::make_unique<State>()) 
       ->check(CLI::Range(64, 30000));
   s.command->add_option("--from", s.start_s, "Activity map: only tracks seen after this second");
   s.command->add_option("--to", s.end_s, "Activity map: only tracks seen before this second");
+  AddMinConfidenceOption(s.command, &s.min_confidence,
+                         "are left out of every output (the activity map included)");
 }
 
 ExportCommand::~ExportCommand() = default;
@@ -195,6 +205,9 @@ int ExportCommand::Run() const {
   if (!store.ok()) return Fail(store.status());
   StatusOr<mission::Mission> m = (*store)->Load();
   if (!m.ok()) return Fail(m.status());
+  std::erase_if(m->tracks, [&](const mission::ActivityTrack& t) {
+    return !activity::PassesConfidence(t, s.min_confidence);
+  });
   pipeline::ExportRequest request;
   request.png = s.png;
   request.map = s.map;
@@ -318,6 +331,7 @@ int InfoCommand::Run() const {
     ++visits[t.visit];
     observations += static_cast<int64_t>(t.points.size());
   }
+  const activity::ConfidenceSpread confidence = activity::SpreadOf(m->tracks);
   int64_t placed = 0;
   for (const mission::FrameRecord& f : m->frames) placed += f.map_from_frame.has_value();
   std::map<std::string, int> links;
@@ -350,6 +364,11 @@ int InfoCommand::Run() const {
                         {"tracks", m->tracks.size()},
                         {"observations", observations},
                         {"tracks_by_visit", visit_json},
+                        {"tracks_by_confidence",
+                         {{"below_0_5", confidence.low},
+                          {"0_5_to_0_8", confidence.medium},
+                          {"at_least_0_8", confidence.high},
+                          {"unknown", confidence.unknown}}},
                         {"geo_referenced", m->map.geo_referenced},
                         {"map_frame", pipeline::DescribeMapFrame(*m)},
                         {"frames_with_metadata", pipeline::FramesWithMetadata(*m)},
@@ -404,6 +423,13 @@ int InfoCommand::Run() const {
   for (const auto& [kind, n] : links) std::cout << " " << n << " " << kind;
   std::cout << "\n  tracks: " << m->tracks.size() << " (" << observations << " observations)";
   for (const auto& [v, n] : visits) std::cout << "; visit " << v << ": " << n;
+  if (!m->tracks.empty()) {
+    std::cout << "\n  track confidence: " << confidence.high << " at 0.8 or more, "
+              << confidence.medium << " from 0.5 to 0.8, " << confidence.low << " below 0.5";
+    if (confidence.unknown > 0) {
+      std::cout << ", " << confidence.unknown << " unknown (written before Saker kept it)";
+    }
+  }
   std::cout << "\n  mosaic tiles: " << *tiles;
   if (m->pyramid) {
     std::cout << " (" << m->pyramid->levels << " levels, " << m->pyramid->width << "x"

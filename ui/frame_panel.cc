@@ -336,6 +336,7 @@ FramePanel::FramePanel(QWidget* parent)
   utc_value_ = add(2, 0, tr("UTC"), "utcValue", 3);
   speed_value_ = add(3, 0, tr("Speed"), "speedValue");
   heading_value_ = add(3, 1, tr("Heading"), "headingValue");
+  confidence_value_ = add(4, 0, tr("Confidence"), "confidenceValue");
   info->setColumnStretch(1, 1);
   info->setColumnStretch(3, 1);
 
@@ -707,7 +708,7 @@ void FramePanel::updateInfo() {
   const mission::TrackPoint* point = currentPoint();
   if (point == nullptr) {
     for (QLabel* label : {track_value_, visit_value_, time_value_, frame_value_, utc_value_,
-                          speed_value_, heading_value_}) {
+                          speed_value_, heading_value_, confidence_value_}) {
       label->setText(QStringLiteral("–"));
     }
     return;
@@ -725,6 +726,9 @@ void FramePanel::updateInfo() {
   } else {
     speed_value_->setText(tr("%1 px/s").arg(track.speed, 0, 'f', 1));
   }
+  // Unknown in missions written before Saker kept the evidence behind it.
+  confidence_value_->setText(track.confidence ? QString::number(*track.confidence, 'f', 2)
+                                              : tr("unknown"));
   const double heading = std::fmod(std::fmod(track.heading_deg, 360.0) + 360.0, 360.0);
   // A map in pixels has no north: its directions are those of its picture.
   const QString direction = mission_->map.geo_referenced

@@ -125,6 +125,7 @@ class FramePanel : public QWidget {
   QLabel* utc_value_ = nullptr;
   QLabel* speed_value_ = nullptr;
   QLabel* heading_value_ = nullptr;
+  QLabel* confidence_value_ = nullptr;
   QAction* previous_action_ = nullptr;
   QAction* next_action_ = nullptr;
   QAction* play_action_ = nullptr;

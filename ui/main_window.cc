@@ -196,6 +196,16 @@ void MainWindow::createDocks() {
   min_speed_ = spin(QString());
   max_speed_ = spin(QString());
   speed_unit_ = new QLabel(side);
+  min_confidence_ = spin(QString());
+  min_confidence_->setObjectName("minConfidence");
+  min_confidence_->setDecimals(2);
+  min_confidence_->setRange(0, 1);
+  min_confidence_->setSingleStep(0.05);
+  min_confidence_->setPrefix(tr("at least "));
+  min_confidence_->setToolTip(
+      tr("Hide the tracks whose confidence (0 to 1: how long they were seen, how steadily they "
+         "moved, feature and change support, a plausible speed) is below this; above 0, tracks "
+         "of unknown confidence (older missions) are hidden too"));
   auto* time_row = new QHBoxLayout();
   time_row->addWidget(from_s_);
   time_row->addWidget(new QLabel(tr("to"), side));
@@ -207,19 +217,20 @@ void MainWindow::createDocks() {
   speed_row->addWidget(speed_unit_);
   filters->addRow(tr("Time:"), time_row);
   filters->addRow(tr("Speed:"), speed_row);
+  filters->addRow(tr("Confidence:"), min_confidence_);
   auto* filter_title = new QLabel(tr("<b>Show tracks</b>"), side);
   layout->addSpacing(8);
   layout->addWidget(filter_title);
   layout->addLayout(filters);
   shown_count_ = new QLabel(side);
   auto* reset = new QPushButton(tr("Show All"), side);
-  reset->setToolTip(tr("Clear the time and speed filters"));
+  reset->setToolTip(tr("Clear the time, speed and confidence filters"));
   auto* count_row = new QHBoxLayout();
   count_row->addWidget(shown_count_, 1);
   count_row->addWidget(reset);
   layout->addLayout(count_row);
   layout->addStretch(1);
-  for (QDoubleSpinBox* box : {from_s_, to_s_, min_speed_, max_speed_}) {
+  for (QDoubleSpinBox* box : {from_s_, to_s_, min_speed_, max_speed_, min_confidence_}) {
     connect(box, &QDoubleSpinBox::valueChanged, this, &MainWindow::applyFilter);
   }
   connect(reset, &QPushButton::clicked, this, &MainWindow::resetFilter);
@@ -902,6 +913,7 @@ void MainWindow::setFilterRanges(bool keep_bounds) {
   const double from = kept(from_s_, true, true, start), to = kept(to_s_, false, true, end);
   const double slowest = kept(min_speed_, true, same_unit, 0);
   const double quickest = kept(max_speed_, false, same_unit, fastest);
+  const double least_confidence = kept(min_confidence_, true, true, 0);
   filter_updating_ = true;
   for (QDoubleSpinBox* box : {from_s_, to_s_}) box->setRange(start, end);
   for (QDoubleSpinBox* box : {min_speed_, max_speed_}) box->setRange(0, fastest);
@@ -909,9 +921,12 @@ void MainWindow::setFilterRanges(bool keep_bounds) {
   to_s_->setValue(to);
   min_speed_->setValue(slowest);
   max_speed_->setValue(quickest);
+  min_confidence_->setValue(least_confidence);
   speed_unit_->setText(unit);
   const bool has_tracks = mission_ && !mission_->tracks.empty();
-  for (QDoubleSpinBox* box : {from_s_, to_s_, min_speed_, max_speed_}) box->setEnabled(has_tracks);
+  for (QDoubleSpinBox* box : {from_s_, to_s_, min_speed_, max_speed_, min_confidence_}) {
+    box->setEnabled(has_tracks);
+  }
   filter_updating_ = false;
   applyFilter();
 }
@@ -924,6 +939,7 @@ void MainWindow::applyFilter() {
   if (to_s_->value() < to_s_->maximum()) filter.end_s = to_s_->value();
   if (min_speed_->value() > min_speed_->minimum()) filter.min_speed = min_speed_->value();
   if (max_speed_->value() < max_speed_->maximum()) filter.max_speed = max_speed_->value();
+  filter.min_confidence = min_confidence_->value();
   view_->setTrackFilter(filter);
   size_t shown = 0, total = mission_ ? mission_->tracks.size() : 0;
   for (size_t i = 0; i < total; ++i) shown += view_->isTrackVisible(i);

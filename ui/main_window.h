@@ -156,6 +156,7 @@ class MainWindow : public QMainWindow {
   QDoubleSpinBox* to_s_ = nullptr;
   QDoubleSpinBox* min_speed_ = nullptr;
   QDoubleSpinBox* max_speed_ = nullptr;
+  QDoubleSpinBox* min_confidence_ = nullptr;  // 0 to 1: tracks below it are hidden
   QLabel* speed_unit_ = nullptr;
   QLabel* shown_count_ = nullptr;
   bool filter_updating_ = false;

@@ -1,5 +1,6 @@
 #include "ui/mosaic_view.h"
 
+#include "core/activity/confidence.h"
 #include "core/mosaic/adjustment.h"
 #include "core/track/homography.h"
 #include "core/track/image_geometry.h"
@@ -365,7 +366,8 @@ void MosaicView::rebuildVisibility() {
     track_visible_[i] = !(filter_.start_s && t.end_s < *filter_.start_s) &&
                         !(filter_.end_s && t.start_s > *filter_.end_s) &&
                         !(filter_.min_speed && speed < *filter_.min_speed) &&
-                        !(filter_.max_speed && speed > *filter_.max_speed);
+                        !(filter_.max_speed && speed > *filter_.max_speed) &&
+                        activity::PassesConfidence(t, filter_.min_confidence);
   }
 }
 

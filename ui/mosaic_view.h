@@ -49,6 +49,9 @@ class MosaicView : public QWidget {
     // Average speed in the legend's unit: m/s when geo-referenced, map units (pixels) per second
     // otherwise; shown when min_speed <= speed <= max_speed.
     std::optional<double> min_speed, max_speed;
+    // Shown when activity::PassesConfidence: at 0 every track, above it only tracks whose
+    // confidence is known and at least this.
+    double min_confidence = 0;
   };
 
   explicit MosaicView(QWidget* parent = nullptr);

@@ -71,7 +71,7 @@ Status ActivityOptions::Validate() const {
         "activity options: smoothing_s >= 0, speed_interval_s > 0, visit_gap_s > 0 and "
         "coverage_stride >= 1 are required");
   }
-  return {};
+  return confidence.Validate();
 }
 
 double HeadingDegrees(const Eigen::Vector2d& displacement, bool geo_referenced) {
@@ -143,7 +143,8 @@ std::vector<CoverageIndex::Interval> CoverageIndex::Visits(const Eigen::Vector2d
 
 StatusOr<ActivitySummary> MapActivity(const mission::Mission& mission,
                                       std::vector<ActivityTrack>* tracks,
-                                      const ActivityOptions& options) {
+                                      const ActivityOptions& options,
+                                      const std::unordered_map<int64_t, TrackEvidence>* evidence) {
   SAKER_RETURN_IF_ERROR(options.Validate());
   const Stopwatch begin;
   ActivitySummary summary;
@@ -218,8 +219,34 @@ StatusOr<ActivitySummary> MapActivity(const mission::Mission& mission,
       const double off = std::max({0.0, visits[v].start_s - t, t - visits[v].end_s});
       if (off < best) best = off, track.visit = static_cast<int>(v) + 1;
     }
-    summary.max_visit = std::max(summary.max_visit, track.visit);
   }
+  // Plausibility and confidence (confidence.h): tracks that cannot be ground traffic, or that the
+  // evidence supports too little, are not reported.
+  std::vector<ActivityTrack> reported;
+  reported.reserve(tracks->size());
+  for (ActivityTrack& track : *tracks) {
+    const TrackEvidence* found = nullptr;
+    if (evidence) {
+      const auto it = evidence->find(track.id);
+      if (it != evidence->end()) found = &it->second;
+    }
+    const ConfidenceFactors f =
+        AssessTrack(track, found ? *found : TrackEvidence{}, options.confidence);
+    if (!f.plausible) {
+      ++summary.tracks_implausible;
+      continue;
+    }
+    if (found) {
+      track.confidence = f.confidence;
+      if (f.confidence < options.confidence.min_confidence) {
+        ++summary.tracks_low_confidence;
+        continue;
+      }
+    }
+    summary.max_visit = std::max(summary.max_visit, track.visit);
+    reported.push_back(std::move(track));
+  }
+  *tracks = std::move(reported);
   summary.tracks_out = static_cast<int64_t>(tracks->size());
   summary.time_s = begin.ElapsedSeconds();
   return summary;

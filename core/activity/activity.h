@@ -5,6 +5,7 @@
 // index the GUI's click uses to find the nearest observation. Works on the mission's plain data,
 // so a loaded mission can be re-mapped without reprocessing. Definitions in docs/activity.md.
 
+#include "core/activity/confidence.h"
 #include "core/mission/mission.h"
 #include "core/util/status.h"
 
@@ -30,15 +31,19 @@ struct ActivityOptions {
   // Frames whose footprint is tested for the coverage behind visits: every frame, or every n-th
   // (the footprint moves little from one frame to the next).
   int coverage_stride = 5;
+  // Confidence and plausibility (confidence.h), for tracks whose evidence is given.
+  ConfidenceOptions confidence;
 
   Status Validate() const;
 };
 
 struct ActivitySummary {
   int64_t tracks_in = 0;
-  int64_t tracks_out = 0;            // tracks with at least one placed observation
-  int64_t observations_dropped = 0;  // on frames without a map_from_frame
-  int max_visit = 0;                 // the largest visit index given
+  int64_t tracks_out = 0;             // tracks with at least one placed observation
+  int64_t observations_dropped = 0;   // on frames without a map_from_frame
+  int64_t tracks_implausible = 0;     // removed: average ground speed above max_speed_mps
+  int64_t tracks_low_confidence = 0;  // removed: confidence below min_confidence
+  int max_visit = 0;                  // the largest visit index given
   double time_s = 0;
 };
 
@@ -46,10 +51,15 @@ struct ActivitySummary {
 // are dropped; tracks left empty are removed) and each track's start and end time, length,
 // speed, speed_mps (geo-referenced missions), heading and visit, from the mission's frames (its
 // `frames`, `map` and `source` width and height). Point frame indices must be those of
-// `mission.frames`. InvalidArgument for bad options or a point on an unknown frame.
-StatusOr<ActivitySummary> MapActivity(const mission::Mission& mission,
-                                      std::vector<mission::ActivityTrack>* tracks,
-                                      const ActivityOptions& options = {});
+// `mission.frames`. Tracks whose average ground speed is impossible (geo-referenced missions,
+// above options.confidence.max_speed_mps) are removed. With `evidence` (by track id), each track
+// it holds gets its confidence (AssessTrack) and those below options.confidence.min_confidence
+// are removed; the others keep theirs. InvalidArgument for bad options or a point on an unknown
+// frame.
+StatusOr<ActivitySummary> MapActivity(
+    const mission::Mission& mission, std::vector<mission::ActivityTrack>* tracks,
+    const ActivityOptions& options = {},
+    const std::unordered_map<int64_t, TrackEvidence>* evidence = nullptr);
 
 // The direction of travel of a map displacement, degrees clockwise from map north in [0, 360):
 // north is +y on a geo-referenced map, -y (up the first key frame's image) otherwise.

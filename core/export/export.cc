@@ -231,6 +231,7 @@ Json GeoJsonFeature(const mission::ActivityTrack& track, const Positions& positi
       {"speed_mps", JsonNumber(track.speed_mps)},
       {"heading_deg", JsonNumber(track.heading_deg)},
       {"point_count", track.points.size()},
+      {"confidence", JsonNumber(track.confidence)},
       {"points", std::move(points)},
   };
   return {{"type", "Feature"},
@@ -303,6 +304,7 @@ std::string KmlPlacemark(const mission::ActivityTrack& track, const Positions& p
   KmlData("speed_mps", track.speed_mps ? FormatNumber(*track.speed_mps) : "", out);
   KmlData("heading_deg", FormatNumber(track.heading_deg), out);
   KmlData("point_count", std::to_string(track.points.size()), out);
+  KmlData("confidence", track.confidence ? FormatNumber(*track.confidence) : "", out);
   KmlData("frames", KmlList(track, [](const Point& p) { return static_cast<double>(p.frame); }),
           out);
   KmlData("times_s", KmlList(track, [](const Point& p) { return p.time_s; }), out);
@@ -709,7 +711,7 @@ Status ExportCsv(const mission::Mission& mission, const std::string& path) {
     static constexpr const char* kHeader =
         "video,track_id,visit,start_s,end_s,duration_s,length,speed,speed_mps,heading_deg,"
         "point_count,point_index,frame,time_s,image_x,image_y,box_min_x,box_min_y,box_max_x,"
-        "box_max_y,map_x,map_y,latitude_deg,longitude_deg\r\n";
+        "box_max_y,map_x,map_y,latitude_deg,longitude_deg,confidence\r\n";
     const std::string video = CsvField(VideoName(mission));
     std::string out = kHeader;
     for (const auto& track : mission.tracks) {
@@ -734,6 +736,7 @@ Status ExportCsv(const mission::Mission& mission, const std::string& path) {
         if (positions.geo_referenced()) lon_lat = positions.Of(p.map);
         out += "," + (lon_lat ? FormatNumber(lon_lat->y()) : "");
         out += "," + (lon_lat ? FormatNumber(lon_lat->x()) : "");
+        out += "," + (track.confidence ? FormatNumber(*track.confidence) : "");
         out += "\r\n";
       }
     }

@@ -24,9 +24,9 @@ namespace saker::mission {
 
 // Version of the mission file's schema. A file with a newer version is refused, never written.
 // Version 2 added the frames' presentation time stamps and key-frame flags, version 3 the table of
-// processing checkpoints; an older file is read as it is and upgraded in place when it is opened
-// for writing.
-inline constexpr int kSchemaVersion = 3;
+// processing checkpoints, version 4 the tracks' confidence; an older file is read as it is and
+// upgraded in place when it is opened for writing.
+inline constexpr int kSchemaVersion = 4;
 
 using Covariance8 = Eigen::Matrix<double, 8, 8>;
 
@@ -109,6 +109,10 @@ struct ActivityTrack {
   double heading_deg = 0;           // direction of travel, degrees clockwise from map north (+y
                                     // when geo-referenced, -y, up the image, otherwise)
   int visit = 1;                    // which pass of the aircraft over the place, from 1
+  // How much the evidence says this is a real moving target, 0 to 1 (activity/confidence.h,
+  // docs/activity.md "Confidence"). Absent: unknown (missions written before schema version 4,
+  // whose evidence was not kept).
+  std::optional<double> confidence;
 };
 
 // Where the mosaic's tile pyramid lies on the map. Level 0 is full resolution; level l is

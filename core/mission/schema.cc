@@ -30,9 +30,9 @@ constexpr int kCornerValues = 8;  // four (x, y) pairs
 constexpr int kMaxPyramidLevels = 32;
 constexpr int kMaxTileSize = 1 << 16;
 
-// Schema v3 (docs/mission-file.md): the tables of version 2 here, the checkpoint table (new in
-// version 3) below. REAL columns are nullable on purpose: SQLite stores NaN as
-// NULL.
+// Schema v4 (docs/mission-file.md): the tables of version 2 here with the tracks' confidence (new
+// in version 4), the checkpoint table (new in version 3) below. REAL columns are nullable on
+// purpose: SQLite stores NaN as NULL.
 constexpr const char* kSchemaSql = R"sql(
 CREATE TABLE meta (
   key TEXT PRIMARY KEY NOT NULL,
@@ -89,7 +89,8 @@ CREATE TABLE tracks (
   speed_mps REAL,
   heading_deg REAL,
   visit INTEGER NOT NULL,
-  point_count INTEGER NOT NULL
+  point_count INTEGER NOT NULL,
+  confidence REAL CHECK (confidence IS NULL OR (confidence >= 0 AND confidence <= 1))
 );
 CREATE TABLE track_points (
   track_ordinal INTEGER NOT NULL REFERENCES tracks (ordinal),
@@ -498,10 +499,10 @@ Status WriteTracks(const sqlite::Database& db, const std::vector<ActivityTrack>&
   SAKER_RETURN_IF_ERROR(db.Exec("DELETE FROM tracks", "saving table tracks"));
   SAKER_ASSIGN_OR_RETURN(
       sqlite::Statement track_stmt,
-      db.Prepare(
-          "INSERT INTO tracks (ordinal, id, start_s, end_s, length, speed, speed_mps, "
-          "heading_deg, visit, point_count) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10)",
-          "saving table tracks"));
+      db.Prepare("INSERT INTO tracks (ordinal, id, start_s, end_s, length, speed, speed_mps, "
+                 "heading_deg, visit, point_count, confidence) "
+                 "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11)",
+                 "saving table tracks"));
   SAKER_ASSIGN_OR_RETURN(
       sqlite::Statement point_stmt,
       db.Prepare(
@@ -522,6 +523,7 @@ Status WriteTracks(const sqlite::Database& db, const std::vector<ActivityTrack>&
     b.Double(8, t.heading_deg);
     b.Int64(9, t.visit);
     b.Int64(10, static_cast<int64_t>(t.points.size()));
+    b.OptionalDouble(11, t.confidence);
     SAKER_RETURN_IF_ERROR(db.Run(track_stmt.get(), b, "saving table tracks"));
     for (size_t j = 0; j < t.points.size(); ++j) {
       const TrackPoint& p = t.points[j];
@@ -733,26 +735,33 @@ Status LoadLinks(const sqlite::Database& db, std::vector<LinkRecord>* links) {
                   });
 }
 
-Status LoadTracks(const sqlite::Database& db, std::vector<ActivityTrack>* tracks) {
+Status LoadTracks(const sqlite::Database& db, int schema, std::vector<ActivityTrack>* tracks) {
   std::vector<int64_t> point_counts;
   // Each track's point count, read with it (kept only when the whole row is good).
-  SAKER_RETURN_IF_ERROR(
-      LoadRows(db,
-               "SELECT ordinal, id, start_s, end_s, length, speed, speed_mps, heading_deg, visit, "
-               "point_count FROM tracks ORDER BY ordinal",
-               "tracks", tracks, [&](sqlite::RowReader& row, ActivityTrack* t) {
-                 CheckOrdinal(row, 0, row.Int64(0), tracks->size());
-                 t->id = row.Int64(1);
-                 t->start_s = row.Real(2);
-                 t->end_s = row.Real(3);
-                 t->length = row.Real(4);
-                 t->speed = row.Real(5);
-                 t->speed_mps = row.OptionalReal(6);
-                 t->heading_deg = row.Real(7);
-                 t->visit = row.Int32(8);
-                 const int64_t count = row.Int(9, 0, std::numeric_limits<int64_t>::max());
-                 if (row.status().ok()) point_counts.push_back(count);
-               }));
+  SAKER_RETURN_IF_ERROR(LoadRows(
+      db,
+      schema >= 4 ? "SELECT ordinal, id, start_s, end_s, length, speed, speed_mps, "
+                    "heading_deg, visit, point_count, confidence FROM tracks ORDER BY "
+                    "ordinal"
+                  : "SELECT ordinal, id, start_s, end_s, length, speed, speed_mps, "
+                    "heading_deg, visit, point_count, NULL FROM tracks ORDER BY ordinal",
+      "tracks", tracks, [&](sqlite::RowReader& row, ActivityTrack* t) {
+        CheckOrdinal(row, 0, row.Int64(0), tracks->size());
+        t->id = row.Int64(1);
+        t->start_s = row.Real(2);
+        t->end_s = row.Real(3);
+        t->length = row.Real(4);
+        t->speed = row.Real(5);
+        t->speed_mps = row.OptionalReal(6);
+        t->heading_deg = row.Real(7);
+        t->visit = row.Int32(8);
+        const int64_t count = row.Int(9, 0, std::numeric_limits<int64_t>::max());
+        t->confidence = row.OptionalReal(10);
+        if (t->confidence && !(*t->confidence >= 0 && *t->confidence <= 1)) {
+          row.Fail(10, "confidence " + std::to_string(*t->confidence) + " is not in [0, 1]");
+        }
+        if (row.status().ok()) point_counts.push_back(count);
+      }));
   const auto read_point = [&](sqlite::RowReader& row) -> Status {
     const int64_t track = row.Int64(0);
     const int64_t ordinal = row.Int64(1);
@@ -922,6 +931,8 @@ Status Create(const sqlite::Database& db) {
 
 // Version 1 -> 2: the frames' stream positions (NULL: unknown, as for any frame without them).
 // Version 2 -> 3: the checkpoint table.
+// Version 3 -> 4: the tracks' confidence. NULL (unknown): it needs the front end's evidence
+// (features and change per observation), which older files did not keep.
 Status Upgrade(const sqlite::Database& db, int schema) {
   sqlite::Transaction transaction(db);
   SAKER_RETURN_IF_ERROR(transaction.Begin(/*write=*/true));
@@ -933,6 +944,12 @@ Status Upgrade(const sqlite::Database& db, int schema) {
   }
   if (schema < 3) {
     SAKER_RETURN_IF_ERROR(db.Exec(kCheckpointSql, "upgrading the mission to schema 3"));
+  }
+  if (schema < 4) {
+    SAKER_RETURN_IF_ERROR(
+        db.Exec("ALTER TABLE tracks ADD COLUMN confidence REAL "
+                "CHECK (confidence IS NULL OR (confidence >= 0 AND confidence <= 1))",
+                "upgrading the mission to schema 4"));
   }
   const std::string version = std::to_string(kSchemaVersion);
   const std::string sql = "UPDATE meta SET value = " + version + " WHERE key = '" +
@@ -960,7 +977,7 @@ Status Load(const sqlite::Database& db, int schema, Mission* m) {
   SAKER_RETURN_IF_ERROR(LoadFrames(db, schema, &m->frames));
   SAKER_RETURN_IF_ERROR(LoadKeyFrames(db, &m->key_frames));
   SAKER_RETURN_IF_ERROR(LoadLinks(db, &m->links));
-  SAKER_RETURN_IF_ERROR(LoadTracks(db, &m->tracks));
+  SAKER_RETURN_IF_ERROR(LoadTracks(db, schema, &m->tracks));
   return transaction.Commit();
 }
 

@@ -117,6 +117,10 @@ std::string ProcessSummary::ToText() const {
   out << line;
   out << (geo_referenced ? "geo-referenced (metadata)" : "not geo-referenced; map: " + map_frame)
       << "\n";
+  if (tracks_implausible > 0 || tracks_low_confidence > 0) {
+    out << "not reported: " << tracks_implausible << " tracks with an impossible ground speed, "
+        << tracks_low_confidence << " below the minimum confidence\n";
+  }
   std::snprintf(line, sizeof(line),
                 "time: front end %.1f s, mosaic %.1f s, activity %.2f s, tiles %.1f s, saving %.2f "
                 "s; total %.1f s for %.1f s of video (%.2fx real time)\n",
@@ -234,6 +238,8 @@ StatusOr<ProcessSummary> ProcessVideo(const std::string& video, const std::strin
     summary.frames_placed += f.map_from_frame.has_value();
   }
   summary.tracks = static_cast<int64_t>(m.tracks.size());
+  summary.tracks_implausible = run.activity.tracks_implausible;
+  summary.tracks_low_confidence = run.activity.tracks_low_confidence;
   summary.tiles = run.tiles_written;
   // The job is complete: its checkpoint is no longer needed.
   SAKER_RETURN_IF_ERROR(store->ClearCheckpoint());

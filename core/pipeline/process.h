@@ -45,6 +45,8 @@ struct ProcessSummary {
   int64_t key_frames = 0;
   int64_t cross_links = 0;
   int64_t tracks = 0;
+  int64_t tracks_implausible = 0;     // not reported: impossible ground speed
+  int64_t tracks_low_confidence = 0;  // not reported: below activity.confidence.min_confidence
   int64_t tiles = 0;
   bool geo_referenced = false;
   std::string map_frame;  // DescribeMapFrame (open_mission.h): what the map is, and why

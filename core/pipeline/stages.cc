@@ -98,8 +98,10 @@ StatusOr<bool> ActivityStage(const StageOptions& options, JobContext* job, Missi
   if (job) job->ReportProgress("Activity", 0);
   mission::Mission& m = run->mission;
   m.tracks = TrackRecords(run->front);
+  const std::unordered_map<int64_t, activity::TrackEvidence> evidence = TrackEvidenceOf(run->front);
   SAKER_ASSIGN_OR_RETURN(const activity::ActivitySummary mapped,
-                         activity::MapActivity(m, &m.tracks, options.activity));
+                         activity::MapActivity(m, &m.tracks, options.activity, &evidence));
+  run->activity = mapped;
   if (mapped.observations_dropped > 0) {
     run->warnings.push_back(std::to_string(mapped.observations_dropped) +
                             " target observations lie on frames that could not be placed on "
@@ -256,6 +258,21 @@ std::vector<mission::ActivityTrack> TrackRecords(const frontend::FrontEndResult&
     if (!t.points.empty()) tracks.push_back(std::move(t));
   }
   return tracks;
+}
+
+std::unordered_map<int64_t, activity::TrackEvidence> TrackEvidenceOf(
+    const frontend::FrontEndResult& front) {
+  std::unordered_map<int64_t, activity::TrackEvidence> evidence;
+  for (const track::TargetTrack& target : front.targets) {
+    activity::TrackEvidence& e = evidence[static_cast<int64_t>(target.id)];
+    for (const track::TargetObservation& o : target.observations) {
+      ++e.observations;
+      e.feature_sightings += static_cast<int64_t>(o.features.size());
+      e.looked += o.change != track::ChangeEvidence::kNotLooked;
+      e.changed += o.change == track::ChangeEvidence::kChanged;
+    }
+  }
+  return evidence;
 }
 
 }  // namespace saker::pipeline

@@ -21,6 +21,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 namespace saker::pipeline {
@@ -56,9 +57,10 @@ struct MissionRun {
   // Why the mosaic stage made none (InvalidData: the front end found no key frame).
   Status no_mosaic;
   int64_t tiles_written = 0;
-  double seconds[4] = {0, 0, 0, 0};   // per Stage, wall time
-  std::optional<Stage> failed;        // the stage whose error RunStages returned
-  std::vector<std::string> warnings;  // what could not be done, for a person (not errors)
+  activity::ActivitySummary activity;  // the activity stage's (tracks dropped as implausible)
+  double seconds[4] = {0, 0, 0, 0};    // per Stage, wall time
+  std::optional<Stage> failed;         // the stage whose error RunStages returned
+  std::vector<std::string> warnings;   // what could not be done, for a person (not errors)
 };
 
 struct StageHooks {
@@ -95,5 +97,8 @@ std::vector<mission::FrameRecord> FrameRecords(const frontend::FrontEndResult& f
                                                const mosaic::MosaicInput* input,
                                                const mosaic::MosaicResult* mosaic);
 std::vector<mission::ActivityTrack> TrackRecords(const frontend::FrontEndResult& front);
+// The front end's evidence for each target track (by id), for its confidence.
+std::unordered_map<int64_t, activity::TrackEvidence> TrackEvidenceOf(
+    const frontend::FrontEndResult& front);
 
 }  // namespace saker::pipeline

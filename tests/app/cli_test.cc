@@ -10,11 +10,13 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <array>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
 #include <string>
+#include <vector>
 
 namespace {
 
@@ -294,6 +296,85 @@ TEST(CliMissionTest, ExportRefusesItsInputsAndWritesToStandardOutput) {
   for (const auto& entry : std::filesystem::directory_iterator(dir)) {
     EXPECT_EQ(entry.path().filename().string().find(".part-"), std::string::npos) << entry.path();
   }
+  std::filesystem::remove_all(dir);
+}
+
+// Issue 24 item 6: --min-confidence on `process` (tracks below are not stored) and `export`
+// (tracks below are left out of every output); a value that is not a number from 0 to 1 is a
+// usage error naming it.
+TEST(CliMissionTest, MinConfidenceFiltersProcessAndExportAndRefusesBadValues) {
+  const std::filesystem::path dir = saker::testing::MakeTempDir("saker-cli-confidence");
+  // 12 s of the small loop (tests/testing/small_loop.h): a few cars, of different confidences.
+  const std::string video = (dir / "loop.ts").string(), mission = (dir / "loop.saker").string();
+  CliRun sim = RunCli("simulate -q --scenario roundabout-loop -o '" + video +
+                      "' --width 640 --height 360 --altitude 200 --fps 12.5 --loop-length 500 "
+                      "--cars 6 --vans 0 --people 4 --duration 12");
+  ASSERT_EQ(sim.exit_code, 0) << sim.out;
+  sim = RunCli("process -q --no-tiles '" + video + "' -o '" + mission + "'");
+  ASSERT_EQ(sim.exit_code, 0) << sim.out;
+  for (const std::string value : {"-1", "2", "abc", "nan", ""}) {
+    for (const std::string& command :
+         {"process -q '" + video + "' -o '" + (dir / "bad.saker").string() + "'",
+          "export '" + mission + "' --csv '" + (dir / "bad.csv").string() + "'"}) {
+      const CliRun run = RunCli(command + " --min-confidence '" + value + "'");
+      EXPECT_EQ(run.exit_code, 2) << command << " " << value << ": " << run.out;
+      EXPECT_NE(run.out.find("--min-confidence"), std::string::npos) << run.out;
+      EXPECT_NE(run.out.find("\"" + value + "\" is not a confidence: give a number from 0 to 1"),
+                std::string::npos)
+          << run.out;
+    }
+  }
+  EXPECT_FALSE(std::filesystem::exists(dir / "bad.saker"));
+  EXPECT_FALSE(std::filesystem::exists(dir / "bad.csv"));
+
+  // Every track of a new mission has a confidence; the export keeps those at the threshold.
+  const auto confidences = [&](const std::string& options) {
+    const CliRun run =
+        RunCli("export '" + mission + "' --geojson - " + options + " 2>/dev/null; exit $?");
+    EXPECT_EQ(run.exit_code, 0) << run.out;
+    std::vector<double> values;
+    const nlohmann::json j = nlohmann::json::parse(run.out, nullptr, false);
+    EXPECT_FALSE(j.is_discarded()) << run.out;
+    if (j.is_discarded()) return values;
+    for (const auto& feature : j["features"]) {
+      EXPECT_TRUE(feature["properties"]["confidence"].is_number()) << feature["properties"];
+      if (feature["properties"]["confidence"].is_number()) {
+        values.push_back(feature["properties"]["confidence"].get<double>());
+      }
+    }
+    return values;
+  };
+  std::vector<double> all = confidences("");
+  ASSERT_GE(all.size(), 2u) << "the small flight's cars";
+  std::sort(all.begin(), all.end());
+  // As the command line will read it back.
+  const double threshold = std::stod(std::to_string(0.5 * (all.front() + all.back())));
+  const size_t above =
+      static_cast<size_t>(all.end() - std::lower_bound(all.begin(), all.end(), threshold));
+  ASSERT_GT(all.back(), all.front()) << "tracks of one confidence cannot test a threshold";
+  const std::vector<double> kept = confidences("--min-confidence " + std::to_string(threshold));
+  EXPECT_EQ(kept.size(), above);
+  for (const double c : kept) EXPECT_GE(c, threshold);
+  // The activity map too.
+  const CliRun png = RunCli("export '" + mission + "' --png '" + (dir / "map.png").string() +
+                            "' --min-confidence " + std::to_string(threshold));
+  ASSERT_EQ(png.exit_code, 0) << png.out;
+  EXPECT_NE(png.out.find(std::to_string(above) + " track"), std::string::npos) << png.out;
+
+  // `info` lists the tracks by confidence.
+  const CliRun info = RunCli("info '" + mission + "'");
+  EXPECT_NE(info.out.find("track confidence: "), std::string::npos) << info.out;
+
+  // Processing with the threshold stores only the tracks at it and counts the others.
+  const std::string strict = (dir / "strict.saker").string();
+  const CliRun run = RunCli("process -q --json --no-tiles '" + video + "' -o '" + strict +
+                            "' --min-confidence " + std::to_string(threshold));
+  ASSERT_EQ(run.exit_code, 0) << run.out;
+  const nlohmann::json summary = nlohmann::json::parse(run.out, nullptr, false);
+  ASSERT_FALSE(summary.is_discarded()) << run.out;
+  EXPECT_EQ(summary["tracks"].get<size_t>(), above);
+  EXPECT_EQ(summary["tracks_low_confidence"].get<size_t>(), all.size() - above);
+  EXPECT_EQ(summary["tracks_implausible"].get<size_t>(), 0u);
   std::filesystem::remove_all(dir);
 }
 

@@ -194,6 +194,9 @@ TEST(FramePanelTest, ShowsTheObservedFrameWithTheMarkOnTheTarget) {
   } else {
     EXPECT_TRUE(speed.contains("px/s")) << speed.toStdString();
   }
+  ASSERT_TRUE(track.confidence.has_value());
+  EXPECT_EQ(panel.findChild<QLabel*>("confidenceValue")->text(),
+            QString::number(*track.confidence, 'f', 2));
   const auto& record = mission->frames.at(static_cast<size_t>(point.frame));
   ASSERT_EQ(record.index, point.frame);
   if (record.utc_us) {

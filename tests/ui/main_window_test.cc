@@ -65,7 +65,8 @@ QAction* ColourAction(MainWindow& window, const char* mode) {
   return window.findChild<QAction*>(QString("colourBy_") + mode);
 }
 
-// The Mission panel's filter boxes, in their order: from, to (s), slowest, fastest.
+// The Mission panel's filter boxes, in their order: from, to (s), slowest, fastest, least
+// confidence.
 std::vector<QDoubleSpinBox*> FilterBoxes(MainWindow& window) {
   auto* dock = window.findChild<QDockWidget*>("missionDock");
   if (dock == nullptr) return {};
@@ -89,7 +90,9 @@ void ExpectFiltersFitTheMission(MainWindow& window) {
   ASSERT_TRUE(m.map.geo_referenced);
   ASSERT_FALSE(m.tracks.empty());
   const std::vector<QDoubleSpinBox*> boxes = FilterBoxes(window);
-  ASSERT_EQ(boxes.size(), 4u);
+  ASSERT_EQ(boxes.size(), 5u);
+  EXPECT_EQ(boxes[4]->objectName(), "minConfidence");
+  EXPECT_EQ(boxes[4]->value(), 0);
   double end_s = 0, fastest = 0;
   for (const mission::ActivityTrack& t : m.tracks) {
     end_s = std::max(end_s, t.end_s);
@@ -104,6 +107,36 @@ void ExpectFiltersFitTheMission(MainWindow& window) {
   EXPECT_TRUE(texts.contains("m/s")) << texts.join(" | ").toStdString();
   EXPECT_FALSE(texts.contains("px/s")) << texts.join(" | ").toStdString();
   EXPECT_EQ(window.mosaicView()->legend().title.find("pixels"), std::string::npos);
+  for (size_t i = 0; i < m.tracks.size(); ++i) EXPECT_TRUE(window.mosaicView()->isTrackVisible(i));
+}
+
+// The confidence filter, set just above the least confident track's confidence, hides that track
+// and keeps the others at or above it, in the view and in the count of tracks shown.
+void ExpectConfidenceFilterHidesTheLeastConfidentTrack(MainWindow& window) {
+  const mission::Mission& m = *window.mission();
+  ASSERT_GE(m.tracks.size(), 2u);
+  size_t least = 0;
+  for (size_t i = 0; i < m.tracks.size(); ++i) {
+    ASSERT_TRUE(m.tracks[i].confidence.has_value()) << "track " << i;
+    if (*m.tracks[i].confidence < *m.tracks[least].confidence) least = i;
+  }
+  auto* box = window.findChild<QDoubleSpinBox*>("minConfidence");
+  ASSERT_NE(box, nullptr);
+  ASSERT_TRUE(box->isEnabled());
+  // The box has two decimals: the next step above the least confidence.
+  const double threshold = std::floor(*m.tracks[least].confidence * 100 + 1) / 100;
+  ASSERT_LE(threshold, 1.0);
+  box->setValue(threshold);
+  EXPECT_FALSE(window.mosaicView()->isTrackVisible(least));
+  size_t shown = 0;
+  for (size_t i = 0; i < m.tracks.size(); ++i) {
+    EXPECT_EQ(window.mosaicView()->isTrackVisible(i), *m.tracks[i].confidence >= box->value())
+        << "track " << i << " of confidence " << *m.tracks[i].confidence;
+    shown += window.mosaicView()->isTrackVisible(i);
+  }
+  EXPECT_TRUE(MissionPanelTexts(window).contains(
+      QString("%1 of %2 tracks shown").arg(shown).arg(m.tracks.size())));
+  box->setValue(0);
   for (size_t i = 0; i < m.tracks.size(); ++i) EXPECT_TRUE(window.mosaicView()->isTrackVisible(i));
 }
 
@@ -165,6 +198,7 @@ TEST(MainWindowTest, OpensAMissionAndSwitchesColourModesWithTheirLegends) {
   EXPECT_TRUE(window.windowTitle().contains("loop.saker"));
   EXPECT_TRUE(window.recentFiles().contains(window.missionPath()));
   ASSERT_FALSE(m->loaded.tracks.empty());
+  ExpectConfidenceFilterHidesTheLeastConfidentTrack(window);
 
   struct Seen {
     std::string title;
@@ -440,6 +474,7 @@ TEST(MainWindowTest, ProcessingToTheEndShowsTheMissionAsItsStagesComplete) {
   // The filters follow the processed mission (they stayed at "0.0 to 1.0 px/s", disabled, until
   // the mission was opened again).
   ExpectFiltersFitTheMission(window);
+  ExpectConfidenceFilterHidesTheLeastConfidentTrack(window);
 }
 
 TEST(MainWindowTest, ExportsWriteValidFilesOfTheShownTracks) {
@@ -793,6 +828,35 @@ TEST(MainWindowTest, UngeoreferencedMissionsShowNoCompassWords) {
       EXPECT_FALSE(HasCompassWords(facts->text())) << facts->text().toStdString();
     }
   }
+}
+
+// A mission whose tracks' confidence is unknown (as missions of schema 3 and older read): the
+// Frame panel says "unknown", the confidence filter at 0 shows every track and above 0 none.
+TEST(MainWindowTest, UnknownConfidenceShowsAsUnknownAndOnlyWithoutAThreshold) {
+  const TestMission* m = SmallMission();
+  ASSERT_NE(m, nullptr);
+  const fs::path dir = saker::testing::MakeTempDir("saker-ui-unknown");
+  const fs::path old = dir / "old.saker";
+  ASSERT_NO_FATAL_FAILURE(SaveChangedCopy(m->loaded, old, [](mission::Mission& copy) {
+    for (mission::ActivityTrack& t : copy.tracks) t.confidence.reset();
+  }));
+  MainWindow window;
+  window.show();
+  QSignalSpy opened(&window, &MainWindow::missionOpened);
+  window.openMission(QString::fromStdString(old.string()));
+  ASSERT_TRUE(opened.wait(30000));
+  const size_t total = window.mission()->tracks.size();
+  ASSERT_GT(total, 0u);
+  window.framePanel()->showObservation(0, 0);
+  auto* confidence = window.framePanel()->findChild<QLabel*>("confidenceValue");
+  ASSERT_NE(confidence, nullptr);
+  EXPECT_EQ(confidence->text(), "unknown");
+  auto* box = window.findChild<QDoubleSpinBox*>("minConfidence");
+  ASSERT_NE(box, nullptr);
+  for (size_t i = 0; i < total; ++i) EXPECT_TRUE(window.mosaicView()->isTrackVisible(i));
+  box->setValue(0.05);
+  for (size_t i = 0; i < total; ++i) EXPECT_FALSE(window.mosaicView()->isTrackVisible(i));
+  EXPECT_TRUE(MissionPanelTexts(window).contains(QString("0 of %1 tracks shown").arg(total)));
 }
 
 // Not a check: the user guide's screenshots, of the demo mission, when SAKER_UI_SCREENSHOTS

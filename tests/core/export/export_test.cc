@@ -52,6 +52,7 @@ mission::ActivityTrack MakeTrack(int64_t id, int visit, const std::vector<Eigen:
   track.speed = 3.25;
   track.speed_mps = 3.25;
   track.heading_deg = 45.0 * id;
+  track.confidence = 0.25 * static_cast<double>(id);
   return track;
 }
 
@@ -142,6 +143,7 @@ TEST(GeoJsonExportTest, GeoReferencedFeaturesHaveWgs84LonLatAndAttributes) {
     EXPECT_DOUBLE_EQ(properties["speed_mps"].get<double>(), *track.speed_mps);
     EXPECT_DOUBLE_EQ(properties["heading_deg"].get<double>(), track.heading_deg);
     EXPECT_EQ(properties["point_count"], track.points.size());
+    EXPECT_DOUBLE_EQ(properties["confidence"].get<double>(), *track.confidence);
     ASSERT_EQ(properties["points"].size(), track.points.size());
     const Json& last = properties["points"].back();
     const auto& point = track.points.back();
@@ -183,6 +185,7 @@ TEST(GeoJsonExportTest, NonFiniteNumbersAreWrittenAsNull) {
   mission.tracks[0].speed_mps = std::numeric_limits<double>::quiet_NaN();
   mission.tracks[0].length = std::numeric_limits<double>::infinity();
   mission.tracks[2].speed_mps.reset();
+  mission.tracks[2].confidence.reset();  // unknown (a mission of schema 3)
   mission.tracks[2].points[1].map.x() = std::numeric_limits<double>::quiet_NaN();
   ASSERT_TRUE(ExportGeoJson(mission, path.string()).ok());
 
@@ -196,6 +199,7 @@ TEST(GeoJsonExportTest, NonFiniteNumbersAreWrittenAsNull) {
   EXPECT_TRUE(first["speed_mps"].is_null());
   EXPECT_TRUE(first["length"].is_null());
   EXPECT_TRUE(json["features"][2]["properties"]["speed_mps"].is_null());
+  EXPECT_TRUE(json["features"][2]["properties"]["confidence"].is_null());
   // The non-finite point stays in the observations but leaves the geometry.
   EXPECT_EQ(json["features"][2]["properties"]["points"].size(), 3u);
   EXPECT_TRUE(json["features"][2]["properties"]["points"][1]["map"][0].is_null());
@@ -288,6 +292,7 @@ TEST(KmlExportTest, MarkupInNamesIsEscapedAndStylesFollowVisits) {
   EXPECT_NE(text.find("<Style id=\"visit-2\">"), std::string::npos);
   EXPECT_NE(text.find("<styleUrl>#visit-2</styleUrl>"), std::string::npos);
   EXPECT_NE(text.find("<Data name=\"speed_mps\"><value>3.25</value></Data>"), std::string::npos);
+  EXPECT_NE(text.find("<Data name=\"confidence\"><value>0.75</value></Data>"), std::string::npos);
   // Still well-formed: a strict reader (expat, in GDAL's KML driver) finds all placemarks.
   GDALAllRegister();
   if (GDALGetDriverByName("KML") == nullptr) GTEST_SKIP() << "no KML driver in this GDAL";
@@ -305,6 +310,7 @@ TEST(KmlExportTest, AbsentValuesAreLeftOutNotWrittenAsNan) {
   mission.tracks[2].points[2].time_s = std::numeric_limits<double>::infinity();
   mission.tracks[2].speed = nan;  // a track without a speed
   mission.tracks[2].speed_mps.reset();
+  mission.tracks[2].confidence.reset();
   mission.tracks[2].end_s = nan;
   ASSERT_TRUE(ExportKml(mission, path.string()).ok());
   const std::string text = ReadText(path);
@@ -318,6 +324,7 @@ TEST(KmlExportTest, AbsentValuesAreLeftOutNotWrittenAsNan) {
       << placemark;
   EXPECT_EQ(placemark.find("<Data name=\"speed\">"), std::string::npos) << placemark;
   EXPECT_EQ(placemark.find("<Data name=\"speed_mps\">"), std::string::npos) << placemark;
+  EXPECT_EQ(placemark.find("<Data name=\"confidence\">"), std::string::npos) << placemark;
   EXPECT_EQ(placemark.find("<value></value>"), std::string::npos) << placemark;
   EXPECT_NE(placemark.find("<LineString>"), std::string::npos);  // two positions left
   GDALAllRegister();
@@ -384,13 +391,14 @@ TEST(CsvExportTest, OneRowPerObservationWithQuotedFields) {
   const auto& header = rows[0];
   std::map<std::string, size_t> column;
   for (size_t i = 0; i < header.size(); ++i) column[header[i]] = i;
-  for (const char* name :
-       {"video",     "track_id",  "visit",     "start_s",     "end_s",        "duration_s",
-        "length",    "speed",     "speed_mps", "heading_deg", "point_count",  "point_index",
-        "frame",     "time_s",    "image_x",   "image_y",     "box_min_x",    "box_min_y",
-        "box_max_x", "box_max_y", "map_x",     "map_y",       "latitude_deg", "longitude_deg"}) {
-    EXPECT_TRUE(column.count(name)) << name;
-  }
+  // The columns in their order (readers may go by position): new ones only ever at the end.
+  const std::vector<std::string> columns = {
+      "video",       "track_id",    "visit",        "start_s",       "end_s",
+      "duration_s",  "length",      "speed",        "speed_mps",     "heading_deg",
+      "point_count", "point_index", "frame",        "time_s",        "image_x",
+      "image_y",     "box_min_x",   "box_min_y",    "box_max_x",     "box_max_y",
+      "map_x",       "map_y",       "latitude_deg", "longitude_deg", "confidence"};
+  EXPECT_EQ(header, columns);
   for (size_t r = 1; r < rows.size(); ++r) {
     ASSERT_EQ(rows[r].size(), header.size()) << "row " << r;
     EXPECT_EQ(rows[r][column["video"]], kVideoName);  // comma and quotes survive
@@ -408,6 +416,7 @@ TEST(CsvExportTest, OneRowPerObservationWithQuotedFields) {
   EXPECT_DOUBLE_EQ(std::stod(row[column["box_max_y"]]), point.box_max.y());
   EXPECT_DOUBLE_EQ(std::stod(row[column["map_x"]]), point.map.x());
   EXPECT_DOUBLE_EQ(std::stod(row[column["speed_mps"]]), 3.25);
+  EXPECT_DOUBLE_EQ(std::stod(row[column["confidence"]]), 0.75);
   const geo::Wgs84 expected = Plane().LatLonFromMap(point.map);
   EXPECT_NEAR(std::stod(row[column["latitude_deg"]]), expected.latitude_deg, 1e-12);
   EXPECT_NEAR(std::stod(row[column["longitude_deg"]]), expected.longitude_deg, 1e-12);
@@ -418,16 +427,19 @@ TEST(CsvExportTest, NotGeoReferencedLeavesLatitudeAndLongitudeEmpty) {
   const fs::path path = dir / "tracks.csv";
   mission::Mission mission = MakeMission(false);
   mission.tracks[1].speed_mps.reset();
+  mission.tracks[1].confidence.reset();
   ASSERT_TRUE(ExportCsv(mission, path.string()).ok());
   const auto rows = ParseCsv(ReadText(path));
   ASSERT_EQ(rows.size(), static_cast<size_t>(TotalPoints(mission) + 1));
-  const size_t lat = rows[0].size() - 2, lon = rows[0].size() - 1;
+  const size_t lat = rows[0].size() - 3, lon = rows[0].size() - 2;
   ASSERT_EQ(rows[0][lat], "latitude_deg");
   for (size_t r = 1; r < rows.size(); ++r) {
     EXPECT_EQ(rows[r][lat], "");
     EXPECT_EQ(rows[r][lon], "");
   }
-  EXPECT_EQ(rows[5][8], "");  // track 2's absent speed_mps
+  EXPECT_EQ(rows[5][8], "");      // track 2's absent speed_mps
+  EXPECT_EQ(rows[5].back(), "");  // ... and unknown confidence
+  EXPECT_EQ(rows[1].back(), "0.25");
   EXPECT_EQ(rows[5][0 + 1], "2");
 }
 

@@ -136,6 +136,7 @@ inline bool MissionsEqual(const Mission& a, const Mission& b, std::string* why) 
     if (!SameOptional(ta.speed_mps, tb.speed_mps, same_double)) return differ("speed_mps");
     if (!SameDouble(ta.heading_deg, tb.heading_deg)) return differ("heading_deg");
     if (ta.visit != tb.visit) return differ("visit");
+    if (!SameOptional(ta.confidence, tb.confidence, same_double)) return differ("confidence");
     if (ta.points.size() != tb.points.size()) return differ("point count");
     for (size_t j = 0; j < ta.points.size(); ++j) {
       const TrackPoint& pa = ta.points[j];
@@ -272,6 +273,7 @@ inline Mission MakeFullMission() {
     if (i != 1) t.speed_mps = 8.5 + 0.25 * i;
     t.heading_deg = 271.5 - 10 * i;
     t.visit = 1 + i;
+    if (i != 2) t.confidence = 0.125 + 0.25 * i;  // one of unknown confidence
     m.tracks.push_back(t);
   }
 

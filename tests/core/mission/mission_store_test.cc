@@ -129,7 +129,7 @@ TEST_F(MissionStoreTest, SchemaOneFileIsReadAndUpgradedForWriting) {
   const Mission full = MakeFullMission();
   WriteMissionFile(path, full);
   ExecSql(path,
-          "DROP TABLE checkpoint; "
+          "DROP TABLE checkpoint; ALTER TABLE tracks DROP COLUMN confidence; "
           "ALTER TABLE frames DROP COLUMN pts; ALTER TABLE frames DROP COLUMN key_frame; "
           "UPDATE meta SET value = 1 WHERE key = 'schema_version'; PRAGMA user_version = 1");
   {
@@ -161,8 +161,8 @@ TEST_F(MissionStoreTest, SchemaTwoFileHasNoCheckpointUntilUpgraded) {
   const Mission full = MakeFullMission();
   WriteMissionFile(path, full);
   ExecSql(path,
-          "DROP TABLE checkpoint; UPDATE meta SET value = 2 WHERE key = 'schema_version'; "
-          "PRAGMA user_version = 2");
+          "DROP TABLE checkpoint; ALTER TABLE tracks DROP COLUMN confidence; "
+          "UPDATE meta SET value = 2 WHERE key = 'schema_version'; PRAGMA user_version = 2");
   {
     auto store = MissionStore::Open(path.string());
     ASSERT_TRUE(store.ok()) << store.status().ToString();
@@ -185,6 +185,42 @@ TEST_F(MissionStoreTest, SchemaTwoFileHasNoCheckpointUntilUpgraded) {
   ASSERT_EQ(records->size(), 1u);
   EXPECT_EQ((*records)[0].bytes, (std::vector<uint8_t>{1, 2, 3}));
   auto m = (*store)->Load();
+  ASSERT_TRUE(m.ok()) << m.status().ToString();
+  EXPECT_EQ(m->schema_version, kSchemaVersion);
+  // Upgraded, not saved again: the tracks' confidence is unknown (schema 4 adds it empty).
+  Mission upgraded = full;
+  for (ActivityTrack& t : upgraded.tracks) t.confidence.reset();
+  EXPECT_SAME_MISSION(*m, upgraded);
+}
+
+// Schema 3 (before the tracks' confidence): read with every confidence unknown (the evidence it
+// needs was not kept), upgraded in place when opened for writing, and then keeps confidences.
+TEST_F(MissionStoreTest, SchemaThreeFileHasUnknownConfidenceUntilUpgraded) {
+  const fs::path path = File("v3.saker");
+  const Mission full = MakeFullMission();
+  WriteMissionFile(path, full);
+  ExecSql(path,
+          "ALTER TABLE tracks DROP COLUMN confidence; "
+          "UPDATE meta SET value = 3 WHERE key = 'schema_version'; PRAGMA user_version = 3");
+  {
+    auto store = MissionStore::Open(path.string());
+    ASSERT_TRUE(store.ok()) << store.status().ToString();
+    auto m = (*store)->Load();
+    ASSERT_TRUE(m.ok()) << m.status().ToString();
+    EXPECT_EQ(m->schema_version, 3);
+    ASSERT_EQ(m->tracks.size(), full.tracks.size());
+    for (const ActivityTrack& t : m->tracks) EXPECT_FALSE(t.confidence.has_value());
+  }
+  {
+    auto store = MissionStore::Open(path.string(), OpenMode::kReadWrite);
+    ASSERT_TRUE(store.ok()) << store.status().ToString();
+    auto m = (*store)->Load();
+    ASSERT_TRUE(m.ok()) << m.status().ToString();
+    EXPECT_EQ(m->schema_version, kSchemaVersion);
+    for (const ActivityTrack& t : m->tracks) EXPECT_FALSE(t.confidence.has_value());
+    ASSERT_TRUE((*store)->Save(full).ok());
+  }
+  auto m = LoadFile(path);
   ASSERT_TRUE(m.ok()) << m.status().ToString();
   EXPECT_EQ(m->schema_version, kSchemaVersion);
   EXPECT_SAME_MISSION(*m, full);
@@ -780,6 +816,8 @@ TEST_F(MissionStoreTest, LoadRefusesInconsistentContent) {
        "track_points"},
       {"UPDATE tracks SET ordinal = 5 WHERE ordinal = 2", "tracks"},
       {"UPDATE tracks SET visit = 1.5", "tracks"},
+      {"UPDATE tracks SET confidence = 1.5 WHERE ordinal = 1", "tracks"},
+      {"UPDATE tracks SET confidence = 'high' WHERE ordinal = 0", "tracks"},
       {"UPDATE meta SET value = 7 WHERE key = 'progress_mosaic'", "meta"},
       {"UPDATE meta SET value = 'yes' WHERE key = 'map_geo_referenced'", "meta"},
       {"DELETE FROM meta WHERE key = 'pyramid_step_x'", "meta"},
