@@ -5,6 +5,8 @@
 #include <cmath>
 #include <cstdlib>
 #include <iostream>
+#include <string>
+#include <vector>
 
 namespace saker::app {
 
@@ -76,6 +78,24 @@ CLI::Option* AddMinConfidenceOption(CLI::App* command, double* min_confidence,
                        what + "; with a value above 0, tracks of unknown confidence too")
       ->capture_default_str()
       ->check(zero_to_one);
+}
+
+CLI::Option* AddLowFrameRateOption(CLI::App* command, frontend::LowFrameRateOptions::Mode* mode) {
+  using Mode = frontend::LowFrameRateOptions::Mode;
+  std::vector<std::string> names;
+  for (const Mode m : {Mode::kAuto, Mode::kOn, Mode::kOff}) {
+    names.push_back(frontend::LowFrameRateModeName(m));
+  }
+  return command
+      ->add_option_function<std::string>(
+          "--low-frame-rate",
+          [mode](const std::string& text) { *mode = *frontend::ParseLowFrameRateMode(text); },
+          "Targets from change detection alone, tracked with a motion model and gates that follow "
+          "a plausible top speed (feature tracks a second apart do not label motion): auto (below "
+          "4 frames a second), on or off (docs/front-end.md, Low frame rates)")
+      ->check(CLI::IsMember(names))
+      ->type_name("MODE")
+      ->default_str(frontend::LowFrameRateModeName(*mode));
 }
 
 }  // namespace saker::app

@@ -3,6 +3,7 @@
 // What every saker-cli subcommand shares: exit codes, how a failure is reported, the progress
 // line, and options that several subcommands take.
 
+#include "core/frontend/front_end.h"
 #include "core/util/job_context.h"
 #include "core/util/status.h"
 
@@ -46,5 +47,9 @@ CLI::Option* AddOverlayMaskFlag(CLI::App* command, bool* enabled);
 // with a message naming the value. `what` says what happens to the tracks below it.
 CLI::Option* AddMinConfidenceOption(CLI::App* command, double* min_confidence,
                                     const std::string& what);
+
+// `--low-frame-rate auto|on|off` (frontend::LowFrameRateOptions::mode), shared by the subcommands
+// that run the front end.
+CLI::Option* AddLowFrameRateOption(CLI::App* command, frontend::LowFrameRateOptions::Mode* mode);
 
 }  // namespace saker::app

@@ -71,6 +71,7 @@ ProcessCommand::ProcessCommand(CLI::App& app) : state_(std::make_unique<State>()
   s.command->add_flag("--no-tiles", s.no_tiles, "Do not render the mosaic's tile pyramid");
   AddAcceptBadChecksumsFlag(s.command, &s.options.front_end.metadata.accept_bad_checksums);
   AddOverlayMaskFlag(s.command, &s.options.front_end.overlays.enabled);
+  AddLowFrameRateOption(s.command, &s.options.front_end.low_frame_rate.mode);
   AddAdjustOption(s.command, &s.adjust);
   s.command
       ->add_option("--visit-gap", s.options.activity.visit_gap_s,

@@ -211,6 +211,7 @@ class FrontEnd {
   // does not give counts as 25 frames a second).
   const track::FrameRate rate_;
   const FrontEndOptions options_;  // the run's own copy, callbacks included
+  const bool low_frame_rate_;      // the low-frame-rate mode runs (LowFrameRateOptions)
   JobContext* const job_;
   const FrontEndCheckpoint* const resume_;
   const ResumePoint start_;
@@ -259,6 +260,7 @@ FrontEnd::FrontEnd(std::unique_ptr<video::VideoReader> reader, const FrontEndOpt
       path_(reader_->info().path),
       rate_(reader_->info().fps),
       options_(options),
+      low_frame_rate_(options.LowFrameRateFor(rate_.fps())),
       job_(job),
       resume_(resume),
       start_(ResumePointOf(resume, rate_.Frames(options.resume_warmup_s, kMinWarmupFrames),
@@ -268,7 +270,7 @@ FrontEnd::FrontEnd(std::unique_ptr<video::VideoReader> reader, const FrontEndOpt
       segmenter_(options.segmentation, rate_),
       target_tracker_(options.EffectiveTargets(), rate_),
       chain_(options.key_frames),
-      change_tracks_(options.change_tracks, rate_),
+      change_tracks_(options.EffectiveChangeTracks(rate_.fps()), rate_),
       overlays_(options.overlays, rate_),
       change_through_(start_.change_through_frame) {
   overlay_min_frames_ = rate_.Frames(options.overlays.window_s, 1);
@@ -276,6 +278,7 @@ FrontEnd::FrontEnd(std::unique_ptr<video::VideoReader> reader, const FrontEndOpt
     target_seam_.emplace(*resume, start_.warm_from, options.EffectiveTargets(), rate_);
   }
   result_.video = reader_->info();
+  result_.low_frame_rate = low_frame_rate_;
   // For progress only: the declared count, else duration x rate.
   expected_frames_ = static_cast<double>(result_.video.declared_frame_count);
   if (expected_frames_ <= 0) expected_frames_ = result_.video.duration_s * result_.video.fps;
@@ -291,7 +294,8 @@ StatusOr<FrontEndResult> FrontEnd::Run() {
   const Stopwatch wall;
   since_checkpoint_.Restart();
   if (options_.change.enabled) {
-    change_.emplace(options_.change, rate_, static_cast<size_t>(options_.change_queue_frames),
+    change_.emplace(options_.EffectiveChange(rate_.fps()), rate_,
+                    static_cast<size_t>(options_.change_queue_frames),
                     static_cast<size_t>(kChangeLagFrames));
   }
   while (std::optional<video::Frame> frame = decode.Pop()) {
@@ -529,7 +533,10 @@ void FrontEnd::Segment(const video::Frame& frame,
     frame_result->covariance = estimate->covariance;
     frame_result->inliers = static_cast<int>(estimate->inliers.size());
     segmenter_.AddFrame(ground_matches_, estimate->target_from_source, epipole);
-    target_tracker_.AddFrame(frame.index, segmenter_.moving());
+    // At low frame rates the moving labels only keep movers out of the ground motion: the targets
+    // come from change detection.
+    target_tracker_.AddFrame(
+        frame.index, low_frame_rate_ ? std::vector<track::MovingPoint>{} : segmenter_.moving());
     frame_result->moving = static_cast<int>(segmenter_.moving().size());
   } else if (segment_open_) {
     // No reliable ground motion (blank, featureless, a cut): the chain breaks here; the next
@@ -793,6 +800,73 @@ track::TrackerOptions FrontEndOptions::EffectiveTracker() const {
   return effective;
 }
 
+bool FrontEndOptions::LowFrameRateFor(double fps) const {
+  switch (low_frame_rate.mode) {
+    case LowFrameRateOptions::Mode::kOn:
+      return change.enabled;
+    case LowFrameRateOptions::Mode::kOff:
+      return false;
+    case LowFrameRateOptions::Mode::kAuto:
+      return change.enabled && track::FrameRate(fps).fps() < low_frame_rate.below_fps;
+  }
+  return false;
+}
+
+track::ChangeOptions FrontEndOptions::EffectiveChange(double fps) const {
+  track::ChangeOptions effective = change;
+  if (LowFrameRateFor(fps)) {
+    effective.max_area_px = std::max(effective.max_area_px, low_frame_rate.max_blob_area_px);
+  }
+  return effective;
+}
+
+track::BlobTrackOptions FrontEndOptions::EffectiveChangeTracks(double fps) const {
+  return LowFrameRateFor(fps) ? low_frame_rate.blobs : change_tracks;
+}
+
+track::BlobTrackOptions LowFrameRateOptions::LowFrameRateBlobs() {
+  track::BlobTrackOptions blobs;
+  blobs.gate_px = 8;
+  blobs.gate_growth_px_s = 20;
+  blobs.min_travel_px = 8;
+  blobs.max_fit_rms_px = 3;
+  blobs.max_speed_px_s = 250;  // 50 m/s at 0.2 m a pixel
+  blobs.new_track_speed_px_s = 250;
+  return blobs;
+}
+
+Status LowFrameRateOptions::Validate() const {
+  if (!(below_fps > 0 && below_fps <= track::FrameRate::kMaxFps)) {
+    return InvalidArgumentError(
+        "low frame rates: the rate below which the mode runs must be in "
+        "(0, 120] frames a second");
+  }
+  if (max_blob_area_px < 1) {
+    return InvalidArgumentError("low frame rates: the largest blob must be >= 1 pixel");
+  }
+  return blobs.Validate();
+}
+
+const char* LowFrameRateModeName(LowFrameRateOptions::Mode mode) {
+  switch (mode) {
+    case LowFrameRateOptions::Mode::kAuto:
+      return "auto";
+    case LowFrameRateOptions::Mode::kOn:
+      return "on";
+    case LowFrameRateOptions::Mode::kOff:
+      return "off";
+  }
+  return "auto";
+}
+
+std::optional<LowFrameRateOptions::Mode> ParseLowFrameRateMode(const std::string& text) {
+  for (const auto mode : {LowFrameRateOptions::Mode::kAuto, LowFrameRateOptions::Mode::kOn,
+                          LowFrameRateOptions::Mode::kOff}) {
+    if (text == LowFrameRateModeName(mode)) return mode;
+  }
+  return std::nullopt;
+}
+
 track::TargetTrackOptions FrontEndOptions::EffectiveTargets() const {
   track::TargetTrackOptions effective = targets;
   effective.wait_for_change = change.enabled;
@@ -809,6 +883,7 @@ Status FrontEndOptions::Validate() const {
   SAKER_RETURN_IF_ERROR(change_tracks.Validate());
   SAKER_RETURN_IF_ERROR(change_echoes.Validate());
   SAKER_RETURN_IF_ERROR(overlays.Validate());
+  SAKER_RETURN_IF_ERROR(low_frame_rate.Validate());
   SAKER_RETURN_IF_ERROR(metadata.Validate());
   if (!(min_change_support >= 0 && min_change_support <= 1)) {
     return InvalidArgumentError("front end: the change support fraction must be in [0, 1]");

@@ -29,6 +29,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -47,6 +48,31 @@ struct KeyFramePreview {
 
 struct FrontEndCheckpoint;
 
+// The low-frame-rate mode (issue 24, item 2; docs/front-end.md, "Low frame rates"). Frames a
+// second or more apart are what wide-area motion imagery gives: feature tracks that far apart
+// cannot be trusted to label motion (a corner's neighbourhood changes, Lucas-Kanade slips onto
+// the next car), so the mode takes its targets from change detection alone. Each frame is
+// compared with its registered neighbours before and after (change.baseline_s is one frame at
+// these rates), the blobs of every size up to a lorry are kept, and a blob tracker with a
+// motion model and gates that follow a plausible top speed on the ground links them. The feature
+// tracks still give the ground motion and the key frames.
+struct LowFrameRateOptions {
+  enum class Mode { kAuto, kOn, kOff };
+  Mode mode = Mode::kAuto;
+  double below_fps = 4;  // kAuto: the mode runs for videos of fewer frames a second than this
+  // Change blobs up to this size (processing pixels: the change detector's copy, 960 wide by
+  // default) are targets: at 0.2 m a pixel a car is ~110, a lorry ~400.
+  int max_blob_area_px = 600;
+  track::BlobTrackOptions blobs = LowFrameRateBlobs();
+  Status Validate() const;
+  // The blob tracker's options in the mode: a car moves tens of pixels between frames and its
+  // changed part (the leading edge of a slow one) is a few pixels off its centre.
+  static track::BlobTrackOptions LowFrameRateBlobs();
+};
+const char* LowFrameRateModeName(LowFrameRateOptions::Mode mode);
+// "auto", "on" or "off"; nullopt for anything else.
+std::optional<LowFrameRateOptions::Mode> ParseLowFrameRateMode(const std::string& text);
+
 struct FrontEndOptions {
   track::TrackerOptions tracker;
   track::SegmentationOptions segmentation;
@@ -63,6 +89,7 @@ struct FrontEndOptions {
   // and kept out of the ground motion, the change tracks and the targets (docs/front-end.md,
   // "Overlays"). Off by default for now (its recall cost, docs/accuracy.md "Overlays").
   track::OverlayOptions overlays;
+  LowFrameRateOptions low_frame_rate;
   bool parallax_check = true;    // estimate the epipole (fundamental matrix) for the MTI test
   int min_parallax_points = 20;  // matches on F but off the ground plane needed to use F's epipole
   int queue_frames = 6;          // decoded frames waiting for the tracker, at most
@@ -102,6 +129,12 @@ struct FrontEndOptions {
   video::ReaderOptions EffectiveReader() const;
   track::TrackerOptions EffectiveTracker() const;
   track::TargetTrackOptions EffectiveTargets() const;
+  // Whether the low-frame-rate mode runs for a video of `fps` frames a second (a rate the video
+  // does not give counts as 25); it needs change detection.
+  bool LowFrameRateFor(double fps) const;
+  // The change detection and blob tracks for a video of `fps`: the mode's when it runs.
+  track::ChangeOptions EffectiveChange(double fps) const;
+  track::BlobTrackOptions EffectiveChangeTracks(double fps) const;
   // The most memory the decoder and the frame queues can hold for pictures of `width` x `height`,
   // bytes: the decoder's pictures (4:2:0, up to 16 references, one being decoded and one per
   // decoder thread) and the grey frames queued for the tracker and change detection or held
@@ -149,6 +182,7 @@ struct FrontEndResult {
   // segment; frames that no mask covers had none found. A resumed run has those from the
   // checkpoint's key frame on only.
   std::vector<track::OverlayMask> overlays;
+  bool low_frame_rate = false;  // the low-frame-rate mode ran (LowFrameRateOptions)
   // The same pass's KLV: packets, per-frame metadata (scan.MetadataOf(frame)), warnings.
   ingest::VideoScan scan;
   FrontEndTiming timing;

@@ -357,10 +357,10 @@ bool ChangeFrame::ChangedNear(const Eigen::Vector2d& p, double radius_px) const 
 
 Status BlobTrackOptions::Validate() const {
   if (!(gate_px > 0 && min_travel_px >= 0 && max_fit_rms_px > 0 && max_speed_px_s > 0 &&
-        box_margin_px >= 0 && gate_growth_px_s >= 0)) {
+        box_margin_px >= 0 && gate_growth_px_s >= 0 && new_track_speed_px_s >= 0)) {
     return InvalidArgumentError(
-        "blob tracks: gate, fit RMS and speed must be positive, travel, margin and the gate's "
-        "growth >= 0");
+        "blob tracks: gate, fit RMS and speed must be positive, travel, margin, the gate's "
+        "growth and the new tracks' speed >= 0");
   }
   if (!(max_gap_s >= 0 && max_gap_s <= 3600) || !(min_duration_s >= 0 && min_duration_s <= 3600) ||
       !(min_hit_fraction > 0 && min_hit_fraction <= 1)) {
@@ -375,7 +375,8 @@ BlobTracker::BlobTracker(const BlobTrackOptions& options, FrameRate rate)
       gate_growth_px_(rate.PerFrame(options.gate_growth_px_s)),
       max_gap_frames_(rate.Frames(options.max_gap_s, 2)),
       min_frames_(rate.Frames(options.min_duration_s, 3)),
-      max_speed_px_(rate.PerFrame(options.max_speed_px_s)) {
+      max_speed_px_(rate.PerFrame(options.max_speed_px_s)),
+      new_track_speed_px_(rate.PerFrame(options.new_track_speed_px_s)) {
   SAKER_CHECK(options_.Validate().ok()) << options_.Validate().message();
 }
 
@@ -417,7 +418,9 @@ void BlobTracker::AddFrame(int64_t frame, const std::vector<ChangeBlob>& blobs,
   std::vector<std::tuple<double, size_t, size_t>> pairs;
   for (size_t i = 0; i < active_.size(); ++i) {
     const double gap = static_cast<double>(frame - active_[i].target.last_frame() - 1);
-    const double gate = options_.gate_px + gate_growth_px_ * gap;
+    double gate = options_.gate_px + gate_growth_px_ * gap;
+    if (active_[i].hits < 2)
+      gate = std::max(gate, options_.gate_px + new_track_speed_px_ * (gap + 1));
     for (size_t j = 0; j < blobs.size(); ++j) {
       const double d = (blobs[j].position - predicted[i]).norm();
       if (d <= gate) pairs.emplace_back(d, i, j);

@@ -149,6 +149,10 @@ struct BlobTrackOptions {
   double min_travel_px = 4;        // ground-relative displacement of the straight-line fit
   double max_fit_rms_px = 1.2;     // positions about that line, at most (steady motion)
   double max_speed_px_s = 50;      // faster things are the feature tracks' (cars)
+  // A track seen once has no velocity yet: its next blob may lie up to this far a second from it
+  // (a plausible top speed; 0: the gate of the others). The low-frame-rate mode sets it, where a
+  // car moves tens of pixels between frames.
+  double new_track_speed_px_s = 0;
   double box_margin_px = 2;
   Status Validate() const;
 };
@@ -199,7 +203,8 @@ class BlobTracker {
   double gate_growth_px_ = 0;  // per frame unseen
   int max_gap_frames_ = 0;
   int min_frames_ = 0;
-  double max_speed_px_ = 0;  // per frame
+  double max_speed_px_ = 0;        // per frame
+  double new_track_speed_px_ = 0;  // per frame
   std::vector<Track> active_;
   std::vector<TargetTrack> finished_;
   int64_t next_id_ = 1;

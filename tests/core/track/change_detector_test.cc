@@ -297,6 +297,39 @@ TEST(BlobTrackerTest, ASteadyMoverIsConfirmedAndJitterIsNot) {
   }
 }
 
+// At 1 frame a second a car moves tens of pixels between frames: a track seen once has no velocity
+// to predict it with, so only a gate that follows a plausible top speed (new_track_speed_px_s, as
+// the low-frame-rate mode sets) lets the second sighting continue it.
+TEST(BlobTrackerTest, AtOneFrameASecondACarIsFollowedWithATopSpeedGate) {
+  const FrameRate rate(1);
+  const auto follow = [&](double new_track_speed_px_s) {
+    BlobTrackOptions options;
+    options.gate_px = 8;
+    options.max_fit_rms_px = 3;
+    options.max_speed_px_s = 250;
+    options.new_track_speed_px_s = new_track_speed_px_s;
+    BlobTracker tracker(options, rate);
+    std::mt19937 random(3);
+    std::normal_distribution<double> jitter(0, 1);
+    for (int n = 0; n < 8; ++n) {
+      const Eigen::Vector2d shift = kCameraStep * n;
+      // A car at 60 px a second on the ground, and a blob of noise somewhere else each frame.
+      tracker.AddFrame(n,
+                       {BlobAt(Eigen::Vector2d(40, 200) + Eigen::Vector2d(60, -10) * n - shift +
+                               Eigen::Vector2d(jitter(random), jitter(random))),
+                        BlobAt(Eigen::Vector2d(250 + 37 * (n % 3), 40 + 50 * (n % 2)))},
+                       CameraMotion());
+    }
+    tracker.FinishAll();
+    return tracker.TakeFinished();
+  };
+  const std::vector<TargetTrack> tracks = follow(250);
+  ASSERT_EQ(tracks.size(), 1u);
+  EXPECT_EQ(tracks[0].observations.size(), 8u);
+  EXPECT_NEAR(tracks[0].observations.back().velocity.x(), 60, 3);
+  EXPECT_TRUE(follow(0).empty());  // each sighting starts a track of its own
+}
+
 TEST(SupportedByChangeTest, CountsOnlyWhereTheDetectorLooked) {
   TargetTrack track;
   for (int i = 0; i < 10; ++i) {
