@@ -230,7 +230,7 @@ CorpusFigures FiguresOf(const eval::VideoEvaluation& e, const sim::Truth& truth)
     f.mosaic_before_sq = static_cast<double>(m.key_frames) * before * before;
     f.mosaic_after_sq = static_cast<double>(m.key_frames) * after * after;
   }
-  f.cuts = ScoreCuts(truth.CutFrames(), e.front_end.breaks);
+  f.cuts = ScoreCuts(truth.CutFrames(), e.front_end.breaks, e.front_end.targets);
   return f;
 }
 
@@ -269,7 +269,8 @@ json FiguresToJson(const CorpusFigures& f) {
           {"cuts",
            {{"expected", f.cuts.expected},
             {"found", f.cuts.found},
-            {"other_breaks", f.cuts.other_breaks}}},
+            {"other_breaks", f.cuts.other_breaks},
+            {"tracks_across", f.cuts.tracks_across}}},
           {"time", {{"simulate_s", f.simulate_s}, {"process_s", f.process_s}}}};
 }
 
@@ -306,6 +307,7 @@ const std::vector<std::string>& Titles() {
                                                   "H px",
                                                   "mosaic before > after",
                                                   "cuts",
+                                                  "x-cut",
                                                   "other",
                                                   "sim s",
                                                   "proc s"};
@@ -336,6 +338,7 @@ std::vector<std::string> Cells(const CorpusFigures& f, bool cached) {
           FormatOr("%.3f", f.HomographyMedian()),
           mosaic,
           Counts(f.cuts.found, f.cuts.expected),
+          std::to_string(f.cuts.tracks_across),
           std::to_string(f.cuts.other_breaks),
           cached ? "cached" : Format("%.1f", f.simulate_s),
           Format("%.1f", f.process_s)};
@@ -627,7 +630,8 @@ int64_t CountOverlayTracks(const frontend::FrontEndResult& result, const sim::Tr
 }
 
 CutScore ScoreCuts(const std::vector<int64_t>& cut_frames,
-                   const std::vector<track::ChainBreak>& breaks, int64_t tolerance) {
+                   const std::vector<track::ChainBreak>& breaks,
+                   const std::vector<track::TargetTrack>& targets, int64_t tolerance) {
   const auto near = [&](int64_t a, int64_t b) { return std::abs(a - b) <= tolerance; };
   CutScore score;
   score.expected = static_cast<int64_t>(cut_frames.size());
@@ -639,6 +643,12 @@ CutScore ScoreCuts(const std::vector<int64_t>& cut_frames,
   for (const track::ChainBreak& b : breaks) {
     score.other_breaks += std::none_of(cut_frames.begin(), cut_frames.end(),
                                        [&](int64_t cut) { return near(b.frame_index, cut); });
+  }
+  for (const track::TargetTrack& t : targets) {
+    if (t.observations.empty()) continue;
+    score.tracks_across += std::any_of(cut_frames.begin(), cut_frames.end(), [&](int64_t cut) {
+      return t.observations.front().frame < cut && cut <= t.observations.back().frame;
+    });
   }
   return score;
 }
@@ -672,6 +682,7 @@ void CorpusFigures::Add(const CorpusFigures& o) {
   cuts.expected += o.cuts.expected;
   cuts.found += o.cuts.found;
   cuts.other_breaks += o.cuts.other_breaks;
+  cuts.tracks_across += o.cuts.tracks_across;
   simulate_s += o.simulate_s;
   process_s += o.process_s;
 }
@@ -792,8 +803,9 @@ std::string CorpusReportText(const std::vector<CaseResult>& results) {
          "tracks' relative speed error, median/90th percentile;\n"
          "H px: median corner error of the frame homographies; mosaic: key frame corner RMS "
          "before > after adjustment (m: geo-referenced, as mapped;\n"
-         "px: gauge removed); cuts: cuts found/expected; other: chain breaks at no cut; sim s / "
-         "proc s: simulation (cached: from the cache) / processing time.\n";
+         "px: gauge removed); cuts: cuts found/expected; x-cut: tracks seen on both sides of a "
+         "cut; other: chain breaks at no cut;\n"
+         "sim s / proc s: simulation (cached: from the cache) / processing time.\n";
 }
 
 json CorpusReportJson(const Corpus& corpus, SeedSet seeds, const std::vector<CaseResult>& results) {

@@ -107,12 +107,16 @@ StatusOr<CachedVideo> SimulateCached(const sim::SimulationOptions& options,
 int64_t CountOverlayTracks(const frontend::FrontEndResult& result, const sim::Truth& truth);
 
 // Chain breaks against the truth's cuts: a cut at frame c is found when the front end broke the
-// chain at a frame within `tolerance` of c; other breaks are those near no cut.
+// chain at a frame within `tolerance` of c; other breaks are those near no cut. A target track
+// seen before a cut and after it (first frame < c <= last frame) crosses it: it joins two
+// scenes, and no track may.
 struct CutScore {
   int64_t expected = 0, found = 0, other_breaks = 0;
+  int64_t tracks_across = 0;
 };
 CutScore ScoreCuts(const std::vector<int64_t>& cut_frames,
-                   const std::vector<track::ChainBreak>& breaks, int64_t tolerance = 2);
+                   const std::vector<track::ChainBreak>& breaks,
+                   const std::vector<track::TargetTrack>& targets, int64_t tolerance = 2);
 
 // What a row of the report shows, as sums and samples, so that several cases add up: ratios
 // come from summed counts and quantiles from the pooled samples, never from averaging cases.

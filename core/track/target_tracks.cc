@@ -430,17 +430,20 @@ void GroundMotion::Add(int64_t frame, bool linked, const Eigen::Matrix3d& curren
 
 std::optional<Eigen::Vector2d> GroundMotion::Map(const Eigen::Vector2d& point, int64_t from,
                                                  int64_t to) const {
-  const int64_t n = static_cast<int64_t>(segment_.size());
-  const int64_t i = from - first_frame_, j = to - first_frame_;
-  if (i < 0 || j < 0 || i >= n || j >= n || segment_[static_cast<size_t>(i)] < 0 ||
-      segment_[static_cast<size_t>(i)] != segment_[static_cast<size_t>(j)]) {
-    return std::nullopt;
-  }
-  const Eigen::Vector3d p = frame_from_segment_[static_cast<size_t>(j)] *
-                            frame_from_segment_[static_cast<size_t>(i)].inverse() *
-                            point.homogeneous();
+  if (!SameSegment(from, to)) return std::nullopt;
+  const auto i = static_cast<size_t>(from - first_frame_),
+             j = static_cast<size_t>(to - first_frame_);
+  const Eigen::Vector3d p =
+      frame_from_segment_[j] * frame_from_segment_[i].inverse() * point.homogeneous();
   if (!(std::abs(p.z()) > 1e-12)) return std::nullopt;
   return Eigen::Vector2d(p.hnormalized());
+}
+
+bool GroundMotion::SameSegment(int64_t a, int64_t b) const {
+  const int64_t n = static_cast<int64_t>(segment_.size());
+  const int64_t i = a - first_frame_, j = b - first_frame_;
+  return i >= 0 && j >= 0 && i < n && j < n && segment_[static_cast<size_t>(i)] >= 0 &&
+         segment_[static_cast<size_t>(i)] == segment_[static_cast<size_t>(j)];
 }
 
 std::vector<TargetTrack> LinkFragments(std::vector<TargetTrack> tracks,
@@ -518,6 +521,7 @@ std::vector<TargetTrack> LinkFragments(std::vector<TargetTrack> tracks,
       const TargetObservation& start = tracks[b].observations.front();
       const int64_t gap = start.frame - end.frame;
       if (gap > max_gap) break;
+      if (ground != nullptr && !ground->SameSegment(end.frame, start.frame)) continue;
       double distance = std::numeric_limits<double>::infinity(), gate = 0;
       const std::optional<Eigen::Vector2d> stopped =
           on_ground ? ground->Map(end.position, end.frame, start.frame) : std::nullopt;

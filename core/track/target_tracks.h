@@ -194,6 +194,8 @@ class GroundMotion {
   // Where the ground point at `point` in frame `from` lies in frame `to`; none when a chain break
   // lies between them or either frame was not added.
   std::optional<Eigen::Vector2d> Map(const Eigen::Vector2d& point, int64_t from, int64_t to) const;
+  // Whether frames `a` and `b` were added and lie in one chain segment (no break between them).
+  bool SameSegment(int64_t a, int64_t b) const;
 
  private:
   int64_t first_frame_ = 0;
@@ -210,10 +212,11 @@ class GroundMotion {
 // stopped, so the later track must start near the path between where it was last seen and where
 // it would be at its last speed, both carried into the later frame by the ground's motion; within
 // association_gate_px plus ground_link_growth_px_s for each second of gap, for gaps up to
-// ground_link_gap_s (across a chain break, the image test applies). Cars keep the image test:
-// along a road the path of a lost car reaches the car ahead of it. Two tracks that run side by
-// side (within group_distance_px) for at least duplicate_overlap_s are one. Ids of the earlier
-// pieces are kept; the result is ordered by id. `rate` is the video's.
+// ground_link_gap_s. Cars keep the image test: along a road the path of a lost car reaches the car
+// ahead of it. With `ground`, no track continues another across a chain break: a cut joins two
+// scenes, and after a blank or a failed estimate the image positions no longer compare. Two tracks
+// that run side by side (within group_distance_px) for at least duplicate_overlap_s are one. Ids of
+// the earlier pieces are kept; the result is ordered by id. `rate` is the video's.
 std::vector<TargetTrack> LinkFragments(std::vector<TargetTrack> tracks,
                                        const TargetTrackOptions& options, FrameRate rate,
                                        const GroundMotion* ground = nullptr);

@@ -205,15 +205,28 @@ TEST(AccuracyCorpusTest, ABadManifestIsRefusedNamingTheFileAndTheKey) {
 
 TEST(AccuracyCorpusTest, ACutIsFoundByAChainBreakWithinTwoFrames) {
   const std::vector<track::ChainBreak> breaks = {{102, ""}, {200, ""}, {303, ""}};
-  const CutScore score = ScoreCuts({100, 300}, breaks);
+  const CutScore score = ScoreCuts({100, 300}, breaks, {});
   EXPECT_EQ(score.expected, 2);
   EXPECT_EQ(score.found, 1);         // 102 finds 100; 303 is 3 frames from 300
   EXPECT_EQ(score.other_breaks, 2);  // 200 and 303
-  const CutScore none = ScoreCuts({}, breaks);
+  const CutScore none = ScoreCuts({}, breaks, {});
   EXPECT_EQ(none.expected, 0);
   EXPECT_EQ(none.found, 0);
   EXPECT_EQ(none.other_breaks, 3);
-  EXPECT_EQ(ScoreCuts({50}, {}).found, 0);
+  EXPECT_EQ(ScoreCuts({50}, {}, {}).found, 0);
+}
+
+TEST(AccuracyCorpusTest, ATrackSeenOnBothSidesOfACutCrossesIt) {
+  const auto track = [](int64_t first, int64_t last) {
+    track::TargetTrack t;
+    for (int64_t f = first; f <= last; ++f) t.observations.push_back({f});
+    return t;
+  };
+  // Ends just before the cut, starts at it, spans it, spans the other.
+  const std::vector<track::TargetTrack> tracks = {track(10, 99), track(100, 150), track(90, 110),
+                                                  track(250, 320)};
+  EXPECT_EQ(ScoreCuts({100, 300}, {}, tracks).tracks_across, 2);
+  EXPECT_EQ(ScoreCuts({}, {}, tracks).tracks_across, 0);
 }
 
 TEST(AccuracyCorpusTest, ATrackOnOverlayPixelsInHalfItsFramesCounts) {
