@@ -117,6 +117,13 @@ std::string ProcessSummary::ToText() const {
   out << line;
   out << (geo_referenced ? "geo-referenced (metadata)" : "not geo-referenced; map: " + map_frame)
       << "\n";
+  if (low_frame_rate) {
+    std::snprintf(line, sizeof(line),
+                  "targets: from change detection alone (low-frame-rate mode, video at %.3g frames "
+                  "a second)\n",
+                  frame_rate);
+    out << line;
+  }
   if (tracks_implausible > 0 || tracks_low_confidence > 0) {
     out << "not reported: " << tracks_implausible << " tracks with an impossible ground speed, "
         << tracks_low_confidence << " below the minimum confidence\n";
@@ -199,6 +206,8 @@ StatusOr<ProcessSummary> ProcessVideo(const std::string& video, const std::strin
   hooks.on_done = [&](Stage stage, MissionRun* done) -> Status {
     if (stage == Stage::kFrontEnd) {
       checkpoint.reset();  // the result holds what it had
+      summary.low_frame_rate = done->front.low_frame_rate;
+      summary.frame_rate = done->mission.source.frame_rate;
       if (!done->front.frames.empty() && done->mission.source.frame_rate > 0) {
         summary.video_duration_s =
             done->front.frames.back().time_s + 1.0 / done->mission.source.frame_rate;

@@ -49,6 +49,10 @@ struct ProcessSummary {
   int64_t tracks_low_confidence = 0;  // not reported: below activity.confidence.min_confidence
   int64_t tiles = 0;
   bool geo_referenced = false;
+  // The front end ran in its low-frame-rate mode (targets from change detection alone), for video
+  // of `frame_rate` frames a second.
+  bool low_frame_rate = false;
+  double frame_rate = 0;
   std::string map_frame;  // DescribeMapFrame (open_mission.h): what the map is, and why
   double front_end_s = 0, mosaic_s = 0, activity_s = 0, tiles_s = 0, save_s = 0, total_s = 0;
   double video_duration_s = 0;

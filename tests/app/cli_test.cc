@@ -450,3 +450,36 @@ TEST(CliMissionTest, MemoryPressureEndsWithAMessageNeverAnAbort) {
 }
 
 }  // namespace
+
+namespace saker {
+namespace {
+
+// Video below 4 frames a second is processed in the low-frame-rate mode, and the summary says so
+// (text and JSON); `--low-frame-rate off` turns it off, and a mode that is not one is refused.
+TEST(CliProcessTest, LowFrameRateModeIsChosenBelowFourFramesASecond) {
+  const std::filesystem::path dir = saker::testing::MakeTempDir("saker-cli-low-rate");
+  const std::string video = (dir / "two-fps.ts").string();
+  const CliRun sim =
+      RunCli("simulate --scenario straight -o '" + video +
+             "' --width 320 --height 180 --altitude 100 --fps 2 --duration 6 --quiet");
+  ASSERT_EQ(sim.exit_code, 0) << sim.out;
+  const std::string mission = (dir / "two-fps.saker").string();
+  CliRun run = RunCli("process -q --no-tiles '" + video + "' -o '" + mission + "'");
+  ASSERT_EQ(run.exit_code, 0) << run.out;
+  EXPECT_NE(run.out.find("low-frame-rate mode, video at 2 frames a second"), std::string::npos)
+      << run.out;
+  run = RunCli("process -q --json --no-tiles --replace --low-frame-rate off '" + video + "' -o '" +
+               mission + "'");
+  ASSERT_EQ(run.exit_code, 0) << run.out;
+  EXPECT_FALSE(nlohmann::json::parse(run.out).at("low_frame_rate").get<bool>());
+  run = RunCli("process -q --json --no-tiles --replace --low-frame-rate on '" + video + "' -o '" +
+               mission + "'");
+  ASSERT_EQ(run.exit_code, 0) << run.out;
+  EXPECT_TRUE(nlohmann::json::parse(run.out).at("low_frame_rate").get<bool>());
+  run = RunCli("process --low-frame-rate sometimes '" + video + "' -o '" + mission + "'");
+  EXPECT_EQ(run.exit_code, 2);
+  EXPECT_NE(run.out.find("sometimes not in {auto,on,off}"), std::string::npos) << run.out;
+}
+
+}  // namespace
+}  // namespace saker
