@@ -245,66 +245,97 @@ int main(int argc, char** argv) {
   app.add_flag("--compare-overlays", compare_overlays,
                "Also run the front end without overlay detection (FrontEndOptions::overlays) on "
                "the same video, first, for the cost of the overlay mask in the same run");
+  bool compare_low_frame_rate = false;
+  app.add_flag("--compare-low-frame-rate", compare_low_frame_rate,
+               "Also simulate the flight at 2 frames a second and run the front end on it with "
+               "the low-frame-rate mode off and on (FrontEndOptions::low_frame_rate), for its "
+               "cost per frame against feature targets on the same frames");
   CLI11_PARSE(app, argc, argv);
   if (memory_minutes > 0) return MeasureMemory(memory_minutes, memory_height, memory_repeat);
 
   const fs::path dir = fs::temp_directory_path() / "saker-bench-frontend";
   fs::create_directories(dir);
   nlohmann::json out = nlohmann::json::array();
+  // Runs the front end on `video` with `options` and prints a row; false when it failed.
+  const auto run = [&](const saker::sim::SimulationOptions& sim, double decode_fps,
+                       const saker::frontend::FrontEndOptions& options, const std::string& label) {
+    const double rss_before = PeakMb();
+    auto result = saker::frontend::RunFrontEnd(sim.output.string(), options);
+    if (!result.ok()) {
+      std::cerr << result.status().message() << "\n";
+      return false;
+    }
+    const auto& t = result->timing;
+    const double front_fps = static_cast<double>(t.frames) / t.wall_s;
+    const int w = sim.camera.width, h = sim.camera.height;
+    if (json) {
+      out.push_back({{"width", w},
+                     {"height", h},
+                     {"video_fps", sim.fps},
+                     {"overlays", options.overlays.enabled},
+                     {"low_frame_rate", result->low_frame_rate},
+                     {"frames", t.frames},
+                     {"decode_only_fps", decode_fps},
+                     {"front_end_fps", front_fps},
+                     {"cost_vs_decode", decode_fps / front_fps},
+                     {"decode_ms", t.decode_ms},
+                     {"track_ms", t.track_ms},
+                     {"homography_ms", t.homography_ms},
+                     {"segment_ms", t.segment_ms},
+                     {"change_ms", t.change_ms},
+                     {"change_tracks_ms", t.change_tracks_ms},
+                     {"change_wait_ms", t.change_wait_ms},
+                     {"key_frames_ms", t.key_frames_ms},
+                     {"peak_rss_mb", PeakMb()},
+                     {"peak_rss_before_mb", rss_before}});
+    } else {
+      std::printf(
+          "%dx%d at %g fps, %s, %lld frames: front end %.1f fps, decode alone %.1f fps, front end "
+          "time = %.2fx decode time; per frame: decode %.1f ms (own thread), track %.1f, "
+          "homography %.1f, segment %.1f, change %.1f (own thread), blob tracks %.2f, waiting for "
+          "change %.2f, key frames %.2f ms; peak RSS %.0f MB\n",
+          w, h, sim.fps, label.c_str(), static_cast<long long>(t.frames), front_fps, decode_fps,
+          decode_fps / front_fps, t.decode_ms, t.track_ms, t.homography_ms, t.segment_ms,
+          t.change_ms, t.change_tracks_ms, t.change_wait_ms, t.key_frames_ms, PeakMb());
+    }
+    return true;
+  };
+  // Simulates `sim` afresh; false when it failed.
+  const auto simulate = [](const saker::sim::SimulationOptions& sim) {
+    std::error_code ignored;
+    fs::remove(sim.output, ignored);
+    fs::remove(sim.TruthPath(), ignored);
+    return saker::sim::Simulate(sim).ok();
+  };
   for (const auto& [w, h] : {std::pair{1280, 720}, std::pair{1920, 1080}}) {
     saker::sim::SimulationOptions sim;
     sim.output = dir / ("bench_" + std::to_string(w) + ".ts");
     sim.camera.width = w;
     sim.camera.height = h;
     sim.duration_s = seconds;
-    std::error_code ignored;
-    fs::remove(sim.output, ignored);
-    fs::remove(sim.TruthPath(), ignored);
-    if (!saker::sim::Simulate(sim).ok()) return 1;
-
+    if (!simulate(sim)) return 1;
     const double decode_fps = DecodeOnlyFps(sim.output.string());
-    const double rss_before = PeakMb();
     for (const bool overlays :
          compare_overlays ? std::vector{false, true}
                           : std::vector{saker::frontend::FrontEndOptions{}.overlays.enabled}) {
       saker::frontend::FrontEndOptions options;
       options.overlays.enabled = overlays;
-      auto result = saker::frontend::RunFrontEnd(sim.output.string(), options);
-      if (!result.ok()) {
-        std::cerr << result.status().message() << "\n";
+      if (!run(sim, decode_fps, options, overlays ? "overlays on" : "overlays off")) return 1;
+    }
+    if (!compare_low_frame_rate) continue;
+    // The same flight at 2 frames a second, long enough for a few hundred frames.
+    sim.output = dir / ("bench_" + std::to_string(w) + "_2fps.ts");
+    sim.fps = 2;
+    sim.duration_s = std::max(seconds, 120.0);
+    if (!simulate(sim)) return 1;
+    const double low_decode_fps = DecodeOnlyFps(sim.output.string());
+    using Mode = saker::frontend::LowFrameRateOptions::Mode;
+    for (const Mode mode : {Mode::kOff, Mode::kOn}) {
+      saker::frontend::FrontEndOptions options;
+      options.low_frame_rate.mode = mode;
+      if (!run(sim, low_decode_fps, options,
+               std::string("low-frame-rate mode ") + saker::frontend::LowFrameRateModeName(mode))) {
         return 1;
-      }
-      const auto& t = result->timing;
-      const double front_fps = static_cast<double>(t.frames) / t.wall_s;
-      if (json) {
-        out.push_back({{"width", w},
-                       {"height", h},
-                       {"overlays", overlays},
-                       {"frames", t.frames},
-                       {"decode_only_fps", decode_fps},
-                       {"front_end_fps", front_fps},
-                       {"cost_vs_decode", decode_fps / front_fps},
-                       {"decode_ms", t.decode_ms},
-                       {"track_ms", t.track_ms},
-                       {"homography_ms", t.homography_ms},
-                       {"segment_ms", t.segment_ms},
-                       {"change_ms", t.change_ms},
-                       {"change_tracks_ms", t.change_tracks_ms},
-                       {"change_wait_ms", t.change_wait_ms},
-                       {"key_frames_ms", t.key_frames_ms},
-                       {"peak_rss_mb", PeakMb()},
-                       {"peak_rss_before_mb", rss_before}});
-      } else {
-        std::printf(
-            "%dx%d, overlays %s, %lld frames: front end %.1f fps, decode alone %.1f fps, front end "
-            "time = %.2fx "
-            "decode "
-            "time; per frame: decode %.1f ms (own thread), track %.1f, homography %.1f, segment "
-            "%.1f, change %.1f (own thread), blob tracks %.2f, waiting for change %.2f, key frames "
-            "%.2f ms; peak RSS %.0f MB\n",
-            w, h, overlays ? "on" : "off", static_cast<long long>(t.frames), front_fps, decode_fps,
-            decode_fps / front_fps, t.decode_ms, t.track_ms, t.homography_ms, t.segment_ms,
-            t.change_ms, t.change_tracks_ms, t.change_wait_ms, t.key_frames_ms, PeakMb());
       }
     }
   }

@@ -141,7 +141,8 @@ std::vector<track::TargetTrack> CombineTargets(std::vector<track::TargetTrack> b
                                                std::vector<track::TargetTrack> by_change,
                                                const std::vector<FrameResult>& frames,
                                                const FrontEndOptions& options,
-                                               track::FrameRate rate) {
+                                               track::FrameRate rate,
+                                               const track::SceneContinuity& scenes) {
   std::vector<track::TargetTrack> all;
   for (track::TargetTrack& t : by_features) {
     if (track::SupportedByChange(t, options.min_change_support)) all.push_back(std::move(t));
@@ -154,7 +155,7 @@ std::vector<track::TargetTrack> CombineTargets(std::vector<track::TargetTrack> b
     all[i].id = static_cast<track::TargetTrackId>(static_cast<int64_t>(i) + 1);
   track::GroundMotion ground;
   for (const FrameResult& f : frames) ground.Add(f.index, f.homography_ok, f.current_from_previous);
-  all = track::LinkFragments(std::move(all), options.EffectiveTargets(), rate, &ground);
+  all = track::LinkFragments(std::move(all), options.EffectiveTargets(), rate, &ground, &scenes);
   all = track::DropChangeEchoes(std::move(all), options.change_echoes, rate);
   for (size_t i = 0; i < all.size(); ++i)
     all[i].id = static_cast<track::TargetTrackId>(static_cast<int64_t>(i) + 1);
@@ -232,6 +233,9 @@ class FrontEnd {
   track::KeyFrameChain chain_;
   track::BlobTracker change_tracks_;
   track::OverlayDetector overlays_;
+  // Which chain breaks are scene cuts, for joining the pieces of tracks (frames this run tracked;
+  // a resumed run does not know the frames before its warm-up, and joins across those breaks).
+  track::SceneContinuity scenes_;
   // The mask handed out last, still growing (its frames), and the detector's version it is.
   std::optional<track::OverlayMask> open_overlay_;
   int64_t open_overlay_version_ = -1;
@@ -525,6 +529,7 @@ void FrontEnd::Segment(const video::Frame& frame,
                        const std::optional<Eigen::Vector3d>& epipole, FrameResult* frame_result) {
   const Stopwatch watch;
   const double change_side_before = change_side_ms_;
+  scenes_.Add(frame.index, /*new_segment=*/!estimate.has_value(), frame.grey);
   if (estimate) {
     preview_from_current_ = preview_from_current_ * estimate->target_from_source.inverse();
     preview_from_current_ /= preview_from_current_(2, 2);
@@ -758,7 +763,7 @@ void FrontEnd::FinishTargets() {
     KeepTarget(std::move(t), start_.change_through_frame, &targets_by_change_);
   }
   result_.targets = CombineTargets(std::move(result_.targets), std::move(targets_by_change_),
-                                   result_.frames, options_, rate_);
+                                   result_.frames, options_, rate_, scenes_);
 }
 
 // The options and the checkpoint of a run on `path`.

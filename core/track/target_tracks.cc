@@ -448,7 +448,7 @@ bool GroundMotion::SameSegment(int64_t a, int64_t b) const {
 
 std::vector<TargetTrack> LinkFragments(std::vector<TargetTrack> tracks,
                                        const TargetTrackOptions& options, FrameRate rate,
-                                       const GroundMotion* ground) {
+                                       const GroundMotion* ground, const SceneContinuity* scenes) {
   const TargetTrackTiming timing(options, rate);
   // Merges are made one at a time, always the first in a fixed order: duplicates before
   // continuations, each by track index, the tracks ordered by their first frame. Merging keeps
@@ -521,7 +521,7 @@ std::vector<TargetTrack> LinkFragments(std::vector<TargetTrack> tracks,
       const TargetObservation& start = tracks[b].observations.front();
       const int64_t gap = start.frame - end.frame;
       if (gap > max_gap) break;
-      if (ground != nullptr && !ground->SameSegment(end.frame, start.frame)) continue;
+      if (scenes != nullptr && !scenes->SameScene(end.frame, start.frame)) continue;
       double distance = std::numeric_limits<double>::infinity(), gate = 0;
       const std::optional<Eigen::Vector2d> stopped =
           on_ground ? ground->Map(end.position, end.frame, start.frame) : std::nullopt;

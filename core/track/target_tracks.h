@@ -12,6 +12,7 @@
 // feature), which suppresses short-lived false alarms.
 
 #include "core/track/motion_segmentation.h"
+#include "core/track/scene_cut.h"
 #include "core/track/types.h"
 #include "core/util/byte_io.h"
 #include "core/util/status.h"
@@ -212,13 +213,14 @@ class GroundMotion {
 // stopped, so the later track must start near the path between where it was last seen and where
 // it would be at its last speed, both carried into the later frame by the ground's motion; within
 // association_gate_px plus ground_link_growth_px_s for each second of gap, for gaps up to
-// ground_link_gap_s. Cars keep the image test: along a road the path of a lost car reaches the car
-// ahead of it. With `ground`, no track continues another across a chain break: a cut joins two
-// scenes, and after a blank or a failed estimate the image positions no longer compare. Two tracks
+// ground_link_gap_s (across a chain break, the image test applies). Cars keep the image test:
+// along a road the path of a lost car reaches the car ahead of it. With `scenes`, no track
+// continues another across a scene cut (SceneContinuity): the pieces are in two scenes. Two tracks
 // that run side by side (within group_distance_px) for at least duplicate_overlap_s are one. Ids of
 // the earlier pieces are kept; the result is ordered by id. `rate` is the video's.
 std::vector<TargetTrack> LinkFragments(std::vector<TargetTrack> tracks,
                                        const TargetTrackOptions& options, FrameRate rate,
-                                       const GroundMotion* ground = nullptr);
+                                       const GroundMotion* ground = nullptr,
+                                       const SceneContinuity* scenes = nullptr);
 
 }  // namespace saker::track

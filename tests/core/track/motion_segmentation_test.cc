@@ -369,24 +369,6 @@ TEST(LinkFragmentsTest, OnTheGroundAStoppedWalkerIsJoinedAcrossALongGap) {
   EXPECT_EQ(LinkFragments(tracks, options, kRate, &broken).size(), 3u);
 }
 
-// A car lost for 10 frames comes back where it was heading: one car, with or without the ground's
-// motion, but not when a chain break (a cut to another scene, a blank) lies in the gap, where the
-// same image position is another place.
-TEST(LinkFragmentsTest, NoTrackContinuesAnotherAcrossAChainBreak) {
-  const TargetTrackOptions options;
-  std::vector<TargetTrack> tracks;
-  tracks.push_back(Track(1, 0, 40, {100, 300}, {3, 0}, {2, 0}));
-  tracks.push_back(Track(2, 51, 90, {253, 300}, {3, 0}, {2, 0}));
-  const GroundMotion ground = Panning(100);
-  EXPECT_EQ(LinkFragments(tracks, options, kRate, &ground).size(), 1u);
-  EXPECT_EQ(LinkFragments(tracks, options, kRate).size(), 1u);
-  const GroundMotion cut = Panning(100, /*chain_break=*/45);
-  EXPECT_EQ(LinkFragments(tracks, options, kRate, &cut).size(), 2u);
-  EXPECT_TRUE(ground.SameSegment(10, 60));
-  EXPECT_FALSE(cut.SameSegment(10, 60));
-  EXPECT_FALSE(cut.SameSegment(10, 200));  // never added
-}
-
 // An hour of video gives thousands of fragments: each of 1000 cars, ten on screen at a time,
 // broken into three pieces with its rear corners tracked alongside, comes out whole. (Rescanning
 // every pair after every merge had not finished this after 300 s; see docs/front-end.md.)
