@@ -199,6 +199,9 @@ TEST_F(MosaicTest, FigureEightClosesAtTheCrossingAndAtTheEnd) {
   // stand for all key frames, and the result is close to the full adjustment's. Measured: 4 nodes
   // and 3 arcs for 28 key frames (the paper's figure 10), 1.00 px RMS full and 1.40 px decomposed
   // against the truth, 2.5 px RMS apart (the 11 cross-links left out account for most of it).
+  // Since the front end's windows are in seconds (this video is 12.5 fps; session 18): 27 key
+  // frames, 4 nodes, 3 arcs, 1.23 px full and 1.39 px decomposed against the truth, 4.04 px apart
+  // before the gauge is removed (8 cross-links left out), so the bound is 5 px.
   DecompositionOptions few;
   few.cross_link_spacing = 3;
   StatusOr<eval::DecompositionExperiment> decomposition =
@@ -208,7 +211,7 @@ TEST_F(MosaicTest, FigureEightClosesAtTheCrossingAndAtTheEnd) {
   EXPECT_LE(decomposition->nodes, n / 3);
   EXPECT_LT(decomposition->full.rms_px, 0.5 * run->accuracy.before.rms_px);
   EXPECT_LT(decomposition->decomposed.rms_px, 1.5 * decomposition->full.rms_px + 0.5);
-  EXPECT_LT(decomposition->difference_rms_px, 4.0);
+  EXPECT_LT(decomposition->difference_rms_px, 5.0);
 }
 
 TEST_F(MosaicTest, RasterLinksNeighbouringRows) {
