@@ -793,8 +793,9 @@ int64_t FrontEndOptions::FramePipelineBytes(int width, int height) const {
                               ? decoder_threads
                               : std::min<int64_t>(16, std::thread::hardware_concurrency() + 1);
   const int64_t decoder_pictures = kDecoderReferencePictures + 1 + threads;
-  // Queued for the tracker, for change detection, waiting for its answers; current and previous.
-  const int64_t grey_frames = queue_frames + change_queue_frames + kChangeLagFrames + 2;
+  // Queued for the tracker, for change detection, waiting for its answers; current and previous;
+  // the latest one SceneContinuity keeps for its segment's last look.
+  const int64_t grey_frames = queue_frames + change_queue_frames + kChangeLagFrames + 3;
   return pixels * 3 / 2 * decoder_pictures + pixels * grey_frames;
 }
 
