@@ -211,8 +211,9 @@ class FrontEnd {
   // The video's frame rate, at which the options' durations and speeds apply (a rate the video
   // does not give counts as 25 frames a second).
   const track::FrameRate rate_;
-  const FrontEndOptions options_;  // the run's own copy, callbacks included
-  const bool low_frame_rate_;      // the low-frame-rate mode runs (LowFrameRateOptions)
+  const FrontEndOptions options_;     // the run's own copy, callbacks included
+  const bool low_frame_rate_;         // the low-frame-rate mode runs (LowFrameRateOptions)
+  const int change_baseline_frames_;  // the change detector's (short) baseline at this rate
   JobContext* const job_;
   const FrontEndCheckpoint* const resume_;
   const ResumePoint start_;
@@ -265,6 +266,7 @@ FrontEnd::FrontEnd(std::unique_ptr<video::VideoReader> reader, const FrontEndOpt
       rate_(reader_->info().fps),
       options_(options),
       low_frame_rate_(options.LowFrameRateFor(rate_.fps())),
+      change_baseline_frames_(track::ChangeDetector::BaselineFrames(options.change, rate_).front()),
       job_(job),
       resume_(resume),
       start_(ResumePointOf(resume, rate_.Frames(options.resume_warmup_s, kMinWarmupFrames),
@@ -583,7 +585,7 @@ void FrontEnd::ApplyChangeAnswer(const ChangeThread::Answer& answer) {
   const track::ChangeFrame& c = answer.change;
   if (c.answered()) {
     // The overlay learns from every change, then none on it goes on to the change tracks.
-    overlays_.AddChange(c, track::ChangeDetector::BaselineFrames(options_.change, rate_).front());
+    overlays_.AddChange(c, change_baseline_frames_);
     NoteOverlayMask(c.frame);
     std::vector<track::ChangeBlob> blobs;
     blobs.reserve(c.blobs.size());
