@@ -29,4 +29,15 @@ inline constexpr bool kUnderAddressSanitizer = false;
     }                                                                              \
   } while (false)
 
+// Skips the current test under AddressSanitizer (a whole flight's accuracy run, minutes there),
+// saying which test runs its code paths under it instead.
+#define SAKER_SKIP_UNDER_ASAN(covered_by)                                         \
+  do {                                                                            \
+    if constexpr (::saker::testing::kUnderAddressSanitizer) {                     \
+      GTEST_SKIP() << "an accuracy run over a whole flight; its code runs under " \
+                      "AddressSanitizer in "                                      \
+                   << (covered_by);                                               \
+    }                                                                             \
+  } while (false)
+
 #endif  // SAKER_TESTS_TESTING_SANITIZERS_H_

@@ -9,6 +9,7 @@
 #include "core/sim/simulator.h"
 #include "core/sim/truth.h"
 #include "core/track/image_geometry.h"
+#include "tests/testing/sanitizers.h"
 #include "tests/testing/test_data.h"
 
 #include <gtest/gtest.h>
@@ -82,6 +83,8 @@ class MosaicTest : public ::testing::Test {
 std::filesystem::path* MosaicTest::dir_ = nullptr;
 
 TEST_F(MosaicTest, RoundaboutLoopClosesAndTheAdjustmentRemovesTheDrift) {
+  SAKER_SKIP_UNDER_ASAN(
+      "MosaicTest.MetadataGeoReferencesTheMap and MetadataReattachesASegmentAfterABreak");
   sim::SimulationOptions options = SmallOptions(*dir_ / "loop.ts", sim::Scenario::kRoundaboutLoop);
   options.world.loop_length_m = 500;
   MosaicOptions mosaic;
@@ -159,6 +162,8 @@ TEST_F(MosaicTest, MetadataReattachesASegmentAfterABreak) {
 }
 
 TEST_F(MosaicTest, FigureEightClosesAtTheCrossingAndAtTheEnd) {
+  SAKER_SKIP_UNDER_ASAN(
+      "MosaicTest.MetadataGeoReferencesTheMap and MetadataReattachesASegmentAfterABreak");
   sim::SimulationOptions options = SmallOptions(*dir_ / "eight.ts", sim::Scenario::kFigureEight);
   options.flight.figure_eight_key_frames = 24;
   MosaicOptions mosaic;
@@ -215,6 +220,8 @@ TEST_F(MosaicTest, FigureEightClosesAtTheCrossingAndAtTheEnd) {
 }
 
 TEST_F(MosaicTest, RasterLinksNeighbouringRows) {
+  SAKER_SKIP_UNDER_ASAN(
+      "MosaicTest.MetadataGeoReferencesTheMap and MetadataReattachesASegmentAfterABreak");
   sim::SimulationOptions options = SmallOptions(*dir_ / "raster.ts", sim::Scenario::kRaster);
   options.flight.raster_rows = 3;
   options.flight.raster_row_length_m = 300;
