@@ -49,12 +49,18 @@ CLI::Option* AddAcceptBadChecksumsFlag(CLI::App* command, bool* accept) {
       "hours or kilometres)");
 }
 
-CLI::Option* AddOverlayMaskFlag(CLI::App* command, bool* enabled) {
-  return command->add_flag(
-      "--overlay-mask", *enabled,
-      "Find screen-fixed overlays (burned-in HUD text, reticles, logos) and keep them out of the "
-      "ground motion, change detection and targets: for video with overlays, where they "
-      "otherwise become false tracks; it also costs some recall (docs/front-end.md, Overlays)");
+CLI::Option* AddOverlayMaskOption(CLI::App* command, bool* enabled) {
+  return command
+      ->add_option_function<std::string>(
+          "--overlay-mask", [enabled](const std::string& text) { *enabled = text != "off"; },
+          std::string("Find screen-fixed overlays (burned-in HUD text, reticles, logos) and keep "
+                      "them out of the ground motion, change detection and targets, where they "
+                      "would become false tracks: on or off (a bare --overlay-mask is on; "
+                      "default: ") +
+              (*enabled ? "on" : "off") + "; docs/front-end.md, Overlays)")
+      ->check(CLI::IsMember({"on", "off"}))
+      ->expected(0, 1)
+      ->type_name("on|off");
 }
 
 CLI::Option* AddMinConfidenceOption(CLI::App* command, double* min_confidence,

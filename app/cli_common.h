@@ -39,9 +39,9 @@ CLI::Option* AddAdjustOption(CLI::App* command, std::string* mode);
 // subcommands that tie KLV metadata to frames.
 CLI::Option* AddAcceptBadChecksumsFlag(CLI::App* command, bool* accept);
 
-// `--overlay-mask` (track::OverlayOptions::enabled), shared by the subcommands that run the front
-// end.
-CLI::Option* AddOverlayMaskFlag(CLI::App* command, bool* enabled);
+// `--overlay-mask on|off` (track::OverlayOptions::enabled; a bare `--overlay-mask` is on), shared
+// by the subcommands that run the front end. `*enabled` holds the default.
+CLI::Option* AddOverlayMaskOption(CLI::App* command, bool* enabled);
 
 // `--min-confidence X`: a number from 0 to 1 (activity/confidence.h); anything else is refused
 // with a message naming the value. `what` says what happens to the tracks below it.

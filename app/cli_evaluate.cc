@@ -20,7 +20,7 @@ struct EvaluateCommand::State {
   bool details = false;
   bool no_metadata = false;
   bool no_change = false;
-  bool overlay_mask = false;
+  bool overlay_mask = frontend::FrontEndOptions{}.overlays.enabled;
   frontend::LowFrameRateOptions::Mode low_frame_rate = frontend::LowFrameRateOptions::Mode::kAuto;
   std::string adjust = "decomposed";
   mosaic::DecompositionOptions decomposition;
@@ -73,7 +73,7 @@ EvaluateCommand::EvaluateCommand(CLI::App& app) : state_(std::make_unique<State>
       ->check(CLI::NonNegativeNumber);
   s.command->add_flag("--no-change-detection", s.no_change,
                       "Run the front end without change detection (feature tracks only)");
-  AddOverlayMaskFlag(s.command, &s.overlay_mask);
+  AddOverlayMaskOption(s.command, &s.overlay_mask);
   AddLowFrameRateOption(s.command, &s.low_frame_rate);
 }
 

@@ -70,7 +70,7 @@ ProcessCommand::ProcessCommand(CLI::App& app) : state_(std::make_unique<State>()
                       "Ignore the metadata corners (map frame = the first key frame's pixels)");
   s.command->add_flag("--no-tiles", s.no_tiles, "Do not render the mosaic's tile pyramid");
   AddAcceptBadChecksumsFlag(s.command, &s.options.front_end.metadata.accept_bad_checksums);
-  AddOverlayMaskFlag(s.command, &s.options.front_end.overlays.enabled);
+  AddOverlayMaskOption(s.command, &s.options.front_end.overlays.enabled);
   AddLowFrameRateOption(s.command, &s.options.front_end.low_frame_rate.mode);
   AddAdjustOption(s.command, &s.adjust);
   s.command
@@ -127,6 +127,8 @@ int ProcessCommand::RunOn(const std::string& video, const std::string& mission,
                                 {"tiles", p.tiles},
                                 {"geo_referenced", p.geo_referenced},
                                 {"low_frame_rate", p.low_frame_rate},
+                                {"overlay_frames", p.overlay_frames},
+                                {"overlay_coverage", p.overlay_coverage},
                                 {"front_end_s", p.front_end_s},
                                 {"mosaic_s", p.mosaic_s},
                                 {"activity_s", p.activity_s},

@@ -30,6 +30,7 @@ int main(int argc, char** argv) {
   std::string cache = (fs::path(SAKER_SOURCE_DIR) / "build/accuracy-cache").string();
   int jobs = 1;
   bool json = false;
+  std::string overlay_mask = "default";
   app.add_option("MANIFEST", manifest, "Corpus manifest (docs/accuracy.md)")->capture_default_str();
   app.add_option("--seeds", seeds_name,
                  "Seeds to run: tuning (defaults may be tuned on these), reporting (the figures "
@@ -43,6 +44,11 @@ int main(int argc, char** argv) {
   app.add_option("--cache", cache, "Folder of simulated videos, kept between runs")
       ->capture_default_str();
   app.add_flag("--json", json, "Print the figures as JSON");
+  app.add_option("--overlay-mask", overlay_mask,
+                 "The front end's screen-fixed overlay mask: the engine's default, on or off "
+                 "(docs/front-end.md, Overlays)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"default", "on", "off"}));
   CLI11_PARSE(app, argc, argv);
 
   bench::SetDefaultTestDataDir(SAKER_DEFAULT_TEST_DATA_DIR);
@@ -71,6 +77,7 @@ int main(int argc, char** argv) {
   bench::CorpusRunOptions options;
   options.cache_dir = cache;
   options.jobs = jobs;
+  if (overlay_mask != "default") options.front_end.overlays.enabled = overlay_mask == "on";
   options.progress = [](const std::string& line) { std::cerr << line << std::endl; };
   const Stopwatch start;
   const std::vector<bench::CaseResult> results = bench::RunCorpus(cases, options);

@@ -216,6 +216,9 @@ CorpusFigures FiguresOf(const eval::VideoEvaluation& e, const sim::Truth& truth)
     if (s.found) f.latencies_s.push_back(s.latency_s);
   }
   f.overlay_tracks = CountOverlayTracks(e.front_end, truth);
+  f.frames = static_cast<int64_t>(truth.frames.size());
+  f.mask_off_overlay_frames =
+      e.detection.overlay_mask.off_overlay_fraction * static_cast<double>(f.frames);
   f.speed_relative_errors = e.activity.speed_relative_errors;
   f.homography_errors_px = e.detection.homography.errors_px;
   f.homography_failed = e.detection.homography.failed;
@@ -253,6 +256,7 @@ json FiguresToJson(const CorpusFigures& f) {
           {"truth_mover_frames", f.truth_mover_frames},
           {"median_latency_s", Optional(f.MedianLatency())},
           {"overlay_tracks", f.overlay_tracks},
+          {"mask_off_overlay", Optional(f.MaskOffOverlay())},
           {"speed",
            {{"compared", f.speed_relative_errors.size()},
             {"median_relative_error", Optional(f.SpeedError(0.5))},
@@ -295,22 +299,10 @@ std::string Pad(const std::string& text, size_t width, bool left = false) {
 
 // Column titles, in the order Cells() gives the cells.
 const std::vector<std::string>& Titles() {
-  static const std::vector<std::string> titles = {"track P",
-                                                  "ok/all",
-                                                  "track R",
-                                                  "found/all",
-                                                  "frame P",
-                                                  "frame R",
-                                                  "lat s",
-                                                  "ovl",
-                                                  "speed %",
-                                                  "H px",
-                                                  "mosaic before > after",
-                                                  "cuts",
-                                                  "x-cut",
-                                                  "other",
-                                                  "sim s",
-                                                  "proc s"};
+  static const std::vector<std::string> titles = {
+      "track P", "ok/all", "track R",    "found/all", "frame P", "frame R",
+      "lat s",   "ovl",    "mask off %", "speed %",   "H px",    "mosaic before > after",
+      "cuts",    "x-cut",  "other",      "sim s",     "proc s"};
   return titles;
 }
 
@@ -334,6 +326,8 @@ std::vector<std::string> Cells(const CorpusFigures& f, bool cached) {
           FormatOr("%.3f", f.FrameRecall()),
           FormatOr("%.2f", f.MedianLatency()),
           std::to_string(f.overlay_tracks),
+          FormatOr("%.2f",
+                   f.MaskOffOverlay() ? std::optional(100 * *f.MaskOffOverlay()) : std::nullopt),
           speed,
           FormatOr("%.3f", f.HomographyMedian()),
           mosaic,
@@ -390,7 +384,8 @@ std::string Elapsed(double seconds) {
 }
 
 // RunCase's work: the video from the cache (or simulated into it), then the evaluation.
-Status MeasureCase(const fs::path& cache_dir, CaseResult* result) {
+Status MeasureCase(const fs::path& cache_dir, const frontend::FrontEndOptions& front_end,
+                   CaseResult* result) {
   SAKER_ASSIGN_OR_RETURN(const CachedVideo cached,
                          SimulateCached(result->corpus_case.simulation, cache_dir));
   result->cache_key = cached.key;
@@ -398,6 +393,7 @@ Status MeasureCase(const fs::path& cache_dir, CaseResult* result) {
   const Stopwatch start;
   SAKER_ASSIGN_OR_RETURN(const sim::Truth truth, sim::ReadTruth(cached.truth));
   eval::VideoEvaluationOptions options;
+  options.front_end = front_end;
   options.evaluation = result->corpus_case.evaluation;
   options.experiments = false;
   SAKER_ASSIGN_OR_RETURN(const eval::VideoEvaluation evaluation,
@@ -666,6 +662,8 @@ void CorpusFigures::Add(const CorpusFigures& o) {
   paired_detections += o.paired_detections;
   latencies_s.insert(latencies_s.end(), o.latencies_s.begin(), o.latencies_s.end());
   overlay_tracks += o.overlay_tracks;
+  frames += o.frames;
+  mask_off_overlay_frames += o.mask_off_overlay_frames;
   speed_relative_errors.insert(speed_relative_errors.end(), o.speed_relative_errors.begin(),
                                o.speed_relative_errors.end());
   homography_errors_px.insert(homography_errors_px.end(), o.homography_errors_px.begin(),
@@ -718,13 +716,19 @@ std::optional<double> CorpusFigures::MosaicAfterRms() const {
   return PooledRms(mosaic_after_sq, mosaic_key_frames, mosaic_unit);
 }
 
-CaseResult RunCase(const CorpusCase& corpus_case, const fs::path& cache_dir) {
+std::optional<double> CorpusFigures::MaskOffOverlay() const {
+  if (frames <= 0) return std::nullopt;
+  return mask_off_overlay_frames / static_cast<double>(frames);
+}
+
+CaseResult RunCase(const CorpusCase& corpus_case, const fs::path& cache_dir,
+                   const frontend::FrontEndOptions& front_end) {
   CaseResult result;
   result.corpus_case = corpus_case;
   result.figures.cases = 1;
   Status status;
   try {
-    status = MeasureCase(cache_dir, &result);
+    status = MeasureCase(cache_dir, front_end, &result);
   } catch (const std::exception& e) {  // a broken invariant (SAKER_CHECK): this case only
     status = Status(StatusCode::kInvalidData, std::string("internal error: ") + e.what());
   }
@@ -752,7 +756,7 @@ std::vector<CaseResult> RunCorpus(const std::vector<CorpusCase>& cases,
   const auto work = [&] {
     for (size_t i = next++; i < cases.size(); i = next++) {
       report(i, "started");
-      results[i] = RunCase(cases[i], options.cache_dir);
+      results[i] = RunCase(cases[i], options.cache_dir, options.front_end);
       const CaseResult& r = results[i];
       if (!r.error.empty()) {
         report(i, "FAILED: " + r.error);
@@ -799,7 +803,8 @@ std::string CorpusReportText(const std::vector<CaseResult>& results) {
   return FormatTable(rows) +
          "track P: target-track precision (ok/all: correct/detected tracks); track R: recall "
          "(found/all: truth sightings); frame P/R: per frame;\n"
-         "lat s: median detection latency; ovl: tracks on overlay pixels; speed %: matched "
+         "lat s: median detection latency; ovl: tracks on overlay pixels; mask off %: image "
+         "wrongly masked as overlay (mean over frames);\nspeed %: matched "
          "tracks' relative speed error, median/90th percentile;\n"
          "H px: median corner error of the frame homographies; mosaic: key frame corner RMS "
          "before > after adjustment (m: geo-referenced, as mapped;\n"

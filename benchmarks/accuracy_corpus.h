@@ -129,6 +129,10 @@ struct CorpusFigures {
   int64_t detections = 0, paired_detections = 0;
   std::vector<double> latencies_s;  // per found sighting
   int64_t overlay_tracks = 0;
+  // The overlay masks (eval::OverlayMaskAccuracy) summed over frames: masked cells that lie on no
+  // overlay, as frames x fraction of the image.
+  int64_t frames = 0;
+  double mask_off_overlay_frames = 0;
   std::vector<double> speed_relative_errors;  // per matched track compared on speed
   std::vector<double> homography_errors_px;   // per frame with an estimate
   int64_t homography_failed = 0;
@@ -153,6 +157,8 @@ struct CorpusFigures {
   std::optional<double> HomographyMedian() const;
   std::optional<double> MosaicBeforeRms() const;
   std::optional<double> MosaicAfterRms() const;
+  // The mean fraction of the image wrongly masked as overlay; nullopt without frames.
+  std::optional<double> MaskOffOverlay() const;
 };
 
 struct CaseResult {
@@ -163,13 +169,15 @@ struct CaseResult {
   CorpusFigures figures;
 };
 
-// Simulates (or takes from the cache) and measures one case. Failures are recorded in the
-// result, so one broken case does not stop a corpus.
-CaseResult RunCase(const CorpusCase& corpus_case, const std::filesystem::path& cache_dir);
+// Simulates (or takes from the cache) and measures one case with the front end's `front_end`
+// options. Failures are recorded in the result, so one broken case does not stop a corpus.
+CaseResult RunCase(const CorpusCase& corpus_case, const std::filesystem::path& cache_dir,
+                   const frontend::FrontEndOptions& front_end = {});
 
 struct CorpusRunOptions {
   std::filesystem::path cache_dir;
-  int jobs = 1;  // cases at once (each is multi-threaded already)
+  frontend::FrontEndOptions front_end;  // the engine's defaults unless a run overrides them
+  int jobs = 1;                         // cases at once (each is multi-threaded already)
   // Called with a line of progress (case k of n, its name, elapsed time), from any thread but
   // one call at a time.
   std::function<void(const std::string&)> progress;

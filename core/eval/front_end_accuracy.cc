@@ -160,6 +160,60 @@ Pairing PairDetections(const frontend::FrontEndResult& result, const sim::Truth&
   return pairing;
 }
 
+// The overlay mask that applies to `frame` (nullptr: none); the masks are in frame order.
+const track::OverlayMask* MaskAt(const std::vector<track::OverlayMask>& masks, int64_t frame) {
+  const auto it =
+      std::upper_bound(masks.begin(), masks.end(), frame,
+                       [](int64_t f, const track::OverlayMask& m) { return f < m.first_frame; });
+  if (it == masks.begin()) return nullptr;
+  const track::OverlayMask& mask = *std::prev(it);
+  return frame <= mask.last_frame ? &mask : nullptr;
+}
+
+OverlayMaskAccuracy EvaluateOverlayMask(const frontend::FrontEndResult& result,
+                                        const sim::Truth& truth) {
+  OverlayMaskAccuracy a;
+  if (truth.frames.empty()) return a;
+  double masked = 0, off_overlay = 0, covered = 0;
+  for (const track::OverlayMask& mask : result.overlays) {
+    if (mask.cells.empty()) continue;
+    const int64_t frames = std::max<int64_t>(0, mask.last_frame - mask.first_frame + 1);
+    int64_t on = 0, off = 0, truth_on = 0;
+    for (int y = 0; y < mask.cells.rows; ++y) {
+      for (int x = 0; x < mask.cells.cols; ++x) {
+        const Eigen::Vector2d centre((x + 0.5) * mask.cell_px - 0.5,
+                                     (y + 0.5) * mask.cell_px - 0.5);
+        const bool overlay = truth.OnOverlay(centre);
+        const bool set = mask.cells.at<uint8_t>(y, x) != 0;
+        on += set;
+        off += set && !overlay;
+        truth_on += overlay && set;
+      }
+    }
+    const double cells = static_cast<double>(mask.cells.total());
+    a.frames += frames;
+    masked += static_cast<double>(frames) * static_cast<double>(on) / cells;
+    off_overlay += static_cast<double>(frames) * static_cast<double>(off) / cells;
+    covered += static_cast<double>(frames) * static_cast<double>(truth_on);
+  }
+  const double frames = static_cast<double>(truth.frames.size());
+  a.masked_fraction = masked / frames;
+  a.off_overlay_fraction = off_overlay / frames;
+  if (!truth.overlays.empty()) {
+    // Frames without a mask cover none of the overlays.
+    int64_t truth_cells_per_frame = 0;
+    const int cell = result.overlays.empty() ? 8 : result.overlays.front().cell_px;
+    for (int y = 0; y * cell < truth.height; ++y) {
+      for (int x = 0; x * cell < truth.width; ++x) {
+        truth_cells_per_frame += truth.OnOverlay({(x + 0.5) * cell - 0.5, (y + 0.5) * cell - 0.5});
+      }
+    }
+    const double all = static_cast<double>(truth_cells_per_frame) * frames;
+    a.overlay_covered = all > 0 ? covered / all : 1.0;
+  }
+  return a;
+}
+
 // Track-level figures, per sighting of a considered truth target long enough to count: whether
 // a track found it, and how late (appended to `latencies`).
 void ScoreSightings(const frontend::FrontEndResult& result, const sim::Truth& truth,
@@ -171,16 +225,21 @@ void ScoreSightings(const frontend::FrontEndResult& result, const sim::Truth& tr
     for (const auto& [begin, end] : Sightings(*considered[t], options.max_sighting_gap_frames)) {
       int mover_frames = 0;
       int64_t first_mover = -1;
+      int on_mask = 0;
       for (int64_t f = begin; f < end; ++f) {
         if (IsMover(*considered[t], static_cast<size_t>(f), options)) {
           ++mover_frames;
           if (first_mover < 0) first_mover = f;
+          const track::OverlayMask* mask = MaskAt(result.overlays, f);
+          on_mask += mask != nullptr &&
+                     mask->Contains(considered[t]->samples[static_cast<size_t>(f)].image_px);
         }
       }
       if (mover_frames < options.min_mover_frames) continue;
       ++a->truth_targets;
       SightingOutcome outcome{considered[t]->id, considered[t]->target_class, begin, end,
                               mover_frames};
+      outcome.on_mask_frames = on_mask;
       for (size_t k = 0; k < result.targets.size(); ++k) {
         const auto it = pairing.track_truth_pairs.find({k, t});
         if (it == pairing.track_truth_pairs.end()) continue;
@@ -207,7 +266,7 @@ void ScoreSightings(const frontend::FrontEndResult& result, const sim::Truth& tr
 
 // Per target track: correct when paired in at least half of its observations, and the truth
 // target it was paired with most.
-void ScoreTracks(const frontend::FrontEndResult& result,
+void ScoreTracks(const frontend::FrontEndResult& result, const sim::Truth& truth,
                  const std::vector<const sim::TargetTruth*>& considered, const Pairing& pairing,
                  DetectionAccuracy* a) {
   for (size_t k = 0; k < result.targets.size(); ++k) {
@@ -219,6 +278,10 @@ void ScoreTracks(const frontend::FrontEndResult& result,
     outcome.last_frame = track.observations.back().frame;
     outcome.observations = static_cast<int64_t>(track.observations.size());
     outcome.from_features = track.max_features > 0;
+    outcome.first_position = track.observations.front().position;
+    for (const track::TargetObservation& o : track.observations) {
+      outcome.on_overlay += truth.OnOverlay(o.position);
+    }
     outcome.correct =
         2 * pairing.track_paired_frames[k] >= static_cast<int>(track.observations.size());
     for (const auto& [key, frames_paired] : pairing.track_truth_pairs) {
@@ -239,7 +302,7 @@ DetectionAccuracy EvaluateTargets(const frontend::FrontEndResult& result, const 
   const Pairing pairing = PairDetections(result, truth, considered, options, &a);
   std::vector<double> latencies;
   ScoreSightings(result, truth, considered, pairing, options, &a, &latencies);
-  ScoreTracks(result, considered, pairing, &a);
+  ScoreTracks(result, truth, considered, pairing, &a);
   a.track_recall = a.truth_targets > 0
                        ? static_cast<double>(a.found_targets) / static_cast<double>(a.truth_targets)
                        : 1.0;
@@ -284,7 +347,8 @@ nlohmann::json DetectionOutcomesToJson(const DetectionAccuracy& a) {
                               {"found", s.found},
                               {"best_track", s.best_track},
                               {"best_track_frames", s.best_track_frames},
-                              {"tracks_paired", s.tracks_paired}});
+                              {"tracks_paired", s.tracks_paired},
+                              {"on_mask_frames", s.on_mask_frames}});
   }
   j["tracks"] = nlohmann::json::array();
   for (const TrackOutcome& t : a.tracks) {
@@ -295,7 +359,8 @@ nlohmann::json DetectionOutcomesToJson(const DetectionAccuracy& a) {
                            {"from_features", t.from_features},
                            {"correct", t.correct},
                            {"best_target", t.best_target},
-                           {"best_target_frames", t.best_target_frames}});
+                           {"best_target_frames", t.best_target_frames},
+                           {"on_overlay", t.on_overlay}});
   }
   return j;
 }
@@ -317,6 +382,7 @@ StatusOr<FrontEndEvaluation> EvaluateFrontEnd(const frontend::FrontEndResult& re
   }
   FrontEndEvaluation e;
   e.homography = EvaluateHomographies(result, truth);
+  e.overlay_mask = EvaluateOverlayMask(result, truth);
   e.targets = EvaluateTargets(result, truth, options, Classes::kAll);
   e.vehicles = EvaluateTargets(result, truth, options, Classes::kVehicles);
   e.people = EvaluateTargets(result, truth, options, Classes::kPeople);
@@ -336,6 +402,11 @@ nlohmann::json FrontEndEvaluationToJson(const FrontEndEvaluation& e) {
           {"targets", DetectionOutcomesToJson(e.targets)},
           {"vehicles", DetectionToJson(e.vehicles)},
           {"people", DetectionToJson(e.people)},
+          {"overlay_mask",
+           {{"frames", e.overlay_mask.frames},
+            {"masked_fraction", e.overlay_mask.masked_fraction},
+            {"off_overlay_fraction", e.overlay_mask.off_overlay_fraction},
+            {"overlay_covered", e.overlay_mask.overlay_covered}}},
           {"key_frames", e.key_frames},
           {"chain_breaks", e.chain_breaks}};
 }
@@ -362,23 +433,34 @@ std::string FrontEndEvaluationToText(const FrontEndEvaluation& e, bool details) 
       << e.people.truth_targets << " found (recall " << e.people.track_recall
       << "), per frame recall " << e.people.frame_recall << "\n";
   out << "Key frames: " << e.key_frames << ", chain breaks: " << e.chain_breaks << "\n";
+  if (e.overlay_mask.frames > 0) {
+    out << "Overlay mask: in " << e.overlay_mask.frames << " frames; on average "
+        << 100 * e.overlay_mask.masked_fraction << " % of the image masked, "
+        << 100 * e.overlay_mask.off_overlay_fraction << " % off the overlays; "
+        << 100 * e.overlay_mask.overlay_covered << " % of the overlays covered\n";
+  }
   if (details) {
     for (const SightingOutcome& s : e.targets.sightings) {
       if (s.found) continue;
       out << "  missed: target " << s.target_id << " (" << s.target_class << "), frames " << s.begin
           << "-" << s.end - 1 << ", moving in " << s.mover_frames << "; ";
       if (s.best_track == 0) {
-        out << "no track near it\n";
+        out << "no track near it";
       } else {
         out << "best track " << s.best_track << " in " << s.best_track_frames << " frames, "
-            << s.tracks_paired << " track(s) paired with it\n";
+            << s.tracks_paired << " track(s) paired with it";
       }
+      if (s.on_mask_frames > 0) out << "; on the overlay mask in " << s.on_mask_frames;
+      out << "\n";
     }
     for (const TrackOutcome& t : e.targets.tracks) {
       if (t.correct) continue;
       out << "  false: track " << t.track_id << " ("
           << (t.from_features ? "features" : "change detection") << "), frames " << t.first_frame
-          << "-" << t.last_frame << ", " << t.observations << " observations; ";
+          << "-" << t.last_frame << ", " << t.observations << " observations from ("
+          << std::lround(t.first_position.x()) << ", " << std::lround(t.first_position.y()) << ")"
+          << (t.on_overlay > 0 ? ", " + std::to_string(t.on_overlay) + " on the overlays" : "")
+          << "; ";
       if (t.best_target == 0) {
         out << "paired with no target\n";
       } else {

@@ -24,6 +24,7 @@
 #include "core/frontend/front_end.h"
 #include "core/sim/truth.h"
 
+#include <Eigen/Core>
 #include <nlohmann/json.hpp>
 
 #include <string>
@@ -55,7 +56,8 @@ struct SightingOutcome {
   double latency_s = 0;    // found: first mover frame to the first frame the finding track pairs
   int64_t best_track = 0;  // id of the track paired with it most (0: none)
   int best_track_frames = 0;
-  int tracks_paired = 0;  // distinct tracks paired with it in the sighting
+  int tracks_paired = 0;   // distinct tracks paired with it in the sighting
+  int on_mask_frames = 0;  // mover frames in which it stood on the front end's overlay mask
 };
 
 // How one detected track fared: the truth target it was paired with most.
@@ -67,6 +69,8 @@ struct TrackOutcome {
   bool correct = false;
   int best_target = 0;  // truth target id paired with it most (0: none)
   int best_target_frames = 0;
+  int64_t on_overlay = 0;  // observations on the truth's burned-in overlays
+  Eigen::Vector2d first_position{0, 0};
 };
 
 struct DetectionAccuracy {
@@ -87,8 +91,20 @@ struct DetectionAccuracy {
   std::vector<TrackOutcome> tracks;
 };
 
+// The front end's overlay masks (FrontEndResult::overlays) against the truth's overlay boxes,
+// counted in mask cells (a cell is on an overlay when its centre is) and averaged over every frame
+// of the video (a frame without a mask masks nothing).
+struct OverlayMaskAccuracy {
+  int64_t frames = 0;               // frames a mask applies to
+  double masked_fraction = 0;       // of the image, masked
+  double off_overlay_fraction = 0;  // of the image, masked but on no overlay (wrongly masked)
+  // Of the truth overlays' cells, the fraction masked (1 without overlays in the truth).
+  double overlay_covered = 1;
+};
+
 struct FrontEndEvaluation {
   HomographyAccuracy homography;
+  OverlayMaskAccuracy overlay_mask;
   DetectionAccuracy targets;  // every class
   // Recall by class (precision needs every class: a correct track on a person is not a false
   // alarm of the vehicle detector).

@@ -473,6 +473,9 @@ Status FrontEnd::ProcessFrame(const video::Frame& frame) {
     // Every match, those on the mask too: an overlay's corners keep it.
     overlays_.AddFeatures(tracker_.matches(), estimate->target_from_source, frame.grey.size());
   }
+  // Without change detection the features are the only evidence, and the mask is handed out at
+  // once (with it, at the change answers' fixed lag).
+  if (!change_) NoteOverlayMask(frame.index);
   SubmitForChange(frame, estimate);
   Segment(frame, estimate, epipole, &fr);
   ApplyChangeThrough(frame.index - kChangeLagFrames);
@@ -738,7 +741,6 @@ StatusOr<FrontEndResult> FrontEnd::Finish(ingest::VideoScan scan, double decode_
   }
   if (!start_.complete) {
     FinishTargets();
-    if (!result_.frames.empty()) CloseOverlayMask(result_.frames.back().index);
     if (options_.on_checkpoint && !result_.frames.empty()) {
       SAKER_RETURN_IF_ERROR(HandOutCheckpoint(result_.frames.back().index, /*complete=*/true));
     }
@@ -752,7 +754,9 @@ StatusOr<FrontEndResult> FrontEnd::Finish(ingest::VideoScan scan, double decode_
   return std::move(result_);
 }
 
-// The end of the video: every change answer applied, every target ended, both sources combined.
+// The end of the video: every change answer applied, every target ended, the last overlay mask
+// closed and the targets on the masks dropped (also those ended before their mask existed), both
+// sources combined.
 void FrontEnd::FinishTargets() {
   ApplyChangeThrough(std::numeric_limits<int64_t>::max());
   target_tracker_.FinishAll();
@@ -763,6 +767,18 @@ void FrontEnd::FinishTargets() {
   change_tracks_.FinishAll();
   for (track::TargetTrack& t : change_tracks_.TakeFinished()) {
     KeepTarget(std::move(t), start_.change_through_frame, &targets_by_change_);
+  }
+  if (!result_.frames.empty()) CloseOverlayMask(result_.frames.back().index);
+  if (!result_.overlays.empty()) {
+    std::vector<int64_t> breaks;
+    for (const track::ChainBreak& b : result_.breaks) breaks.push_back(b.frame_index);
+    std::sort(breaks.begin(), breaks.end());
+    const auto on_overlay = [&](const track::TargetTrack& t) {
+      return track::OnOverlayMasks(t, result_.overlays, breaks,
+                                   options_.overlays.max_target_fraction);
+    };
+    std::erase_if(result_.targets, on_overlay);
+    std::erase_if(targets_by_change_, on_overlay);
   }
   result_.targets = CombineTargets(std::move(result_.targets), std::move(targets_by_change_),
                                    result_.frames, options_, rate_, scenes_);

@@ -124,6 +124,14 @@ std::string ProcessSummary::ToText() const {
                   frame_rate);
     out << line;
   }
+  if (overlay_frames > 0) {
+    std::snprintf(line, sizeof(line),
+                  "overlays: screen-fixed overlays masked out in %lld of %lld frames (%.1f %% of "
+                  "the image)\n",
+                  static_cast<long long>(overlay_frames), static_cast<long long>(frames),
+                  100 * overlay_coverage);
+    out << line;
+  }
   if (tracks_implausible > 0 || tracks_low_confidence > 0) {
     out << "not reported: " << tracks_implausible << " tracks with an impossible ground speed, "
         << tracks_low_confidence << " below the minimum confidence\n";
@@ -207,6 +215,15 @@ StatusOr<ProcessSummary> ProcessVideo(const std::string& video, const std::strin
     if (stage == Stage::kFrontEnd) {
       checkpoint.reset();  // the result holds what it had
       summary.low_frame_rate = done->front.low_frame_rate;
+      double masked = 0;
+      for (const track::OverlayMask& m : done->front.overlays) {
+        const int64_t n = m.last_frame - m.first_frame + 1;
+        summary.overlay_frames += n;
+        masked += static_cast<double>(n) * m.Coverage();
+      }
+      if (summary.overlay_frames > 0) {
+        summary.overlay_coverage = masked / static_cast<double>(summary.overlay_frames);
+      }
       summary.frame_rate = done->mission.source.frame_rate;
       if (!done->front.frames.empty() && done->mission.source.frame_rate > 0) {
         summary.video_duration_s =

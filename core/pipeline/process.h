@@ -53,6 +53,10 @@ struct ProcessSummary {
   // of `frame_rate` frames a second.
   bool low_frame_rate = false;
   double frame_rate = 0;
+  // Screen-fixed overlays (burned-in text, logos) masked out: in this many frames, covering this
+  // mean fraction of the image in them (0 and 0: none found, or the mask was off).
+  int64_t overlay_frames = 0;
+  double overlay_coverage = 0;
   std::string map_frame;  // DescribeMapFrame (open_mission.h): what the map is, and why
   double front_end_s = 0, mosaic_s = 0, activity_s = 0, tiles_s = 0, save_s = 0, total_s = 0;
   double video_duration_s = 0;

@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <limits>
 
 namespace saker::track {
 namespace {
@@ -76,6 +77,30 @@ bool OverlayMask::Contains(const Eigen::Vector2d& p) const {
 double OverlayMask::Coverage() const {
   if (cells.empty()) return 0;
   return static_cast<double>(cv::countNonZero(cells)) / static_cast<double>(cells.total());
+}
+
+bool OnOverlayMasks(const TargetTrack& target, const std::vector<OverlayMask>& masks,
+                    const std::vector<int64_t>& breaks, double max_fraction) {
+  if (masks.empty() || target.observations.empty()) return false;
+  int64_t on = 0;
+  for (const TargetObservation& o : target.observations) {
+    // The first mask that ends at the observation's frame or later.
+    const auto it =
+        std::lower_bound(masks.begin(), masks.end(), o.frame,
+                         [](const OverlayMask& m, int64_t frame) { return m.last_frame < frame; });
+    if (it == masks.end()) continue;
+    // That mask and the segment's later ones (they have more evidence).
+    const auto next_break = std::upper_bound(breaks.begin(), breaks.end(), o.frame);
+    const int64_t segment_end =
+        next_break != breaks.end() ? *next_break : std::numeric_limits<int64_t>::max();
+    for (auto m = it; m != masks.end() && m->first_frame < segment_end; ++m) {
+      if (m->Contains(o.position)) {
+        ++on;
+        break;
+      }
+    }
+  }
+  return static_cast<double>(on) >= max_fraction * static_cast<double>(target.observations.size());
 }
 
 OverlayDetector::OverlayDetector(const OverlayOptions& options, FrameRate rate)

@@ -481,5 +481,39 @@ TEST(CliProcessTest, LowFrameRateModeIsChosenBelowFourFramesASecond) {
   EXPECT_NE(run.out.find("sometimes not in {auto,on,off}"), std::string::npos) << run.out;
 }
 
+TEST(CliProcessTest, TheOverlayMaskIsOnByDefaultSaysWhatItMaskedAndCanBeTurnedOff) {
+  const std::filesystem::path dir = saker::testing::MakeTempDir("saker-cli-overlay");
+  const std::string video = (dir / "hud.ts").string();
+  const CliRun sim = RunCli("simulate --scenario straight -o '" + video +
+                            "' --width 640 --height 360 --altitude 200 --duration 10 --hud-text "
+                            "--reticle --logo rotating --quiet");
+  ASSERT_EQ(sim.exit_code, 0) << sim.out;
+  const std::string mission = (dir / "hud.saker").string();
+  CliRun run = RunCli("process --no-tiles '" + video + "' -o '" + mission + "'");
+  ASSERT_EQ(run.exit_code, 0) << run.out;
+  EXPECT_NE(run.out.find("overlays: screen-fixed overlays masked out in"), std::string::npos)
+      << run.out;
+  run = RunCli("process -q --json --no-tiles --replace '" + video + "' -o '" + mission + "'");
+  ASSERT_EQ(run.exit_code, 0) << run.out;
+  const nlohmann::json on = nlohmann::json::parse(run.out);
+  EXPECT_GT(on.at("overlay_frames").get<int64_t>(), 0);
+  EXPECT_GT(on.at("overlay_coverage").get<double>(), 0.0);
+  EXPECT_LT(on.at("overlay_coverage").get<double>(), 0.5);
+  run = RunCli("process -q --json --no-tiles --replace --overlay-mask off '" + video + "' -o '" +
+               mission + "'");
+  ASSERT_EQ(run.exit_code, 0) << run.out;
+  const nlohmann::json off = nlohmann::json::parse(run.out);
+  EXPECT_EQ(off.at("overlay_frames").get<int64_t>(), 0);
+  // Without the mask the overlay's corners make tracks of their own.
+  EXPECT_GT(off.at("tracks").get<int64_t>(), on.at("tracks").get<int64_t>());
+  run = RunCli("process --overlay-mask sometimes '" + video + "' -o '" + mission + "'");
+  EXPECT_EQ(run.exit_code, 2);
+  EXPECT_NE(run.out.find("sometimes not in {on,off}"), std::string::npos) << run.out;
+  // evaluate takes the same option, a bare --overlay-mask meaning on.
+  run = RunCli("evaluate --json --overlay-mask '" + video + "'");
+  ASSERT_EQ(run.exit_code, 0) << run.out;
+  EXPECT_GT(nlohmann::json::parse(run.out).at("overlay_mask").at("frames").get<int64_t>(), 0);
+}
+
 }  // namespace
 }  // namespace saker

@@ -219,7 +219,11 @@ TEST(AccuracyCorpusTest, ACutIsFoundByAChainBreakWithinTwoFrames) {
 TEST(AccuracyCorpusTest, ATrackSeenOnBothSidesOfACutCrossesIt) {
   const auto track = [](int64_t first, int64_t last) {
     track::TargetTrack t;
-    for (int64_t f = first; f <= last; ++f) t.observations.push_back({f});
+    for (int64_t f = first; f <= last; ++f) {
+      track::TargetObservation o;
+      o.frame = f;
+      t.observations.push_back(o);
+    }
     return t;
   };
   // Ends just before the cut, starts at it, spans it, spans the other.

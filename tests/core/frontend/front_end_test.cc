@@ -441,6 +441,7 @@ TEST_F(FrontEndTest, ResumesFromACheckpointAsIfNeverStopped) {
 // tracks miss them, without adding false tracks.
 TEST(FrontEndRunTest, ChangeDetectionFindsWalkers) {
   SAKER_SKIP_UNDER_TSAN("FrontEndTest, whose runs detect changes on the change thread");
+  SAKER_SKIP_UNDER_ASAN("FrontEndTest, whose runs detect changes");
   const std::filesystem::path dir = saker::testing::MakeTempDir("saker-frontend-walkers");
   sim::SimulationOptions options = SmallOptions(dir / "walkers.ts", 16);
   options.targets.cars = 10;

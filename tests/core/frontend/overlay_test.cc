@@ -3,6 +3,7 @@
 
 #include "core/sim/overlay.h"
 
+#include "core/eval/front_end_accuracy.h"
 #include "core/frontend/front_end.h"
 #include "core/sim/simulator.h"
 #include "core/sim/truth.h"
@@ -33,14 +34,20 @@ track::ChangeFrame Answer(int64_t frame, const cv::Rect& changed, double shift_p
   return c;
 }
 
+// The overlay window and the evidence needed at 25 fps, in frames.
+int WindowFrames(const track::OverlayOptions& o) {
+  return track::FrameRate(25).Frames(o.window_s, o.min_window_frames);
+}
+
 TEST(OverlayDetectorTest, ScreenFixedChangeBecomesOverlayAndMoversDoNot) {
   track::OverlayOptions options;
   options.enabled = true;
   track::OverlayDetector detector(options, track::FrameRate(25));
+  const int window = WindowFrames(options);
   const cv::Rect hud(16, 16, 64, 16);
-  for (int64_t f = 0; f < 75; ++f) {
+  int64_t f = 0;
+  for (; f < window; ++f) {
     // The HUD changes in place every frame; a mover crosses the image, 4 px a frame.
-    // (With a window of 3 s: 75 frames.)
     track::ChangeFrame c = Answer(f, hud, 1);
     c.changed(cv::Rect(static_cast<int>(4 * f), 150, 12, 12) & cv::Rect(0, 0, 320, 240)).setTo(255);
     detector.AddChange(c, 12);
@@ -49,22 +56,39 @@ TEST(OverlayDetectorTest, ScreenFixedChangeBecomesOverlayAndMoversDoNot) {
   EXPECT_TRUE(detector.Contains({79, 31}));
   EXPECT_FALSE(detector.Contains({150, 155}));  // the mover's path
   EXPECT_FALSE(detector.Contains({200, 60}));
-  // Dilated by one cell, no more.
-  EXPECT_FALSE(detector.Contains({40, 16 + 16 + 2 * options.cell_px}));
+  // Dilated by `dilate_cells`, no more.
+  EXPECT_TRUE(detector.Contains({40, 16 + 16 + options.dilate_cells * options.cell_px - 1}));
+  EXPECT_FALSE(detector.Contains({40, 16 + 16 + (options.dilate_cells + 1) * options.cell_px}));
 
   // Hovering (the ground still): nothing is learnt, the mask stays, even with the HUD gone.
   const track::OverlayMask before = detector.mask();
-  for (int64_t f = 75; f < 200; ++f) detector.AddChange(Answer(f, cv::Rect(0, 0, 1, 1), 0), 12);
+  for (const int64_t end = f + window; f < end; ++f) {
+    detector.AddChange(Answer(f, cv::Rect(0, 0, 1, 1), 0), 12);
+  }
   EXPECT_EQ(cv::countNonZero(before.cells != detector.mask().cells), 0);
-  // Moving again without the HUD: it goes within the window.
-  for (int64_t f = 200; f < 350; ++f) detector.AddChange(Answer(f, cv::Rect(0, 0, 1, 1), 1), 12);
+  // Moving again without the HUD: it goes within two windows (the fraction is a running mean
+  // over the window, and must fall from 1 below `off_fraction`).
+  for (const int64_t end = f + 2 * window; f < end; ++f) {
+    detector.AddChange(Answer(f, cv::Rect(0, 0, 1, 1), 1), 12);
+  }
   EXPECT_FALSE(detector.Contains({40, 24}));
 
-  // An overlay that appears later is found.
-  for (int64_t f = 350; f < 430; ++f) {
+  // An overlay that appears later is found within two windows.
+  for (const int64_t end = f + 2 * window; f < end; ++f) {
     detector.AddChange(Answer(f, cv::Rect(200, 100, 30, 30), 1), 12);
   }
   EXPECT_TRUE(detector.Contains({215, 115}));
+
+  // A car keeping pace with the camera for two seconds (it stays in place in the image while the
+  // ground moves, and then drifts away) does not become overlay.
+  track::OverlayDetector pacing(options, track::FrameRate(25));
+  for (int64_t g = 0; g < 2 * window; ++g) {
+    const int x = g < 50 ? 100 : static_cast<int>(100 + 2 * (g - 50));
+    track::ChangeFrame c = Answer(g, cv::Rect(0, 0, 1, 1), 1);
+    c.changed(cv::Rect(x, 100, 24, 12) & cv::Rect(0, 0, 320, 240)).setTo(255);
+    pacing.AddChange(c, 12);
+    EXPECT_FALSE(pacing.Contains({110, 105})) << "frame " << g;
+  }
 
   // The state carries over exactly.
   ByteWriter out;
@@ -93,7 +117,7 @@ TEST(OverlayDetectorTest, FeaturesThatStayPutWhileTheGroundMovesAreOverlay) {
   track::OverlayDetector detector(options, track::FrameRate(25));
   Eigen::Matrix3d ground = Eigen::Matrix3d::Identity();
   ground(0, 2) = 3;  // the ground moves 3 px a frame to the right
-  for (int64_t f = 0; f < 30; ++f) {
+  for (int64_t f = 0; f < WindowFrames(options); ++f) {
     std::vector<track::Correspondence> matches;
     // A corner of the HUD at the image's edge stays; a ground corner follows the ground; a car
     // goes its own way.
@@ -107,11 +131,49 @@ TEST(OverlayDetectorTest, FeaturesThatStayPutWhileTheGroundMovesAreOverlay) {
   EXPECT_FALSE(detector.Contains({200, 55}));
   // Without ground motion nothing is learnt.
   track::OverlayDetector hover(options, track::FrameRate(25));
-  for (int64_t f = 0; f < 30; ++f) {
+  for (int64_t f = 0; f < WindowFrames(options); ++f) {
     hover.AddFeatures({{track::FeatureTrackId{1}, {4, 4}, {4, 4}}}, Eigen::Matrix3d::Identity(),
                       cv::Size(320, 240));
   }
   EXPECT_FALSE(hover.Contains({4, 4}));
+}
+
+TEST(OverlayMasksTest, ATargetIsJudgedByTheMasksOfItsFrameAndTheLaterOnesOfItsSegment) {
+  // Two masks handed out one after the other: the first covers the top-left cell, the second
+  // that cell and the one to its right (more evidence).
+  track::OverlayMask first, second;
+  first.first_frame = 100, first.last_frame = 199;
+  first.cells = cv::Mat::zeros(4, 4, CV_8U);
+  first.cells.at<uint8_t>(0, 0) = 1;
+  second.first_frame = 200, second.last_frame = 299;
+  second.cells = first.cells.clone();
+  second.cells.at<uint8_t>(0, 1) = 1;
+  const std::vector<track::OverlayMask> masks = {first, second};
+  const auto target = [](int64_t from, int64_t to, const Eigen::Vector2d& at) {
+    track::TargetTrack t;
+    for (int64_t f = from; f <= to; ++f) {
+      track::TargetObservation o;
+      o.frame = f;
+      o.position = at;
+      t.observations.push_back(o);
+    }
+    return t;
+  };
+  const Eigen::Vector2d left(3, 3), right(11, 3), elsewhere(27, 27);
+  // Ended before any mask existed, on the overlay: judged by the segment's masks.
+  EXPECT_TRUE(track::OnOverlayMasks(target(10, 20, left), masks, {}, 0.5));
+  EXPECT_TRUE(track::OnOverlayMasks(target(10, 20, right), masks, {}, 0.5));
+  // ... but not across a chain break.
+  EXPECT_FALSE(track::OnOverlayMasks(target(10, 20, left), masks, {50}, 0.5));
+  // During the first mask, on a cell only the later one has.
+  EXPECT_TRUE(track::OnOverlayMasks(target(150, 160, right), masks, {}, 0.5));
+  // During the second mask, not on the first's cells afterwards; after the last mask, nothing.
+  EXPECT_FALSE(track::OnOverlayMasks(target(150, 160, elsewhere), masks, {}, 0.5));
+  EXPECT_FALSE(track::OnOverlayMasks(target(300, 320, left), masks, {}, 0.5));
+  // Half of its observations on the mask (frames 290-299 of 290-309) is enough at 0.5.
+  EXPECT_TRUE(track::OnOverlayMasks(target(290, 309, left), masks, {}, 0.5));
+  EXPECT_FALSE(track::OnOverlayMasks(target(290, 309, left), masks, {}, 0.6));
+  EXPECT_FALSE(track::OnOverlayMasks(target(10, 20, left), {}, {}, 0.5));
 }
 
 TEST(OverlayDetectorTest, OptionsAreValidated) {
@@ -120,7 +182,7 @@ TEST(OverlayDetectorTest, OptionsAreValidated) {
   options.window_s = 0;
   EXPECT_FALSE(options.Validate().ok());
   options = {};
-  options.off_fraction = 0.8;
+  options.off_fraction = options.on_fraction + 0.1;
   EXPECT_FALSE(options.Validate().ok());
   options = {};
   options.cell_px = 0;
@@ -150,7 +212,7 @@ TEST(OverlayFrontEndTest, NoTargetOnTheOverlayAndTheMaskCoversIt) {
   options.camera.width = 640;
   options.camera.height = 360;
   options.flight.altitude_m = 200;
-  options.duration_s = 8;
+  options.duration_s = 12;
   options.targets.cars = 60;
   options.overlay.hud_text = true;
   options.overlay.reticle = true;
@@ -172,13 +234,14 @@ TEST(OverlayFrontEndTest, NoTargetOnTheOverlayAndTheMaskCoversIt) {
     }
     return count;
   };
-  // The clip is a test: without the overlay detection (the default for now), the overlay makes
-  // targets.
-  StatusOr<FrontEndResult> plain = RunFrontEnd(options.output.string(), {});
+  // The clip is a test: without the overlay detection, the overlay makes targets.
+  FrontEndOptions without;
+  without.overlays.enabled = false;
+  StatusOr<FrontEndResult> plain = RunFrontEnd(options.output.string(), without);
   ASSERT_TRUE(plain.ok()) << plain.status().ToString();
   EXPECT_TRUE(plain->overlays.empty());
-  FrontEndOptions with;
-  with.overlays.enabled = true;
+  const FrontEndOptions with;  // the default: on
+  ASSERT_TRUE(with.overlays.enabled);
   StatusOr<FrontEndResult> result = RunFrontEnd(options.output.string(), with);
   ASSERT_TRUE(result.ok()) << result.status().ToString();
   std::cout << "without overlay detection: " << plain->targets.size() << " targets, "
@@ -189,11 +252,12 @@ TEST(OverlayFrontEndTest, NoTargetOnTheOverlayAndTheMaskCoversIt) {
   EXPECT_EQ(on_overlay(*result), 0);
   EXPECT_GT(result->targets.size(), 0u);
 
-  // The masks follow one another within the video, the first within a few seconds, and the last
-  // one covers the overlay's pixels (those the overlay draws in the last frame) and little more
-  // than its boxes grown by two cells (the cells' rounding and the dilation).
+  // The masks follow one another within the video, the first within the overlay window (the
+  // evidence takes seconds to gather), and the last one covers the overlay's pixels (those the
+  // overlay draws in the last frame) and little more than its boxes grown by the cells' rounding
+  // and the dilation.
   ASSERT_FALSE(result->overlays.empty());
-  EXPECT_LT(result->overlays.front().first_frame, 3 * 25);
+  EXPECT_LT(result->overlays.front().first_frame, WindowFrames(with.overlays));
   for (size_t i = 0; i < result->overlays.size(); ++i) {
     const track::OverlayMask& m = result->overlays[i];
     EXPECT_LE(m.first_frame, m.last_frame);
@@ -203,7 +267,7 @@ TEST(OverlayFrontEndTest, NoTargetOnTheOverlayAndTheMaskCoversIt) {
   }
   const track::OverlayMask& mask = result->overlays.back();
   EXPECT_EQ(mask.last_frame, result->frames.back().index);
-  const double margin = 2.0 * mask.cell_px;
+  const double margin = (1.0 + with.overlays.dilate_cells) * mask.cell_px;
   const auto near_box = [&](const Eigen::Vector2d& p) {
     return std::any_of(truth->overlays.begin(), truth->overlays.end(), [&](const auto& box) {
       return p.x() >= box.x - margin && p.y() >= box.y - margin &&
@@ -229,6 +293,23 @@ TEST(OverlayFrontEndTest, NoTargetOnTheOverlayAndTheMaskCoversIt) {
   ASSERT_GT(overlay_pixels, 0);
   EXPECT_GE(covered, 0.9 * overlay_pixels);
   EXPECT_LT(elsewhere, 0.005 * 640 * 360);
+
+  // saker-cli evaluate's measure of the masks agrees: part of the overlay boxes covered (they
+  // hold the space between the glyphs, and the first seconds have no mask), little of the image
+  // masked off them, nothing masked without the detection.
+  StatusOr<eval::FrontEndEvaluation> evaluation = eval::EvaluateFrontEnd(*result, *truth);
+  ASSERT_TRUE(evaluation.ok()) << evaluation.status().ToString();
+  const eval::OverlayMaskAccuracy& accuracy = evaluation->overlay_mask;
+  std::cout << eval::FrontEndEvaluationToText(*evaluation);
+  EXPECT_GT(accuracy.frames, 0);
+  EXPECT_LT(accuracy.frames, static_cast<int64_t>(result->frames.size()));  // seconds to gather
+  EXPECT_GT(accuracy.overlay_covered, 0.1);
+  EXPECT_LT(accuracy.off_overlay_fraction, 0.05);
+  EXPECT_GT(accuracy.masked_fraction, accuracy.off_overlay_fraction);
+  StatusOr<eval::FrontEndEvaluation> none = eval::EvaluateFrontEnd(*plain, *truth);
+  ASSERT_TRUE(none.ok());
+  EXPECT_EQ(none->overlay_mask.frames, 0);
+  EXPECT_EQ(none->overlay_mask.overlay_covered, 0);
 }
 
 }  // namespace
