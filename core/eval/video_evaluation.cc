@@ -64,6 +64,7 @@ StatusOr<VideoEvaluation> EvaluateVideo(const std::string& video, const sim::Tru
 
 nlohmann::json VideoEvaluationToJson(const VideoEvaluation& e) {
   nlohmann::json j = FrontEndEvaluationToJson(e.detection);
+  j["polarity_switches"] = e.front_end.polarity_switches;
   j["mosaic"] = MosaicAccuracyToJson(e.mosaic);
   j["activity"] = ActivityAccuracyToJson(e.activity);
   if (const auto& m = e.metadata_experiment) {
@@ -83,6 +84,12 @@ nlohmann::json VideoEvaluationToJson(const VideoEvaluation& e) {
 
 std::string VideoEvaluationToText(const VideoEvaluation& e, bool details) {
   std::string text = FrontEndEvaluationToText(e.detection, details);
+  if (!e.front_end.polarity_switches.empty()) {
+    text += "Polarity switches (thermal), inverted back: at frame";
+    text += e.front_end.polarity_switches.size() > 1 ? "s" : "";
+    for (int64_t f : e.front_end.polarity_switches) text += " " + std::to_string(f);
+    text += "\n";
+  }
   text += MosaicAccuracyToText(e.mosaic);
   text += ActivityAccuracyToText(e.activity);
   if (e.metadata_experiment) text += MetadataExperimentToText(*e.metadata_experiment);

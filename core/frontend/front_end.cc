@@ -38,9 +38,11 @@ constexpr int kMinWarmupFrames = 10;
 constexpr int64_t kMemoryCheckPixels = int64_t{25} * 1280 * 720;
 // FramePipelineBytes: the H.264 decoder keeps up to 16 reference pictures.
 constexpr int64_t kDecoderReferencePictures = 16;
-// The layout of the trackers' state in a checkpoint (FrontEndCheckpoint::state). Layout 1 (before
-// the overlay detector's state was added) is still read: its run starts without overlay evidence.
-constexpr uint32_t kStateLayout = 2;
+// The layout of the trackers' state in a checkpoint (FrontEndCheckpoint::state). Layouts 1 (before
+// the overlay detector's state was added) and 2 (before the polarity switches) are still read:
+// their runs start without overlay evidence, or without the switches before the checkpoint.
+constexpr uint32_t kStateLayout = 3;
+constexpr uint32_t kStateLayoutWithoutPolarity = 2;
 constexpr uint32_t kStateLayoutWithoutOverlays = 1;
 
 // The frames an exact resume gives the change detector again before the checkpoint's key frame:
@@ -237,6 +239,7 @@ class FrontEnd {
   // Which chain breaks are scene cuts, for joining the pieces of tracks (frames this run tracked;
   // a resumed run does not know the frames before its warm-up, and joins across those breaks).
   track::SceneContinuity scenes_;
+  track::PolarityWatch polarity_;
   // The mask handed out last, still growing (its frames), and the detector's version it is.
   std::optional<track::OverlayMask> open_overlay_;
   int64_t open_overlay_version_ = -1;
@@ -310,7 +313,16 @@ StatusOr<FrontEndResult> FrontEnd::Run() {
       ReportProgress(static_cast<double>(frame->index + 1));
       continue;  // done before: only decoded, for the scan
     }
-    if (start_.exact && frame->index <= start_.through_frame) {
+    const bool replay = start_.exact && frame->index <= start_.through_frame;
+    // A thermal camera's polarity switch: the frames after it go on inverted back, in the first
+    // frame's polarity (PolarityWatch; when replaying, as the checkpoint recorded).
+    if (replay ? polarity_.Replay(frame->index, frame->grey)
+               : polarity_.Add(frame->index, frame->grey)) {
+      cv::Mat inverted;  // a copy: the decoder's picture may be shared
+      cv::bitwise_not(frame->grey, inverted);
+      frame->grey = inverted;
+    }
+    if (replay) {
       SAKER_RETURN_IF_ERROR(Replay(*frame));
       continue;
     }
@@ -354,11 +366,13 @@ Status FrontEnd::StartFromCheckpoint() {
   uint32_t layout = 0;
   uint8_t segment_open = 0;
   const bool known =
-      in.Get(&layout) && (layout == kStateLayout || layout == kStateLayoutWithoutOverlays);
+      in.Get(&layout) && (layout == kStateLayout || layout == kStateLayoutWithoutPolarity ||
+                          layout == kStateLayoutWithoutOverlays);
   if (!known || !in.Get(&segment_open) || !in.Get(&change_applied_submitted_) ||
       !segmenter_.RestoreState(&in) || !target_tracker_.RestoreState(&in) ||
       !change_tracks_.RestoreState(&in) ||
-      (layout == kStateLayout && !overlays_.RestoreState(&in))) {
+      (layout >= kStateLayoutWithoutPolarity && !overlays_.RestoreState(&in)) ||
+      (layout >= kStateLayout && !polarity_.RestoreState(&in))) {
     return InvalidArgumentError(path_ + ": cannot resume: the checkpoint's tracker state is " +
                                 (known ? "malformed" : "of another Saker"));
   }
@@ -402,6 +416,7 @@ std::vector<uint8_t> FrontEnd::SaveState() const {
   target_tracker_.SaveState(&out);
   change_tracks_.SaveState(&out);
   overlays_.SaveState(&out);
+  polarity_.SaveState(&out);
   tracker_.SaveState(&out);
   return out.Take();
 }
@@ -739,6 +754,7 @@ StatusOr<FrontEndResult> FrontEnd::Finish(ingest::VideoScan scan, double decode_
                                 " frames done and does not fit this video of " +
                                 std::to_string(result_.scan.frames.size()) + " frames");
   }
+  result_.polarity_switches = polarity_.switches();
   if (!start_.complete) {
     FinishTargets();
     if (options_.on_checkpoint && !result_.frames.empty()) {

@@ -182,6 +182,10 @@ struct FrontEndResult {
   // segment; frames that no mask covers had none found. A resumed run has those from the
   // checkpoint's key frame on only.
   std::vector<track::OverlayMask> overlays;
+  // The frames at which a thermal camera switched polarity (white-hot to black-hot or back); the
+  // front end inverted the frames from each back to the first frame's polarity
+  // (track::PolarityWatch), so the chain goes on across it.
+  std::vector<int64_t> polarity_switches;
   bool low_frame_rate = false;  // the low-frame-rate mode ran (LowFrameRateOptions)
   // The same pass's KLV: packets, per-frame metadata (scan.MetadataOf(frame)), warnings.
   ingest::VideoScan scan;

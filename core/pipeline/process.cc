@@ -132,6 +132,11 @@ std::string ProcessSummary::ToText() const {
                   100 * overlay_coverage);
     out << line;
   }
+  if (polarity_switches > 0) {
+    out << "thermal polarity: " << polarity_switches
+        << (polarity_switches == 1 ? " switch" : " switches")
+        << " (white-hot / black-hot), the frames after inverted back: no chain break\n";
+  }
   if (tracks_implausible > 0 || tracks_low_confidence > 0) {
     out << "not reported: " << tracks_implausible << " tracks with an impossible ground speed, "
         << tracks_low_confidence << " below the minimum confidence\n";
@@ -215,6 +220,7 @@ StatusOr<ProcessSummary> ProcessVideo(const std::string& video, const std::strin
     if (stage == Stage::kFrontEnd) {
       checkpoint.reset();  // the result holds what it had
       summary.low_frame_rate = done->front.low_frame_rate;
+      summary.polarity_switches = static_cast<int64_t>(done->front.polarity_switches.size());
       double masked = 0;
       for (const track::OverlayMask& m : done->front.overlays) {
         const int64_t n = m.last_frame - m.first_frame + 1;

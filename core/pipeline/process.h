@@ -57,7 +57,8 @@ struct ProcessSummary {
   // mean fraction of the image in them (0 and 0: none found, or the mask was off).
   int64_t overlay_frames = 0;
   double overlay_coverage = 0;
-  std::string map_frame;  // DescribeMapFrame (open_mission.h): what the map is, and why
+  int64_t polarity_switches = 0;  // a thermal camera's, inverted back (FrontEndResult)
+  std::string map_frame;          // DescribeMapFrame (open_mission.h): what the map is, and why
   double front_end_s = 0, mosaic_s = 0, activity_s = 0, tiles_s = 0, save_s = 0, total_s = 0;
   double video_duration_s = 0;
   int64_t resumed_from_frame = -1;    // the checkpoint's last frame a resumed job went on from

@@ -486,6 +486,28 @@ TEST(FrontEndRunTest, ABlankIntervalBreaksTheChainAndItRecovers) {
   EXPECT_TRUE(key_frame_after);
 }
 
+// A thermal camera switching from white-hot to black-hot mid-flight: the front end inverts the
+// frames back, so the chain goes on (no break, a homography at the switch) and no mover starts
+// there. Before, the switch broke the chain.
+TEST(FrontEndRunTest, AThermalPolaritySwitchIsNotABreakAndMakesNoMovers) {
+  const std::filesystem::path dir = saker::testing::MakeTempDir("saker-frontend-polarity");
+  sim::SimulationOptions options = SmallOptions(dir / "ir.ts", 4);
+  options.imaging.look = sim::SensorLook::kIrWhiteHot;
+  options.imaging.polarity_switch_s = 2;
+  ASSERT_TRUE(sim::Simulate(options).ok());
+  StatusOr<FrontEndResult> result = RunFrontEnd(options.output.string(), {});
+  ASSERT_TRUE(result.ok()) << result.status().ToString();
+  EXPECT_TRUE(result->breaks.empty()) << result->breaks.front().frame_index;
+  ASSERT_EQ(result->polarity_switches.size(), 1u);
+  const int64_t at = result->polarity_switches.front();
+  EXPECT_NEAR(static_cast<double>(at), 50, 1);
+  EXPECT_TRUE(result->frames[static_cast<size_t>(at)].homography_ok);
+  for (const track::TargetTrack& t : result->targets) {
+    EXPECT_FALSE(std::abs(t.observations.front().frame - at) <= 2)
+        << "a target starts at the switch: " << static_cast<int64_t>(t.id);
+  }
+}
+
 TEST(FrontEndRunTest, RealClipEndToEnd) {
   SAKER_REQUIRE_TEST_DATA(path, "kwiver/aphill_short.ts");
   StatusOr<FrontEndResult> result = RunFrontEnd(path.string(), {});

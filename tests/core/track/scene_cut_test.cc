@@ -68,6 +68,49 @@ TEST(SceneContinuityTest, WithinASegmentAndForUnknownFramesItIsOneScene) {
   EXPECT_FALSE(scenes.CorrelationAt(15).has_value());  // no segment starts there
 }
 
+// A camera moving 4 px a frame over the town switches polarity at frame 20 and back at frame 40;
+// a blank (cloud) lies across the second switch, and a cut to another place comes at frame 50.
+TEST(PolarityWatchTest, FindsEachSwitchAcrossBlanksAndNotAtACut) {
+  const Ground town(0x8BADF00DDEADBEEF), elsewhere(0x0123456789ABCDEF);
+  const cv::Mat blank(360, 640, CV_8UC1, cv::Scalar(90));
+  PolarityWatch watch;
+  std::vector<bool> inverted;
+  for (int f = 0; f < 60; ++f) {
+    cv::Mat frame = f < 50 ? town.View(100 + 4 * f, 200) : elsewhere.View(4 * f, 200);
+    if (f >= 20 && f < 40) cv::bitwise_not(frame, frame);
+    if (f >= 38 && f < 42) frame = blank;
+    inverted.push_back(watch.Add(f, frame));
+  }
+  EXPECT_EQ(watch.switches(), (std::vector<int64_t>{20, 42}));
+  for (int f = 0; f < 60; ++f) {
+    EXPECT_EQ(inverted[f], f >= 20 && f < 42) << "frame " << f;
+    EXPECT_EQ(watch.Inverted(f), inverted[f]);
+  }
+
+  // Restored from its state (as a resumed run does), it knows the switches; replaying frames
+  // detects nothing but keeps the look, so a switch right after the replay is found.
+  ByteWriter out;
+  watch.SaveState(&out);
+  PolarityWatch resumed;
+  ByteReader in(out.bytes());
+  ASSERT_TRUE(resumed.RestoreState(&in));
+  EXPECT_TRUE(in.AtEnd());
+  EXPECT_TRUE(resumed.Replay(30, town.View(220, 200)));  // inverted by the record, not by looking
+  cv::Mat next = elsewhere.View(240, 200);
+  EXPECT_FALSE(resumed.Replay(59, next));
+  cv::bitwise_not(next, next);
+  EXPECT_TRUE(resumed.Add(60, next));
+  EXPECT_EQ(resumed.switches(), (std::vector<int64_t>{20, 42, 60}));
+  // A state out of order, or cut short, is refused.
+  ByteWriter bad;
+  bad.PutVector(std::vector<int64_t>{42, 20});
+  ByteReader bad_in(bad.bytes());
+  EXPECT_FALSE(PolarityWatch().RestoreState(&bad_in));
+  std::vector<uint8_t> cut(out.bytes().begin(), out.bytes().end() - 1);
+  ByteReader cut_in(cut);
+  EXPECT_FALSE(PolarityWatch().RestoreState(&cut_in));
+}
+
 // A car lost for 10 frames comes back where it was heading: one car across a chain break in one
 // scene (a blank, a polarity switch), two cars when the break is a cut to another scene, where
 // the same image position is another place.
