@@ -39,8 +39,10 @@ struct ActivityOptions {
 
 struct ActivitySummary {
   int64_t tracks_in = 0;
-  int64_t tracks_out = 0;             // tracks with at least one placed observation
-  int64_t observations_dropped = 0;   // on frames without a map_from_frame
+  int64_t tracks_out = 0;  // tracks with at least one placed observation
+  // On frames without a map_from_frame, or mapped beyond the horizon of the map's ground plane
+  // (the sky of an oblique view).
+  int64_t observations_dropped = 0;
   int64_t tracks_implausible = 0;     // removed: average ground speed above max_speed_mps
   int64_t tracks_low_confidence = 0;  // removed: confidence below min_confidence
   int max_visit = 0;                  // the largest visit index given
