@@ -202,7 +202,8 @@ OverlayMaskAccuracy EvaluateOverlayMask(const frontend::FrontEndResult& result,
   if (!truth.overlays.empty()) {
     // Frames without a mask cover none of the overlays.
     int64_t truth_cells_per_frame = 0;
-    const int cell = result.overlays.empty() ? 8 : result.overlays.front().cell_px;
+    const int cell =
+        result.overlays.empty() ? track::OverlayOptions{}.cell_px : result.overlays.front().cell_px;
     for (int y = 0; y * cell < truth.height; ++y) {
       for (int x = 0; x * cell < truth.width; ++x) {
         truth_cells_per_frame += truth.OnOverlay({(x + 0.5) * cell - 0.5, (y + 0.5) * cell - 0.5});
