@@ -17,6 +17,7 @@
 #include <nlohmann/json.hpp>
 #include <unistd.h>
 
+#include <cstdio>
 #include <filesystem>
 #include <iostream>
 #include <map>
@@ -351,6 +352,17 @@ int InfoCommand::Run() const {
     if (done) stages += std::string(stages.empty() ? "" : ", ") + name;
   }
   if (stages.empty()) stages = "none";
+  // The screen-fixed overlay masks: the frames they cover and the image fraction they take there.
+  int64_t overlay_frames = 0;
+  double overlay_masked = 0;
+  for (const mission::OverlayRecord& o : m->overlays) {
+    const int64_t n = o.last_frame - o.first_frame + 1;
+    overlay_frames += n;
+    overlay_masked += static_cast<double>(n) * o.Coverage();
+  }
+  const double overlay_coverage =
+      overlay_frames > 0 ? overlay_masked / static_cast<double>(overlay_frames) : 0.0;
+  const bool overlays_kept = m->schema_version >= 5;
   if (s.json) {
     nlohmann::json visit_json = nlohmann::json::object();
     for (const auto& [v, n] : visits) visit_json[std::to_string(v)] = n;
@@ -384,6 +396,11 @@ int InfoCommand::Run() const {
                           {"activity", p.activity},
                           {"tiles", p.tiles}}},
                         {"cancelled", p.cancelled}};
+    if (overlays_kept) {
+      j["overlay_masks"] = {{"masks", m->overlays.size()},
+                            {"frames", overlay_frames},
+                            {"coverage", overlay_coverage}};
+    }
     if (checkpoint) {
       j["checkpoint"] = {{"through_frame", checkpoint->through_frame},
                          {"complete", checkpoint->complete},
@@ -424,6 +441,18 @@ int InfoCommand::Run() const {
   if (const std::string klv = pipeline::DescribeKlv(*m); !klv.empty()) std::cout << "; KLV " << klv;
   std::cout << "\n";
   std::cout << "  frames placed on the map: " << placed << " of " << m->frames.size() << "\n";
+  std::cout << "  overlay masks: ";
+  if (!overlays_kept) {
+    std::cout << "not kept (written before Saker kept them)\n";
+  } else if (m->overlays.empty()) {
+    std::cout << "none (no screen-fixed text or logo was found)\n";
+  } else {
+    char line[160];
+    std::snprintf(line, sizeof(line), "%zu over %lld frames, %.1f %% of the image there\n",
+                  m->overlays.size(), static_cast<long long>(overlay_frames),
+                  100 * overlay_coverage);
+    std::cout << line;
+  }
   std::cout << "  key frames: " << m->key_frames.size() << "; links:";
   for (const auto& [kind, n] : links) std::cout << " " << n << " " << kind;
   std::cout << "\n  tracks: " << m->tracks.size() << " (" << observations << " observations)";

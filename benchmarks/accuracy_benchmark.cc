@@ -8,7 +8,9 @@
 // MANIFEST defaults to benchmarks/corpus/corpus.json in the source tree. Each case is simulated
 // once into the cache (default build/accuracy-cache in the source tree), so a rerun only
 // evaluates. It prints a row per case, a summary per condition and an overall one (--json: the
-// same as JSON); progress goes to stderr. Exit code 1 when a case failed or the manifest is bad.
+// same as JSON); progress goes to stderr. Conditions with a floor (benchmarks/corpus/floors.json)
+// are checked against it after the report. Exit code 1 when a case failed, a floor was not met or
+// the manifest is bad.
 
 #include "benchmarks/accuracy_corpus.h"
 #include "core/util/timer.h"
@@ -88,6 +90,18 @@ int main(int argc, char** argv) {
   } else {
     std::cout << bench::CorpusReportText(results);
   }
+  const std::vector<std::string> shortfalls = bench::CorpusFloorShortfalls(*corpus, results);
+  size_t floors = 0;
+  for (const bench::CorpusCondition& condition : corpus->conditions)
+    floors += !condition.floor.empty();
+  if (floors > 0) {
+    std::cerr << "saker-bench-accuracy: floors: "
+              << (shortfalls.empty() ? "every condition with a floor meets it"
+                                     : std::to_string(shortfalls.size()) + " short")
+              << "\n";
+    for (const std::string& line : shortfalls) std::cerr << "  " << line << "\n";
+  }
+  if (!shortfalls.empty()) return 1;
   for (const bench::CaseResult& r : results) {
     if (!r.error.empty()) return 1;
   }

@@ -133,6 +133,32 @@ class ManifestReader {
     return Status::Ok();
   }
 
+  Status ReadFloor(const json& object, const std::string& where, CorpusFloor* floor) const {
+    if (!object.is_object()) return Error(where, "must be an object");
+    SAKER_RETURN_IF_ERROR(CheckKeys(
+        object, where,
+        {"track_precision", "track_recall", "overlay_tracks", "cuts_found", "tracks_across_cuts"}));
+    for (const auto& [key, value] : object.items()) {
+      const std::string at = where + "." + key;
+      if (key == "overlay_tracks" || key == "tracks_across_cuts") {
+        if (!value.is_number_unsigned()) {
+          return Error(at, "must be a whole number >= 0 (at most), got " + value.dump());
+        }
+        (key == "overlay_tracks" ? floor->overlay_tracks : floor->tracks_across_cuts) =
+            value.get<int64_t>();
+        continue;
+      }
+      if (!value.is_number() || value.get<double>() < 0 || value.get<double>() > 1) {
+        return Error(at, "must be a fraction from 0 to 1 (at least), got " + value.dump());
+      }
+      const double fraction = value.get<double>();
+      if (key == "track_precision") floor->track_precision = fraction;
+      if (key == "track_recall") floor->track_recall = fraction;
+      if (key == "cuts_found") floor->cuts_found = fraction;
+    }
+    return Status::Ok();
+  }
+
  private:
   fs::path manifest_;
 };
@@ -494,7 +520,7 @@ StatusOr<Corpus> ReadCorpus(const fs::path& manifest) {
       if (other.name == condition.name) return reader.Error(where, "a second condition so named");
     }
     SAKER_RETURN_IF_ERROR(
-        reader.CheckKeys(c, where, {"name", "description", "options", "evaluation"}));
+        reader.CheckKeys(c, where, {"name", "description", "options", "evaluation", "floor"}));
     const json description = c.value("description", json(""));
     if (!description.is_string()) return reader.Error(where + ".description", "must be text");
     condition.description = description.get<std::string>();
@@ -517,6 +543,9 @@ StatusOr<Corpus> ReadCorpus(const fs::path& manifest) {
     if (c.contains("evaluation")) {
       SAKER_RETURN_IF_ERROR(
           reader.ApplyScoring(c["evaluation"], where + ".evaluation", &condition.scoring));
+    }
+    if (c.contains("floor")) {
+      SAKER_RETURN_IF_ERROR(reader.ReadFloor(c["floor"], where + ".floor", &condition.floor));
     }
     corpus.conditions.push_back(std::move(condition));
   }
@@ -691,6 +720,38 @@ std::optional<double> CorpusFigures::TrackPrecision() const {
 std::optional<double> CorpusFigures::TrackRecall() const {
   return Ratio(found_targets, truth_targets);
 }
+std::vector<std::string> FloorShortfalls(const CorpusFloor& floor, const CorpusFigures& figures) {
+  std::vector<std::string> shortfalls;
+  char line[200];
+  const auto at_least = [&](const char* what, const std::optional<double>& floor_value,
+                            int64_t count, int64_t of) {
+    if (!floor_value) return;
+    if (of == 0) {
+      std::snprintf(line, sizeof(line), "%s: nothing to measure (floor %.3f)", what, *floor_value);
+      shortfalls.push_back(line);
+      return;
+    }
+    const double value = static_cast<double>(count) / static_cast<double>(of);
+    if (value >= *floor_value) return;
+    std::snprintf(line, sizeof(line), "%s %.3f (%lld of %lld) is below its floor %.3f", what, value,
+                  static_cast<long long>(count), static_cast<long long>(of), *floor_value);
+    shortfalls.push_back(line);
+  };
+  const auto at_most = [&](const char* what, const std::optional<int64_t>& ceiling, int64_t value) {
+    if (!ceiling || value <= *ceiling) return;
+    std::snprintf(line, sizeof(line), "%s: %lld, at most %lld allowed", what,
+                  static_cast<long long>(value), static_cast<long long>(*ceiling));
+    shortfalls.push_back(line);
+  };
+  at_least("track precision", floor.track_precision, figures.correct_tracks,
+           figures.detected_tracks);
+  at_least("track recall", floor.track_recall, figures.found_targets, figures.truth_targets);
+  at_most("tracks on overlay pixels", floor.overlay_tracks, figures.overlay_tracks);
+  at_least("cuts found", floor.cuts_found, figures.cuts.found, figures.cuts.expected);
+  at_most("tracks across a cut", floor.tracks_across_cuts, figures.cuts.tracks_across);
+  return shortfalls;
+}
+
 std::optional<double> CorpusFigures::FramePrecision() const {
   return Ratio(paired_detections, detections);
 }
@@ -774,6 +835,25 @@ std::vector<CaseResult> RunCorpus(const std::vector<CorpusCase>& cases,
   work();
   for (std::thread& w : workers) w.join();
   return results;
+}
+
+std::vector<std::string> CorpusFloorShortfalls(const Corpus& corpus,
+                                               const std::vector<CaseResult>& results) {
+  std::vector<std::string> shortfalls;
+  for (const auto& [condition, members] : ByCondition(results)) {
+    const auto it = std::find_if(corpus.conditions.begin(), corpus.conditions.end(),
+                                 [&](const CorpusCondition& c) { return c.name == condition; });
+    if (it == corpus.conditions.end() || it->floor.empty()) continue;
+    CorpusFigures sum;
+    for (const CaseResult* r : members) {
+      sum.Add(r->figures);
+      if (!r->error.empty()) shortfalls.push_back(r->corpus_case.Name() + ": failed: " + r->error);
+    }
+    for (const std::string& line : FloorShortfalls(it->floor, sum)) {
+      shortfalls.push_back(condition + ": " + line);
+    }
+  }
+  return shortfalls;
 }
 
 std::string CorpusReportText(const std::vector<CaseResult>& results) {

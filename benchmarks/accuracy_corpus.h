@@ -43,12 +43,28 @@ struct CorpusScoring {
   static constexpr int kMinMoverFrames = 3;
 };
 
+// What a condition must reach, pooled over its cases (a manifest's `conditions[].floor`): the
+// reduced corpus of the test suite holds the front end to these (benchmarks/corpus/floors.json).
+// Unset figures are not checked.
+struct CorpusFloor {
+  std::optional<double> track_precision;      // at least
+  std::optional<double> track_recall;         // at least
+  std::optional<int64_t> overlay_tracks;      // at most (0: no track on an overlay)
+  std::optional<double> cuts_found;           // at least this fraction of the cuts found
+  std::optional<int64_t> tracks_across_cuts;  // at most
+  bool empty() const {
+    return !track_precision && !track_recall && !overlay_tracks && !cuts_found &&
+           !tracks_across_cuts;
+  }
+};
+
 struct CorpusCondition {
   std::string name;
   std::string description;
   sim::SimulationOptions simulation;  // defaults, then the condition's options; seed and output
                                       // paths are set per case
   CorpusScoring scoring;
+  CorpusFloor floor;
   // Why the condition cannot run here (its orthophoto is in the test data folder, which is
   // absent); empty when it can. CorpusCases leaves such conditions out.
   std::string unavailable;
@@ -187,6 +203,17 @@ struct CorpusRunOptions {
 // killed runs left in the cache first.
 std::vector<CaseResult> RunCorpus(const std::vector<CorpusCase>& cases,
                                   const CorpusRunOptions& options);
+
+// Where `figures` (a condition's, pooled) fall short of `floor`: one line per figure, e.g.
+// "track recall 0.412 (7 of 17) is below its floor 0.500"; empty when every floor is met. A
+// figure with nothing to measure (no target, no cut) fails its floor.
+std::vector<std::string> FloorShortfalls(const CorpusFloor& floor, const CorpusFigures& figures);
+
+struct CaseResult;
+// FloorShortfalls of every condition of `corpus` that has a floor and cases in `results`, pooled
+// over its cases, each line prefixed with the condition's name; a failed case is a shortfall too.
+std::vector<std::string> CorpusFloorShortfalls(const Corpus& corpus,
+                                               const std::vector<CaseResult>& results);
 
 // The report: a row per case, a summary per condition and an overall one.
 std::string CorpusReportText(const std::vector<CaseResult>& results);

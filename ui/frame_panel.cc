@@ -116,6 +116,14 @@ class FrameCanvas : public QWidget {
     update();
   }
   const std::optional<QPointF>& mark() const { return mark_; }
+  // The overlay mask to draw over the frame: one pixel a cell of `cell_px` video frame pixels
+  // (the mask's colour and transparency are the image's); a null image draws none.
+  void setOverlay(const QImage& cells, int cell_px) {
+    overlay_ = cells;
+    overlay_cell_px_ = cell_px;
+    update();
+  }
+  bool hasOverlay() const { return !overlay_.isNull(); }
   const QString& hint() const { return hint_; }
   void setPlaceholder(const QString& text) {
     placeholder_ = text;
@@ -144,6 +152,7 @@ class FrameCanvas : public QWidget {
       painter.setRenderHint(QPainter::SmoothPixmapTransform);
       painter.drawImage(target, image_);
 
+      if (!overlay_.isNull()) paintOverlay(painter, target);
       if (mark_) paintMark(painter, target);
     }
 
@@ -158,6 +167,19 @@ class FrameCanvas : public QWidget {
   }
 
  private:
+  // The overlay mask's cells over the image drawn in `target`, sharp-edged: cell (x, y) covers
+  // frame pixels [x, x+1) * cell_px, and pixel p is drawn at [p, p+1) * scale.
+  void paintOverlay(QPainter& painter, const QRectF& target) const {
+    const double scale = target.width() / image_.width();
+    const QRectF cells(target.topLeft(), QSizeF(overlay_.width() * overlay_cell_px_ * scale,
+                                                overlay_.height() * overlay_cell_px_ * scale));
+    painter.save();
+    painter.setClipRect(target);
+    painter.setRenderHint(QPainter::SmoothPixmapTransform, false);
+    painter.drawImage(cells, overlay_);
+    painter.restore();
+  }
+
   // The mark over the image drawn in `target` (widget coordinates).
   void paintMark(QPainter& painter, const QRectF& target) const {
     // Pixel centres are at integer coordinates (the engine's convention), so pixel (0, 0) covers
@@ -192,6 +214,8 @@ class FrameCanvas : public QWidget {
     painter.restore();
   }
 
+  QImage overlay_;  // ARGB, a pixel a cell
+  int overlay_cell_px_ = 8;
   QImage image_;
   std::optional<QPointF> mark_;
   QRectF box_;
@@ -375,6 +399,8 @@ void FramePanel::setMission(std::shared_ptr<const mission::Mission> mission,
   image_ = QImage();
   canvas_->setImage(QImage());
   canvas_->setMark(std::nullopt, {});
+  drawn_overlay_ = nullptr;
+  canvas_->setOverlay(QImage(), 1);
   pending_ticket_ = 0;
   pending_from_click_ = false;
   hint_timer_->stop();
@@ -454,6 +480,7 @@ void FramePanel::clear() {
   canvas_->setPlaceholder(idlePlaceholder());
   showError(QString());
   updateMark();
+  updateOverlay();
   updateInfo();
   updateActions();
 }
@@ -675,6 +702,7 @@ void FramePanel::present(int64_t frame_index, const QImage& image) {
     }
   }
   updateMark();
+  updateOverlay();
   updateInfo();
   updateActions();
   // Paint now rather than at the next event-loop pass, so "on screen" is measured honestly.
@@ -691,6 +719,37 @@ void FramePanel::showError(const QString& message) {
   if (error_label_->text() == message) return;  // spares a relayout on every frame
   error_label_->setText(message);
   error_label_->setVisible(!message.isEmpty());
+}
+
+void FramePanel::setOverlayMaskVisible(bool visible) {
+  if (overlay_visible_ == visible) return;
+  overlay_visible_ = visible;
+  updateOverlay();
+}
+
+void FramePanel::updateOverlay() {
+  const mission::OverlayRecord* record =
+      overlay_visible_ && mission_ && displayed_frame_ >= 0 && !image_.isNull()
+          ? mission::OverlayAt(mission_->overlays, displayed_frame_)
+          : nullptr;
+  if (record == drawn_overlay_) return;  // playback within one mask redraws nothing
+  drawn_overlay_ = record;
+  if (record == nullptr) {
+    canvas_->setOverlay(QImage(), 1);
+    return;
+  }
+  // A faint tint: the frame beneath stays readable.
+  QImage cells(record->cols, record->rows, QImage::Format_ARGB32_Premultiplied);
+  cells.fill(Qt::transparent);
+  const QRgb tint = qPremultiply(qRgba(0, 190, 255, 90));
+  for (int y = 0; y < record->rows; ++y) {
+    QRgb* line = reinterpret_cast<QRgb*>(cells.scanLine(y));
+    const uint8_t* row = record->cells.data() + static_cast<size_t>(y) * record->cols;
+    for (int x = 0; x < record->cols; ++x) {
+      if (row[x] != 0) line[x] = tint;
+    }
+  }
+  canvas_->setOverlay(cells, record->cell_px);
 }
 
 void FramePanel::updateMark() {

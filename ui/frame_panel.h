@@ -6,6 +6,9 @@
 // It steps through the track's observations (Left and Right anywhere in the window once one is
 // shown, Shift for ten at a time) and plays the video forward from the frame.
 //
+// The screen-fixed overlay mask the front end found (burned-in text, logos) can be drawn over the
+// frame as a faint layer (setOverlayMaskVisible; off by default).
+//
 // Decoding runs on a FrameRecall worker; while a decode is pending the previous frame stays on
 // screen. When the mission's video is missing the panel says where it looked and offers to locate
 // it (the owner answers locateVideoRequested with setMission and the new path).
@@ -70,6 +73,12 @@ class FramePanel : public QWidget {
   double lastRecallMs() const;  // showObservation call to frame painted; NaN before the first
   double lastDecodeMs() const;  // the worker's part of it (seek, decode, colour conversion)
   bool isPlaying() const;
+  // Draws the mission's overlay mask of the displayed frame over it (mission::OverlayAt); off by
+  // default.
+  void setOverlayMaskVisible(bool visible);
+  bool overlayMaskVisible() const { return overlay_visible_; }
+  // The mask drawn over the frame on screen: null when none is (hidden, or none for the frame).
+  const mission::OverlayRecord* drawnOverlayMask() const { return drawn_overlay_; }
   QString errorText() const;       // the decode error shown in the panel, empty when none
   bool decodingHintShown() const;  // "decoding…" is on screen (a decode pending > 100 ms)
 
@@ -104,6 +113,7 @@ class FramePanel : public QWidget {
   void showMissingVideo(const QString& message);
   void showError(const QString& message);
   void updateMark();
+  void updateOverlay();
   void updateInfo();
   void updateActions();
   void requestNextPlayFrame();
@@ -149,6 +159,8 @@ class FramePanel : public QWidget {
   std::optional<std::pair<size_t, size_t>> current_;
   int64_t displayed_frame_ = -1;
   QImage image_;
+  bool overlay_visible_ = false;
+  const mission::OverlayRecord* drawn_overlay_ = nullptr;  // in mission_->overlays
 
   // The request in flight (latest wins: answers to any other ticket are dropped).
   quint64 next_ticket_ = 0;

@@ -315,6 +315,12 @@ void MainWindow::createActions() {
                                  &MosaicView::setShowKeyFrameOutlines);
   show_ellipses_action_ = toggle(tr("Show &Uncertainty Ellipses"), tr("Ctrl+U"), false,
                                  &MosaicView::setShowUncertainty);
+  show_overlay_mask_action_ = view->addAction(tr("Show &Overlay Mask in Frames"));
+  show_overlay_mask_action_->setObjectName(QStringLiteral("showOverlayMask"));
+  show_overlay_mask_action_->setCheckable(true);
+  show_overlay_mask_action_->setChecked(false);
+  connect(show_overlay_mask_action_, &QAction::toggled, frame_panel_,
+          &FramePanel::setOverlayMaskVisible);
   view->addSeparator();
   QAction* zoom_in =
       view->addAction(QIcon::fromTheme("zoom-in"), tr("Zoom &In"), view_, &MosaicView::zoomIn);
@@ -377,6 +383,7 @@ void MainWindow::readSettings() {
   show_tracks_action_->setChecked(settings.value("view/showTracks", true).toBool());
   show_outlines_action_->setChecked(settings.value("view/showOutlines", false).toBool());
   show_ellipses_action_->setChecked(settings.value("view/showEllipses", false).toBool());
+  show_overlay_mask_action_->setChecked(settings.value("view/showOverlayMask", false).toBool());
 }
 
 void MainWindow::writeSettings() const {
@@ -388,6 +395,7 @@ void MainWindow::writeSettings() const {
   settings.setValue("view/showTracks", show_tracks_action_->isChecked());
   settings.setValue("view/showOutlines", show_outlines_action_->isChecked());
   settings.setValue("view/showEllipses", show_ellipses_action_->isChecked());
+  settings.setValue("view/showOverlayMask", show_overlay_mask_action_->isChecked());
 }
 
 // --------------------------------------------------------------------------------------------
@@ -520,6 +528,12 @@ void MainWindow::missionLoaded(const Loaded& loaded) {
   }
   view_->setMission(mission_, mission_path_);
   frame_panel_->setMission(mission_, video_path_);
+  show_overlay_mask_action_->setStatusTip(
+      mission_->overlays.empty()
+          ? tr("This mission has no overlay mask: none was found, or it was processed before "
+               "Saker kept them")
+          : tr("Tint the burned-in text and logos that processing left out, in the recalled "
+               "frame"));
   if (!same) {
     resetFilter();
     addRecent(mission_path_);

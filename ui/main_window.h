@@ -177,6 +177,7 @@ class MainWindow : public QMainWindow {
   QAction* show_tracks_action_ = nullptr;
   QAction* show_outlines_action_ = nullptr;
   QAction* show_ellipses_action_ = nullptr;
+  QAction* show_overlay_mask_action_ = nullptr;  // the frame panel's overlay mask layer
   QStringList recent_;
 
   TaskRunner* jobs_ = nullptr;    // processing, exports, copies: one at a time

@@ -646,12 +646,27 @@ void FrontEnd::SelectGroundMatches() {
   }
 }
 
+// Whether `now` has a quarter more overlay cells (and at least 4) that `before` did not have, or
+// another grid.
+bool MaskGrew(const track::OverlayMask& before, const track::OverlayMask& now) {
+  if (before.cells.size() != now.cells.size() || before.cell_px != now.cell_px) return true;
+  cv::Mat added;
+  cv::compare(now.cells, before.cells, added, cv::CMP_GT);
+  const int grown = cv::countNonZero(added);
+  return grown >= std::max(4, cv::countNonZero(before.cells) / 4);
+}
+
 // After the overlay detector took the change answer of `frame`: the mask handed out goes on to
-// cover it, or is closed and replaced when the detector's mask changed (at most once per
-// overlay window, so that flickering cells do not make a mask per frame).
+// cover it, or is closed and replaced when the detector's mask changed: at once when it grew
+// (MaskGrew), otherwise at most once per overlay window, so that flickering cells do not make a
+// mask per frame.
 void FrontEnd::NoteOverlayMask(int64_t frame) {
   const bool changed = overlays_.version() != open_overlay_version_;
-  if (open_overlay_ && (!changed || frame - open_overlay_->first_frame < overlay_min_frames_)) {
+  // A mask that grew is handed out at once: the evidence builds up over seconds, and the first
+  // mask of a segment is a fraction of the overlay.
+  const bool grew = changed && open_overlay_ && MaskGrew(*open_overlay_, overlays_.mask());
+  if (open_overlay_ &&
+      (!changed || (!grew && frame - open_overlay_->first_frame < overlay_min_frames_))) {
     open_overlay_->last_frame = std::max(open_overlay_->last_frame, frame);
     return;
   }
@@ -789,9 +804,25 @@ void FrontEnd::FinishTargets() {
     std::vector<int64_t> breaks;
     for (const track::ChainBreak& b : result_.breaks) breaks.push_back(b.frame_index);
     std::sort(breaks.begin(), breaks.end());
+    // The ground's motion at an image point summed over frames (first, last] of the result.
+    const auto ground_shift = [&](int64_t first, int64_t last, const Eigen::Vector2d& p) {
+      auto it =
+          std::upper_bound(result_.frames.begin(), result_.frames.end(), first,
+                           [](int64_t frame, const FrameResult& f) { return frame < f.index; });
+      double shift = 0;
+      for (; it != result_.frames.end() && it->index <= last; ++it) {
+        if (!it->homography_ok) continue;
+        const Eigen::Vector3d q = it->current_from_previous * p.homogeneous();
+        if (q.z() > 0) shift += (q.hnormalized() - p).norm();
+      }
+      return shift;
+    };
+    const track::OverlayOptions& o = options_.overlays;
     const auto on_overlay = [&](const track::TargetTrack& t) {
-      return track::OnOverlayMasks(t, result_.overlays, breaks,
-                                   options_.overlays.max_target_fraction);
+      const bool fixed =
+          track::ScreenFixed(t, o.fixed_radius_px, o.fixed_min_ground_px, ground_shift);
+      return track::OnOverlayMasks(t, result_.overlays, breaks, o.max_target_fraction,
+                                   fixed ? o.fixed_near_cells : 0);
     };
     std::erase_if(result_.targets, on_overlay);
     std::erase_if(targets_by_change_, on_overlay);

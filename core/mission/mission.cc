@@ -1,5 +1,8 @@
 #include "core/mission/mission.h"
 
+#include <algorithm>
+#include <cmath>
+
 namespace saker::mission {
 
 const char* LinkKindName(LinkKind kind) {
@@ -19,6 +22,54 @@ std::optional<LinkKind> LinkKindFromName(const std::string& name) {
     if (name == LinkKindName(kind)) return kind;
   }
   return std::nullopt;
+}
+
+bool OverlayRecord::Contains(const Eigen::Vector2d& p) const {
+  if (cell_px <= 0 || !std::isfinite(p.x()) || !std::isfinite(p.y())) return false;
+  // Pixel centres are at integer coordinates: pixel i covers [i - 0.5, i + 0.5).
+  const double x = std::floor((p.x() + 0.5) / cell_px);
+  const double y = std::floor((p.y() + 0.5) / cell_px);
+  if (x < 0 || y < 0 || x >= cols || y >= rows) return false;
+  const size_t i = static_cast<size_t>(y) * static_cast<size_t>(cols) + static_cast<size_t>(x);
+  return i < cells.size() && cells[i] != 0;
+}
+
+double OverlayRecord::Coverage() const {
+  if (cells.empty()) return 0;
+  const auto on = std::count_if(cells.begin(), cells.end(), [](uint8_t c) { return c != 0; });
+  return static_cast<double>(on) / static_cast<double>(cells.size());
+}
+
+std::string OverlayRecord::Problem() const {
+  if (first_frame < 0 || last_frame < first_frame) {
+    return "frames " + std::to_string(first_frame) + " to " + std::to_string(last_frame) +
+           " are not a range of frames";
+  }
+  if (cell_px < 1 || cell_px > kMaxOverlayCellPx) {
+    return "cell size " + std::to_string(cell_px) + " px is outside [1, " +
+           std::to_string(kMaxOverlayCellPx) + "]";
+  }
+  if (cols < 1 || rows < 1 || cols > kMaxOverlayCells || rows > kMaxOverlayCells) {
+    return "grid of " + std::to_string(cols) + "x" + std::to_string(rows) +
+           " cells is outside [1, " + std::to_string(kMaxOverlayCells) + "] a side";
+  }
+  if (cells.size() != static_cast<size_t>(cols) * static_cast<size_t>(rows)) {
+    return std::to_string(cells.size()) + " cells for a grid of " + std::to_string(cols) + "x" +
+           std::to_string(rows);
+  }
+  if (std::any_of(cells.begin(), cells.end(), [](uint8_t c) { return c > 1; })) {
+    return "a cell is neither 0 nor 1";
+  }
+  return {};
+}
+
+const OverlayRecord* OverlayAt(const std::vector<OverlayRecord>& overlays, int64_t frame) {
+  // The first mask ending at or after `frame`; it applies when it starts at or before it.
+  const auto it =
+      std::lower_bound(overlays.begin(), overlays.end(), frame,
+                       [](const OverlayRecord& o, int64_t f) { return o.last_frame < f; });
+  if (it == overlays.end() || it->first_frame > frame) return nullptr;
+  return &*it;
 }
 
 }  // namespace saker::mission

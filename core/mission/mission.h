@@ -24,9 +24,9 @@ namespace saker::mission {
 
 // Version of the mission file's schema. A file with a newer version is refused, never written.
 // Version 2 added the frames' presentation time stamps and key-frame flags, version 3 the table of
-// processing checkpoints, version 4 the tracks' confidence; an older file is read as it is and
-// upgraded in place when it is opened for writing.
-inline constexpr int kSchemaVersion = 4;
+// processing checkpoints, version 4 the tracks' confidence, version 5 the screen-fixed overlay
+// masks; an older file is read as it is and upgraded in place when it is opened for writing.
+inline constexpr int kSchemaVersion = 5;
 
 using Covariance8 = Eigen::Matrix<double, 8, 8>;
 
@@ -115,6 +115,36 @@ struct ActivityTrack {
   std::optional<double> confidence;
 };
 
+// Limits of an overlay mask's grid (a cell's side in pixels, cells a side).
+inline constexpr int kMaxOverlayCellPx = 1024;
+inline constexpr int kMaxOverlayCells = 8192;
+
+// A screen-fixed overlay mask (burned-in text, reticles, logos; track/overlay_mask.h) that the
+// front end found and left out of the ground motion and the targets, and the frames it applies
+// to (within one chain segment). The image is cut into square cells of `cell_px` pixels of the
+// original video frame; cell (x, y) covers pixels [x, x+1) * cell_px. Absent in missions written
+// before schema version 5.
+struct OverlayRecord {
+  int64_t first_frame = 0;
+  int64_t last_frame = 0;  // inclusive
+  int cell_px = 8;
+  int cols = 0;
+  int rows = 0;
+  std::vector<uint8_t> cells;  // cols * rows, row-major: 1 on the overlay, 0 elsewhere
+
+  // Whether the point `p` of the original frame lies on the overlay (pixel centres at integer
+  // coordinates: pixel i covers [i - 0.5, i + 0.5)).
+  bool Contains(const Eigen::Vector2d& p) const;
+  // The fraction of the cells on the overlay.
+  double Coverage() const;
+  // Why the record breaks a rule of the file (empty when it does not): sizes, the cells' count
+  // and values, the frame range.
+  std::string Problem() const;
+};
+
+// The overlay mask that applies to `frame`, or null: `overlays` in frame order, disjoint.
+const OverlayRecord* OverlayAt(const std::vector<OverlayRecord>& overlays, int64_t frame);
+
 // Where the mosaic's tile pyramid lies on the map. Level 0 is full resolution; level l is
 // downsampled by 2^l; tile (x, y) of level l covers pixels [x, x+1) * tile_size of that level.
 struct PyramidInfo {
@@ -153,6 +183,7 @@ struct Mission {
   std::string options_json;  // the processing options, as JSON
   MapFrame map;
   std::vector<FrameRecord> frames;
+  std::vector<OverlayRecord> overlays;  // in frame order, disjoint; saved with the frames
   std::vector<KeyFrameRecord> key_frames;
   std::vector<LinkRecord> links;
   std::vector<ActivityTrack> tracks;

@@ -30,8 +30,9 @@ constexpr int kCornerValues = 8;  // four (x, y) pairs
 constexpr int kMaxPyramidLevels = 32;
 constexpr int kMaxTileSize = 1 << 16;
 
-// Schema v4 (docs/mission-file.md): the tables of version 2 here with the tracks' confidence (new
-// in version 4), the checkpoint table (new in version 3) below. REAL columns are nullable on
+// Schema v5 (docs/mission-file.md): the tables of version 2 here with the tracks' confidence (new
+// in version 4), the checkpoint table (new in version 3) and the overlay masks (new in version 5)
+// below. REAL columns are nullable on
 // purpose: SQLite stores NaN as NULL.
 constexpr const char* kSchemaSql = R"sql(
 CREATE TABLE meta (
@@ -125,6 +126,20 @@ CREATE TABLE checkpoint (
   data BLOB NOT NULL,
   PRIMARY KEY (kind, key)
 ) WITHOUT ROWID;
+)sql";
+
+// The screen-fixed overlay masks (mission.h OverlayRecord): `cells` holds cols * rows bits,
+// row-major, least significant bit first, 1 on the overlay. Added in schema version 5.
+constexpr const char* kOverlaysSql = R"sql(
+CREATE TABLE overlays (
+  ordinal INTEGER PRIMARY KEY,
+  first_frame INTEGER NOT NULL,
+  last_frame INTEGER NOT NULL,
+  cell_px INTEGER NOT NULL,
+  cols INTEGER NOT NULL,
+  rows INTEGER NOT NULL,
+  cells BLOB NOT NULL
+);
 )sql";
 
 constexpr const char* kTables[] = {"meta",  "source", "frames",       "key_frames",
@@ -445,6 +460,53 @@ Status WriteFrames(const sqlite::Database& db, const std::vector<FrameRecord>& f
   return Status::Ok();
 }
 
+// Bits of an overlay mask's cells, row-major, least significant bit first.
+std::vector<uint8_t> PackCells(const std::vector<uint8_t>& cells) {
+  std::vector<uint8_t> bits((cells.size() + 7) / 8, 0);
+  for (size_t i = 0; i < cells.size(); ++i) {
+    if (cells[i] != 0) bits[i / 8] = static_cast<uint8_t>(bits[i / 8] | (1u << (i % 8)));
+  }
+  return bits;
+}
+
+Status WriteOverlays(const sqlite::Database& db, const std::vector<OverlayRecord>& overlays) {
+  SAKER_RETURN_IF_ERROR(db.Exec("DELETE FROM overlays", "saving table overlays"));
+  SAKER_ASSIGN_OR_RETURN(
+      sqlite::Statement stmt,
+      db.Prepare("INSERT INTO overlays (ordinal, first_frame, last_frame, cell_px, cols, rows, "
+                 "cells) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7)",
+                 "saving table overlays"));
+  for (size_t i = 0; i < overlays.size(); ++i) {
+    const OverlayRecord& o = overlays[i];
+    const std::vector<uint8_t> bits = PackCells(o.cells);
+    sqlite::Binder b(stmt.get());
+    b.Int64(1, static_cast<int64_t>(i));
+    b.Int64(2, o.first_frame);
+    b.Int64(3, o.last_frame);
+    b.Int64(4, o.cell_px);
+    b.Int64(5, o.cols);
+    b.Int64(6, o.rows);
+    b.Blob(7, bits.data(), bits.size());
+    SAKER_RETURN_IF_ERROR(db.Run(stmt.get(), b, "saving table overlays"));
+  }
+  return Status::Ok();
+}
+
+// Why `overlays` break a rule of the file: a record's own (OverlayRecord::Problem), or the order
+// (increasing and disjoint frame ranges). Empty when they do not.
+std::string OverlaysProblem(const std::vector<OverlayRecord>& overlays) {
+  for (size_t i = 0; i < overlays.size(); ++i) {
+    const std::string problem = overlays[i].Problem();
+    if (!problem.empty()) return "overlay mask " + std::to_string(i) + ": " + problem;
+    if (i > 0 && overlays[i].first_frame <= overlays[i - 1].last_frame) {
+      return "overlay mask " + std::to_string(i) + " starts at frame " +
+             std::to_string(overlays[i].first_frame) + ", within the previous one (to frame " +
+             std::to_string(overlays[i - 1].last_frame) + ")";
+    }
+  }
+  return {};
+}
+
 Status WriteGraph(const sqlite::Database& db, const Mission& m) {
   SAKER_RETURN_IF_ERROR(db.Exec("DELETE FROM links", "saving table links"));
   SAKER_RETURN_IF_ERROR(db.Exec("DELETE FROM key_frames", "saving table key_frames"));
@@ -697,6 +759,45 @@ Status LoadFrames(const sqlite::Database& db, int schema, std::vector<FrameRecor
   });
 }
 
+Status LoadOverlays(const sqlite::Database& db, std::vector<OverlayRecord>* overlays) {
+  return LoadRows(
+      db,
+      "SELECT ordinal, first_frame, last_frame, cell_px, cols, rows, cells FROM overlays "
+      "ORDER BY ordinal",
+      "overlays", overlays, [&](sqlite::RowReader& row, OverlayRecord* o) {
+        CheckOrdinal(row, 0, row.Int64(0), overlays->size());
+        o->first_frame = row.Int(1, 0, std::numeric_limits<int64_t>::max());
+        o->last_frame = row.Int(2, o->first_frame, std::numeric_limits<int64_t>::max());
+        o->cell_px = static_cast<int>(row.Int(3, 1, kMaxOverlayCellPx));
+        o->cols = static_cast<int>(row.Int(4, 1, kMaxOverlayCells));
+        o->rows = static_cast<int>(row.Int(5, 1, kMaxOverlayCells));
+        if (!row.status().ok()) return;
+        if (!overlays->empty() && o->first_frame <= overlays->back().last_frame) {
+          row.Fail(1, "frame " + std::to_string(o->first_frame) +
+                          " is within the previous mask (to frame " +
+                          std::to_string(overlays->back().last_frame) + ")");
+          return;
+        }
+        const size_t n = static_cast<size_t>(o->cols) * static_cast<size_t>(o->rows);
+        std::vector<uint8_t> bits;
+        if (row.Type(6) != SQLITE_BLOB) {
+          row.Fail(6, std::string("expected a blob, found ") + sqlite::TypeName(row.Type(6)));
+          return;
+        }
+        if (!row.Bytes(6, &bits)) {
+          row.Fail(6, "out of memory reading the cells");
+          return;
+        }
+        if (bits.size() != (n + 7) / 8) {
+          row.Fail(6, "blob of " + std::to_string(bits.size()) + " bytes, expected " +
+                          std::to_string((n + 7) / 8) + " for " + std::to_string(n) + " cells");
+          return;
+        }
+        o->cells.resize(n);
+        for (size_t i = 0; i < n; ++i) o->cells[i] = (bits[i / 8] >> (i % 8)) & 1u;
+      });
+}
+
 Status LoadKeyFrames(const sqlite::Database& db, std::vector<KeyFrameRecord>* key_frames) {
   return LoadRows(db,
                   "SELECT ordinal, id, frame_index, segment, map_from_frame, covariance, node "
@@ -839,6 +940,10 @@ std::string PartsProblem(const Mission& mission, unsigned parts) {
       if (dup != indices.end()) return "frame index " + std::to_string(*dup) + " appears twice";
     }
   }
+  if (parts & kSaveFrames) {
+    const std::string problem = OverlaysProblem(mission.overlays);
+    if (!problem.empty()) return problem;
+  }
   if (parts & kSaveGraph) {
     for (size_t i = 0; i < mission.links.size(); ++i) {
       if (!ValidLinkKind(mission.links[i].kind)) {
@@ -915,6 +1020,9 @@ StatusOr<int> CheckIdentity(const sqlite::Database& db) {
   if (schema >= 3 && tables.count("checkpoint") == 0) {
     return InvalidDataError(db.path() + ": not a Saker mission (no table checkpoint)");
   }
+  if (schema >= 5 && tables.count("overlays") == 0) {
+    return InvalidDataError(db.path() + ": not a Saker mission (no table overlays)");
+  }
   return schema;
 }
 
@@ -926,6 +1034,7 @@ Status Create(const sqlite::Database& db) {
   SAKER_RETURN_IF_ERROR(db.Exec(pragmas.c_str(), "setting the file identity"));
   SAKER_RETURN_IF_ERROR(db.Exec(kSchemaSql, "creating the schema"));
   SAKER_RETURN_IF_ERROR(db.Exec(kCheckpointSql, "creating the schema"));
+  SAKER_RETURN_IF_ERROR(db.Exec(kOverlaysSql, "creating the schema"));
   return transaction.Commit();
 }
 
@@ -933,6 +1042,7 @@ Status Create(const sqlite::Database& db) {
 // Version 2 -> 3: the checkpoint table.
 // Version 3 -> 4: the tracks' confidence. NULL (unknown): it needs the front end's evidence
 // (features and change per observation), which older files did not keep.
+// Version 4 -> 5: the overlay masks' table, empty (older files did not keep them).
 Status Upgrade(const sqlite::Database& db, int schema) {
   sqlite::Transaction transaction(db);
   SAKER_RETURN_IF_ERROR(transaction.Begin(/*write=*/true));
@@ -951,6 +1061,9 @@ Status Upgrade(const sqlite::Database& db, int schema) {
                 "CHECK (confidence IS NULL OR (confidence >= 0 AND confidence <= 1))",
                 "upgrading the mission to schema 4"));
   }
+  if (schema < 5) {
+    SAKER_RETURN_IF_ERROR(db.Exec(kOverlaysSql, "upgrading the mission to schema 5"));
+  }
   const std::string version = std::to_string(kSchemaVersion);
   const std::string sql = "UPDATE meta SET value = " + version + " WHERE key = '" +
                           kKeySchemaVersion + "'; PRAGMA user_version = " + version;
@@ -962,7 +1075,10 @@ Status Save(const sqlite::Database& db, const Mission& mission, unsigned parts) 
   sqlite::Transaction transaction(db);
   SAKER_RETURN_IF_ERROR(transaction.Begin(/*write=*/true));
   SAKER_RETURN_IF_ERROR(WriteHeader(db, mission));
-  if (parts & kSaveFrames) SAKER_RETURN_IF_ERROR(WriteFrames(db, mission.frames));
+  if (parts & kSaveFrames) {
+    SAKER_RETURN_IF_ERROR(WriteFrames(db, mission.frames));
+    SAKER_RETURN_IF_ERROR(WriteOverlays(db, mission.overlays));
+  }
   if (parts & kSaveGraph) SAKER_RETURN_IF_ERROR(WriteGraph(db, mission));
   if (parts & kSaveTracks) SAKER_RETURN_IF_ERROR(WriteTracks(db, mission.tracks));
   return transaction.Commit();
@@ -975,6 +1091,7 @@ Status Load(const sqlite::Database& db, int schema, Mission* m) {
   SAKER_RETURN_IF_ERROR(LoadMeta(db, m));
   SAKER_RETURN_IF_ERROR(LoadSource(db, &m->source));
   SAKER_RETURN_IF_ERROR(LoadFrames(db, schema, &m->frames));
+  if (schema >= 5) SAKER_RETURN_IF_ERROR(LoadOverlays(db, &m->overlays));
   SAKER_RETURN_IF_ERROR(LoadKeyFrames(db, &m->key_frames));
   SAKER_RETURN_IF_ERROR(LoadLinks(db, &m->links));
   SAKER_RETURN_IF_ERROR(LoadTracks(db, schema, &m->tracks));

@@ -222,7 +222,7 @@ StatusOr<ProcessSummary> ProcessVideo(const std::string& video, const std::strin
       summary.low_frame_rate = done->front.low_frame_rate;
       summary.polarity_switches = static_cast<int64_t>(done->front.polarity_switches.size());
       double masked = 0;
-      for (const track::OverlayMask& m : done->front.overlays) {
+      for (const mission::OverlayRecord& m : done->mission.overlays) {
         const int64_t n = m.last_frame - m.first_frame + 1;
         summary.overlay_frames += n;
         masked += static_cast<double>(n) * m.Coverage();

@@ -4,6 +4,7 @@
 #include "core/util/check.h"
 #include "core/util/timer.h"
 
+#include <algorithm>
 #include <map>
 #include <utility>
 
@@ -64,6 +65,7 @@ StatusOr<bool> FrontEndStage(std::unique_ptr<video::VideoReader> reader,
                               run->front.scan.ChecksumFailures(),
                               options.front_end.metadata.accept_bad_checksums};
   m.frames = FrameRecords(run->front, nullptr, nullptr);
+  m.overlays = OverlayRecords(run->front);
   m.progress.front_end = true;
   return true;
 }
@@ -240,6 +242,32 @@ std::vector<mission::FrameRecord> FrameRecords(const frontend::FrontEndResult& f
     frames.push_back(std::move(f));
   }
   return frames;
+}
+
+std::vector<mission::OverlayRecord> OverlayRecords(const frontend::FrontEndResult& front) {
+  std::vector<mission::OverlayRecord> overlays;
+  overlays.reserve(front.overlays.size());
+  for (const track::OverlayMask& mask : front.overlays) {
+    if (mask.cells.empty()) continue;
+    CV_Assert(mask.cells.type() == CV_8U);
+    mission::OverlayRecord o;
+    o.first_frame = mask.first_frame;
+    o.last_frame = mask.last_frame;
+    // The mission's masks are disjoint: where the front end's overlap (a mask handed out by a
+    // late change answer beside one closed at a chain break), the earlier one keeps the frames.
+    if (!overlays.empty()) o.first_frame = std::max(o.first_frame, overlays.back().last_frame + 1);
+    if (o.first_frame > o.last_frame || o.first_frame < 0) continue;
+    o.cell_px = mask.cell_px;
+    o.cols = mask.cells.cols;
+    o.rows = mask.cells.rows;
+    o.cells.reserve(static_cast<size_t>(o.cols) * static_cast<size_t>(o.rows));
+    for (int y = 0; y < o.rows; ++y) {
+      const uint8_t* row = mask.cells.ptr<uint8_t>(y);
+      for (int x = 0; x < o.cols; ++x) o.cells.push_back(row[x] != 0 ? 1 : 0);
+    }
+    overlays.push_back(std::move(o));
+  }
+  return overlays;
 }
 
 std::vector<mission::ActivityTrack> TrackRecords(const frontend::FrontEndResult& front) {

@@ -96,6 +96,8 @@ Status RunStages(std::unique_ptr<video::VideoReader> reader, const StageOptions&
 std::vector<mission::FrameRecord> FrameRecords(const frontend::FrontEndResult& front,
                                                const mosaic::MosaicInput* input,
                                                const mosaic::MosaicResult* mosaic);
+// The front end's overlay masks as the mission keeps them (cells of 0 and 1, row-major).
+std::vector<mission::OverlayRecord> OverlayRecords(const frontend::FrontEndResult& front);
 std::vector<mission::ActivityTrack> TrackRecords(const frontend::FrontEndResult& front);
 // The front end's evidence for each target track (by id), for its confidence.
 std::unordered_map<int64_t, activity::TrackEvidence> TrackEvidenceOf(

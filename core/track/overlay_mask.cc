@@ -61,6 +61,13 @@ Status OverlayOptions::Validate() const {
   if (cell_px < 1 || cell_px > 256 || dilate_cells < 0 || dilate_cells > 16) {
     return InvalidArgumentError("overlays: cells must be 1..256 px, the dilation 0..16 cells");
   }
+  if (!(fixed_radius_px >= 0 && fixed_radius_px <= 100) ||
+      !(fixed_min_ground_px >= 0 && fixed_min_ground_px <= 10000) || fixed_near_cells < 0 ||
+      fixed_near_cells > 16) {
+    return InvalidArgumentError(
+        "overlays: a screen-fixed target needs a radius in [0, 100] px, a ground motion in "
+        "[0, 10000] px and 0..16 cells around the mask");
+  }
   if (!(max_target_fraction > 0 && max_target_fraction <= 1)) {
     return InvalidArgumentError("overlays: the target fraction must be in (0, 1]");
   }
@@ -74,13 +81,27 @@ bool OverlayMask::Contains(const Eigen::Vector2d& p) const {
   return x < cells.cols && y < cells.rows && cells.at<uint8_t>(y, x) != 0;
 }
 
+bool OverlayMask::ContainsNear(const Eigen::Vector2d& p, int near_cells) const {
+  if (near_cells <= 0) return Contains(p);
+  if (cells.empty() || !std::isfinite(p.x()) || !std::isfinite(p.y())) return false;
+  const int x = static_cast<int>(std::floor((p.x() + 0.5) / cell_px));
+  const int y = static_cast<int>(std::floor((p.y() + 0.5) / cell_px));
+  for (int yy = std::max(0, y - near_cells); yy <= std::min(cells.rows - 1, y + near_cells); ++yy) {
+    for (int xx = std::max(0, x - near_cells); xx <= std::min(cells.cols - 1, x + near_cells);
+         ++xx) {
+      if (cells.at<uint8_t>(yy, xx) != 0) return true;
+    }
+  }
+  return false;
+}
+
 double OverlayMask::Coverage() const {
   if (cells.empty()) return 0;
   return static_cast<double>(cv::countNonZero(cells)) / static_cast<double>(cells.total());
 }
 
 bool OnOverlayMasks(const TargetTrack& target, const std::vector<OverlayMask>& masks,
-                    const std::vector<int64_t>& breaks, double max_fraction) {
+                    const std::vector<int64_t>& breaks, double max_fraction, int near_cells) {
   if (masks.empty() || target.observations.empty()) return false;
   int64_t on = 0;
   for (const TargetObservation& o : target.observations) {
@@ -94,13 +115,31 @@ bool OnOverlayMasks(const TargetTrack& target, const std::vector<OverlayMask>& m
     const int64_t segment_end =
         next_break != breaks.end() ? *next_break : std::numeric_limits<int64_t>::max();
     for (auto m = it; m != masks.end() && m->first_frame < segment_end; ++m) {
-      if (m->Contains(o.position)) {
+      if (m->ContainsNear(o.position, near_cells)) {
         ++on;
         break;
       }
     }
   }
   return static_cast<double>(on) >= max_fraction * static_cast<double>(target.observations.size());
+}
+
+bool ScreenFixed(
+    const TargetTrack& target, double radius_px, double min_ground_px,
+    const std::function<double(int64_t, int64_t, const Eigen::Vector2d&)>& ground_shift_px) {
+  const std::vector<TargetObservation>& obs = target.observations;
+  if (obs.size() < 2) return false;
+  std::vector<double> xs, ys;
+  for (const TargetObservation& o : obs) xs.push_back(o.position.x()), ys.push_back(o.position.y());
+  const auto median = [](std::vector<double>& v) {
+    std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
+    return v[v.size() / 2];
+  };
+  const Eigen::Vector2d centre(median(xs), median(ys));
+  for (const TargetObservation& o : obs) {
+    if ((o.position - centre).norm() > radius_px) return false;
+  }
+  return ground_shift_px(obs.front().frame, obs.back().frame, centre) >= min_ground_px;
 }
 
 OverlayDetector::OverlayDetector(const OverlayOptions& options, FrameRate rate)

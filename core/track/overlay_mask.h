@@ -37,6 +37,7 @@
 #include <opencv2/core/mat.hpp>
 
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 namespace saker::track {
@@ -59,6 +60,13 @@ struct OverlayOptions {
   // A target whose observations lie on the mask in at least this fraction of its frames is
   // dropped (1 turns it off).
   double max_target_fraction = 0.5;
+  // A target that stays put in the image (every observation within `fixed_radius_px` of their
+  // median) while the ground under it moves by `fixed_min_ground_px` in all is screen-fixed: it is
+  // judged on the mask grown by `fixed_near_cells`, so that the end of a text line the evidence
+  // has not covered yet (digits that changed, the image's edge) goes with the rest of it.
+  double fixed_radius_px = 3;
+  double fixed_min_ground_px = 12;
+  int fixed_near_cells = 3;
   Status Validate() const;
 };
 
@@ -70,6 +78,8 @@ struct OverlayMask {
   cv::Mat cells;    // CV_8U, non-zero on the overlay; cell (x, y) covers pixels [x, x+1) * cell_px
   // Whether the full-resolution pixel `p` lies on the overlay.
   bool Contains(const Eigen::Vector2d& p) const;
+  // Whether a cell within `near_cells` cells of p's (a square around it) is on the overlay.
+  bool ContainsNear(const Eigen::Vector2d& p, int near_cells) const;
   // The fraction of the image the mask covers.
   double Coverage() const;
 };
@@ -80,8 +90,17 @@ struct OverlayMask {
 // gather and grows, and an overlay is there from the start, so the tracks its corners made before
 // the mask covered them are overlay tracks too. `breaks`: the frames that start a new chain
 // segment, increasing.
+// `near_cells`: an observation within this many cells of the mask counts as on it (0: on the
+// mask's own cells only).
 bool OnOverlayMasks(const TargetTrack& target, const std::vector<OverlayMask>& masks,
-                    const std::vector<int64_t>& breaks, double max_fraction);
+                    const std::vector<int64_t>& breaks, double max_fraction, int near_cells = 0);
+
+// Whether `target` stayed within `radius_px` of its observations' median position while the ground
+// moved by at least `min_ground_px` there: `ground_shift_px(first_frame, last_frame, p)` is the
+// ground's motion at image point p summed over the frames after `first_frame` up to `last_frame`.
+bool ScreenFixed(
+    const TargetTrack& target, double radius_px, double min_ground_px,
+    const std::function<double(int64_t, int64_t, const Eigen::Vector2d&)>& ground_shift_px);
 
 class OverlayDetector {
  public:

@@ -499,11 +499,25 @@ TEST(CliProcessTest, TheOverlayMaskIsOnByDefaultSaysWhatItMaskedAndCanBeTurnedOf
   EXPECT_GT(on.at("overlay_frames").get<int64_t>(), 0);
   EXPECT_GT(on.at("overlay_coverage").get<double>(), 0.0);
   EXPECT_LT(on.at("overlay_coverage").get<double>(), 0.5);
+  // The mission keeps the masks; info reports them.
+  run = RunCli("info --json '" + mission + "'");
+  ASSERT_EQ(run.exit_code, 0) << run.out;
+  const nlohmann::json kept = nlohmann::json::parse(run.out).at("overlay_masks");
+  EXPECT_GT(kept.at("masks").get<int64_t>(), 0);
+  EXPECT_EQ(kept.at("frames").get<int64_t>(), on.at("overlay_frames").get<int64_t>());
+  EXPECT_NEAR(kept.at("coverage").get<double>(), on.at("overlay_coverage").get<double>(), 1e-9);
+  run = RunCli("info '" + mission + "'");
+  EXPECT_NE(
+      run.out.find("overlay masks: " + std::to_string(kept.at("masks").get<int64_t>()) + " over "),
+      std::string::npos)
+      << run.out;
   run = RunCli("process -q --json --no-tiles --replace --overlay-mask off '" + video + "' -o '" +
                mission + "'");
   ASSERT_EQ(run.exit_code, 0) << run.out;
   const nlohmann::json off = nlohmann::json::parse(run.out);
   EXPECT_EQ(off.at("overlay_frames").get<int64_t>(), 0);
+  run = RunCli("info '" + mission + "'");
+  EXPECT_NE(run.out.find("overlay masks: none"), std::string::npos) << run.out;
   // Without the mask the overlay's corners make tracks of their own.
   EXPECT_GT(off.at("tracks").get<int64_t>(), on.at("tracks").get<int64_t>());
   run = RunCli("process --overlay-mask sometimes '" + video + "' -o '" + mission + "'");

@@ -211,6 +211,79 @@ TEST(FramePanelTest, ShowsTheObservedFrameWithTheMarkOnTheTarget) {
   MaybeScreenshot(panel, "observation");
 }
 
+// The overlay mask layer: off by default; when on, the cells of the displayed frame's mask are
+// tinted over the frame and the rest is untouched; a frame that no mask covers draws none.
+TEST(FramePanelTest, DrawsTheOverlayMaskOfTheDisplayedFrameWhenAsked) {
+  const TestMission* test = SmallMission();
+  ASSERT_NE(test, nullptr);
+  auto copy = std::make_shared<mission::Mission>(test->loaded);
+  const size_t track_index = LongestTrack(*copy);
+  const auto& points = copy->tracks[track_index].points;
+  ASSERT_GE(points.size(), 2u);
+  const size_t point_index = points.size() / 2;
+  ASSERT_NE(points[point_index].frame, points[point_index + 1].frame);
+  // A mask of the observation's frame alone: a block of cells at the top left, pixels
+  // [16, 96) x [8, 40).
+  mission::OverlayRecord mask;
+  mask.first_frame = mask.last_frame = points[point_index].frame;
+  mask.cell_px = 8;
+  mask.cols = (copy->source.width + 7) / 8;
+  mask.rows = (copy->source.height + 7) / 8;
+  mask.cells.assign(static_cast<size_t>(mask.cols * mask.rows), 0);
+  for (int y = 1; y < 5; ++y) {
+    for (int x = 2; x < 12; ++x) mask.cells[static_cast<size_t>(y * mask.cols + x)] = 1;
+  }
+  copy->overlays = {mask};
+  const std::shared_ptr<const mission::Mission> mission = copy;
+
+  FramePanel panel;
+  panel.resize(640, 520);
+  panel.show();
+  panel.setMission(mission, VideoOf(*test));
+  ASSERT_TRUE(WaitWarm(panel));
+  ASSERT_TRUE(ShowAndWait(panel, track_index, point_index));
+  EXPECT_FALSE(panel.overlayMaskVisible());
+  EXPECT_EQ(panel.drawnOverlayMask(), nullptr);
+
+  QWidget* canvas = panel.findChild<QWidget*>(QStringLiteral("frameCanvas"));
+  ASSERT_NE(canvas, nullptr);
+  // Where frame pixel (x, y) is drawn on the canvas (the frame fitted and centred).
+  const QImage& frame = panel.displayedImage();
+  const double scale = std::min(static_cast<double>(canvas->width()) / frame.width(),
+                                static_cast<double>(canvas->height()) / frame.height());
+  const auto on_canvas = [&](double x, double y) {
+    return QPoint(
+        static_cast<int>((canvas->width() - frame.width() * scale) / 2 + (x + 0.5) * scale),
+        static_cast<int>((canvas->height() - frame.height() * scale) / 2 + (y + 0.5) * scale));
+  };
+  const QImage before = canvas->grab().toImage();
+  panel.setOverlayMaskVisible(true);
+  EXPECT_EQ(panel.drawnOverlayMask(), &mission->overlays[0]);
+  const QImage after = canvas->grab().toImage();
+  ASSERT_EQ(before.size(), after.size());
+  const QColor masked_before = before.pixelColor(on_canvas(56, 24));
+  const QColor masked_after = after.pixelColor(on_canvas(56, 24));
+  EXPECT_GT(masked_after.blue(), masked_before.blue() + 20)
+      << "the mask's cell is not tinted: " << masked_before.name().toStdString() << " -> "
+      << masked_after.name().toStdString();
+  for (const QPoint& p : {on_canvas(110, 24), on_canvas(56, 50), on_canvas(300, 200)}) {
+    EXPECT_EQ(before.pixel(p), after.pixel(p)) << "off the mask at " << p.x() << ", " << p.y();
+  }
+  MaybeScreenshot(panel, "overlay-mask");
+
+  // The next observation's frame has no mask: nothing drawn; hiding the layer draws none either.
+  QSignalSpy shown(&panel, &FramePanel::frameShown);
+  panel.nextObservation();
+  ASSERT_TRUE(!shown.isEmpty() || shown.wait(30000));
+  EXPECT_EQ(panel.displayedFrame(), points[point_index + 1].frame);
+  EXPECT_EQ(panel.drawnOverlayMask(), nullptr);
+  ASSERT_TRUE(ShowAndWait(panel, track_index, point_index));
+  EXPECT_EQ(panel.drawnOverlayMask(), &mission->overlays[0]);
+  panel.setOverlayMaskVisible(false);
+  EXPECT_EQ(panel.drawnOverlayMask(), nullptr);
+  EXPECT_EQ(canvas->grab().toImage().pixel(on_canvas(56, 24)), before.pixel(on_canvas(56, 24)));
+}
+
 TEST(FramePanelTest, ObservationsOfEveryTrackLieOnTruthTargets) {
   const TestMission* test = SmallMission();
   ASSERT_NE(test, nullptr);

@@ -310,6 +310,27 @@ TEST(MainWindowTest, ClickOnATrackRecallsTheFrameWithTheObjectMarkedWhereTheTrut
   EXPECT_EQ(panel->displayedFrame(), displayed);
 }
 
+// View > Show Overlay Mask in Frames: off by default, it turns the frame panel's layer on and off,
+// and its status tip says whether the mission has masks at all.
+TEST(MainWindowTest, TheOverlayMaskLayerIsOffByDefaultAndTheViewMenuTogglesIt) {
+  const TestMission* m = SmallMission();
+  ASSERT_NE(m, nullptr);
+  MainWindow window;
+  window.show();
+  ASSERT_TRUE(OpenAndWait(window, *m));
+  QAction* action = window.findChild<QAction*>("showOverlayMask");
+  ASSERT_NE(action, nullptr);
+  EXPECT_TRUE(action->isCheckable());
+  EXPECT_FALSE(action->isChecked());
+  EXPECT_FALSE(window.framePanel()->overlayMaskVisible());
+  EXPECT_EQ(action->statusTip().contains("no overlay mask"), m->loaded.overlays.empty())
+      << action->statusTip().toStdString();
+  action->trigger();
+  EXPECT_TRUE(window.framePanel()->overlayMaskVisible());
+  action->trigger();
+  EXPECT_FALSE(window.framePanel()->overlayMaskVisible());
+}
+
 TEST(MainWindowTest, DropOpensAMissionAndTheStatusBarShowsWhereTheCursorIs) {
   const TestMission* m = SmallMission();
   ASSERT_NE(m, nullptr);

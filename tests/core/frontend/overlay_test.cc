@@ -176,6 +176,45 @@ TEST(OverlayMasksTest, ATargetIsJudgedByTheMasksOfItsFrameAndTheLaterOnesOfItsSe
   EXPECT_FALSE(track::OnOverlayMasks(target(10, 20, left), {}, {}, 0.5));
 }
 
+// A target that stays put in the image while the ground moves is screen-fixed, and is judged on
+// the mask grown by a few cells: the end of a text line the evidence has not covered yet. One that
+// moves, or stays put over a hovering camera, is judged on the mask's own cells.
+TEST(OverlayMasksTest, AScreenFixedTargetBesideTheMaskIsOnIt) {
+  track::OverlayMask mask;
+  mask.first_frame = 0, mask.last_frame = 99;
+  mask.cells = cv::Mat::zeros(10, 20, CV_8U);
+  mask.cells.colRange(0, 8).rowRange(8, 10).setTo(1);  // a text line at the bottom left
+  const std::vector<track::OverlayMask> masks = {mask};
+  const auto target = [](const Eigen::Vector2d& from, const Eigen::Vector2d& step) {
+    track::TargetTrack t;
+    for (int64_t f = 40; f < 64; ++f) {
+      track::TargetObservation o;
+      o.frame = f;
+      o.position = from + static_cast<double>(f - 40) * step;
+      t.observations.push_back(o);
+    }
+    return t;
+  };
+  // The ground moving 2 px a frame (46 px over frames 41-63), or not at all.
+  const auto moving = [](int64_t first, int64_t last, const Eigen::Vector2d&) {
+    return 2.0 * static_cast<double>(last - first);
+  };
+  const auto hovering = [](int64_t, int64_t, const Eigen::Vector2d&) { return 0.0; };
+  // Two cells right of the text, jittering by a pixel.
+  track::TargetTrack beside = target({81, 72}, {0, 0});
+  for (size_t i = 0; i < beside.observations.size(); i += 2)
+    beside.observations[i].position.x() += 1;
+  EXPECT_TRUE(track::ScreenFixed(beside, 3, 12, moving));
+  EXPECT_FALSE(track::ScreenFixed(beside, 3, 12, hovering));
+  EXPECT_FALSE(track::OnOverlayMasks(beside, masks, {}, 0.5));
+  EXPECT_TRUE(track::OnOverlayMasks(beside, masks, {}, 0.5, 3));
+  // A car driving past the same place is not fixed.
+  const track::TargetTrack driving = target({81, 60}, {0, 1});
+  EXPECT_FALSE(track::ScreenFixed(driving, 3, 12, moving));
+  // Four cells away is not beside it.
+  EXPECT_FALSE(track::OnOverlayMasks(target({97, 72}, {0, 0}), masks, {}, 0.5, 3));
+}
+
 TEST(OverlayDetectorTest, OptionsAreValidated) {
   track::OverlayOptions options;
   EXPECT_TRUE(options.Validate().ok());

@@ -95,6 +95,18 @@ inline bool MissionsEqual(const Mission& a, const Mission& b, std::string* why) 
     out.str("");
   }
 
+  if (a.overlays.size() != b.overlays.size()) return differ("overlay mask count");
+  for (size_t i = 0; i < a.overlays.size(); ++i) {
+    const OverlayRecord& oa = a.overlays[i];
+    const OverlayRecord& ob = b.overlays[i];
+    out << "overlay mask " << i << ": ";
+    if (oa.first_frame != ob.first_frame || oa.last_frame != ob.last_frame) return differ("frames");
+    if (oa.cell_px != ob.cell_px) return differ("cell_px");
+    if (oa.cols != ob.cols || oa.rows != ob.rows) return differ("grid");
+    if (oa.cells != ob.cells) return differ("cells");
+    out.str("");
+  }
+
   if (a.key_frames.size() != b.key_frames.size()) return differ("key frame count");
   for (size_t i = 0; i < a.key_frames.size(); ++i) {
     const KeyFrameRecord& ka = a.key_frames[i];
@@ -227,6 +239,19 @@ inline Mission MakeFullMission() {
       f.key_frame = i == 0;
     }
     m.frames.push_back(f);
+  }
+
+  // Two overlay masks: a grid whose cell count is not a multiple of 8 (the file packs bits), and
+  // one that runs to the last frame.
+  for (int i = 0; i < 2; ++i) {
+    OverlayRecord o;
+    o.first_frame = i == 0 ? 1 : 9;
+    o.last_frame = i == 0 ? 5 : 1000000007;
+    o.cell_px = 8 + 8 * i;
+    o.cols = 13 - 3 * i;
+    o.rows = 7 + i;
+    for (int c = 0; c < o.cols * o.rows; ++c) o.cells.push_back((c * 7 + i) % 5 == 0 ? 1 : 0);
+    m.overlays.push_back(std::move(o));
   }
 
   for (int i = 0; i < 3; ++i) {

@@ -129,7 +129,7 @@ TEST_F(MissionStoreTest, SchemaOneFileIsReadAndUpgradedForWriting) {
   const Mission full = MakeFullMission();
   WriteMissionFile(path, full);
   ExecSql(path,
-          "DROP TABLE checkpoint; ALTER TABLE tracks DROP COLUMN confidence; "
+          "DROP TABLE overlays; DROP TABLE checkpoint; ALTER TABLE tracks DROP COLUMN confidence; "
           "ALTER TABLE frames DROP COLUMN pts; ALTER TABLE frames DROP COLUMN key_frame; "
           "UPDATE meta SET value = 1 WHERE key = 'schema_version'; PRAGMA user_version = 1");
   {
@@ -161,7 +161,7 @@ TEST_F(MissionStoreTest, SchemaTwoFileHasNoCheckpointUntilUpgraded) {
   const Mission full = MakeFullMission();
   WriteMissionFile(path, full);
   ExecSql(path,
-          "DROP TABLE checkpoint; ALTER TABLE tracks DROP COLUMN confidence; "
+          "DROP TABLE overlays; DROP TABLE checkpoint; ALTER TABLE tracks DROP COLUMN confidence; "
           "UPDATE meta SET value = 2 WHERE key = 'schema_version'; PRAGMA user_version = 2");
   {
     auto store = MissionStore::Open(path.string());
@@ -187,9 +187,11 @@ TEST_F(MissionStoreTest, SchemaTwoFileHasNoCheckpointUntilUpgraded) {
   auto m = (*store)->Load();
   ASSERT_TRUE(m.ok()) << m.status().ToString();
   EXPECT_EQ(m->schema_version, kSchemaVersion);
-  // Upgraded, not saved again: the tracks' confidence is unknown (schema 4 adds it empty).
+  // Upgraded, not saved again: the tracks' confidence is unknown (schema 4 adds it empty), and
+  // there is no overlay mask (schema 5 adds the table empty).
   Mission upgraded = full;
   for (ActivityTrack& t : upgraded.tracks) t.confidence.reset();
+  upgraded.overlays.clear();
   EXPECT_SAME_MISSION(*m, upgraded);
 }
 
@@ -200,7 +202,7 @@ TEST_F(MissionStoreTest, SchemaThreeFileHasUnknownConfidenceUntilUpgraded) {
   const Mission full = MakeFullMission();
   WriteMissionFile(path, full);
   ExecSql(path,
-          "ALTER TABLE tracks DROP COLUMN confidence; "
+          "DROP TABLE overlays; ALTER TABLE tracks DROP COLUMN confidence; "
           "UPDATE meta SET value = 3 WHERE key = 'schema_version'; PRAGMA user_version = 3");
   {
     auto store = MissionStore::Open(path.string());
@@ -223,6 +225,97 @@ TEST_F(MissionStoreTest, SchemaThreeFileHasUnknownConfidenceUntilUpgraded) {
   auto m = LoadFile(path);
   ASSERT_TRUE(m.ok()) << m.status().ToString();
   EXPECT_EQ(m->schema_version, kSchemaVersion);
+  EXPECT_SAME_MISSION(*m, full);
+}
+
+// Schema 4 (before the overlay masks): read with none, upgraded in place when opened for writing
+// (the table added empty), and then keeps them.
+TEST_F(MissionStoreTest, SchemaFourFileHasNoOverlayMaskUntilSaved) {
+  const fs::path path = File("v4.saker");
+  const Mission full = MakeFullMission();
+  ASSERT_FALSE(full.overlays.empty());
+  WriteMissionFile(path, full);
+  ExecSql(path,
+          "DROP TABLE overlays; "
+          "UPDATE meta SET value = 4 WHERE key = 'schema_version'; PRAGMA user_version = 4");
+  {
+    auto m = LoadFile(path);
+    ASSERT_TRUE(m.ok()) << m.status().ToString();
+    EXPECT_EQ(m->schema_version, 4);
+    EXPECT_TRUE(m->overlays.empty());
+    EXPECT_EQ(m->tracks.size(), full.tracks.size());
+  }
+  {
+    auto store = MissionStore::Open(path.string(), OpenMode::kReadWrite);
+    ASSERT_TRUE(store.ok()) << store.status().ToString();
+    auto m = (*store)->Load();
+    ASSERT_TRUE(m.ok()) << m.status().ToString();
+    EXPECT_EQ(m->schema_version, kSchemaVersion);
+    EXPECT_TRUE(m->overlays.empty());
+    ASSERT_TRUE((*store)->Save(full).ok());
+  }
+  auto m = LoadFile(path);
+  ASSERT_TRUE(m.ok()) << m.status().ToString();
+  EXPECT_SAME_MISSION(*m, full);
+}
+
+// A mask is found by frame (OverlayAt), and its cells by pixel, the cell's edges exactly.
+TEST(OverlayRecordTest, LookupByFrameAndPixel) {
+  const Mission full = MakeFullMission();
+  ASSERT_EQ(full.overlays.size(), 2u);
+  EXPECT_EQ(OverlayAt(full.overlays, 0), nullptr);
+  EXPECT_EQ(OverlayAt(full.overlays, 1), &full.overlays[0]);
+  EXPECT_EQ(OverlayAt(full.overlays, 5), &full.overlays[0]);
+  EXPECT_EQ(OverlayAt(full.overlays, 6), nullptr);
+  EXPECT_EQ(OverlayAt(full.overlays, 9), &full.overlays[1]);
+  EXPECT_EQ(OverlayAt(full.overlays, 1000000007), &full.overlays[1]);
+  EXPECT_EQ(OverlayAt(full.overlays, 1000000008), nullptr);
+
+  OverlayRecord o;
+  o.cell_px = 8;
+  o.cols = 3;
+  o.rows = 2;
+  o.cells = {0, 1, 0, 0, 0, 1};
+  EXPECT_TRUE(o.Problem().empty()) << o.Problem();
+  // Cell (1, 0) covers pixels 8..15 by 0..7, whose centres are at integers.
+  EXPECT_TRUE(o.Contains({7.5, -0.5}));
+  EXPECT_TRUE(o.Contains({15.49, 7.49}));
+  EXPECT_FALSE(o.Contains({7.49, 0}));
+  EXPECT_FALSE(o.Contains({15.5, 0}));
+  EXPECT_FALSE(o.Contains({8, 7.5}));
+  EXPECT_TRUE(o.Contains({23.49, 15.49}));
+  EXPECT_FALSE(o.Contains({23.5, 15}));  // beyond the grid
+  EXPECT_FALSE(o.Contains({-1, 0}));
+  EXPECT_FALSE(o.Contains({std::nan(""), 0}));
+  EXPECT_DOUBLE_EQ(o.Coverage(), 2.0 / 6.0);
+  o.cells.pop_back();
+  EXPECT_NE(o.Problem().find("5 cells for a grid of 3x2"), std::string::npos) << o.Problem();
+}
+
+// Save refuses overlay masks the file's rules forbid, naming the mask, and the file keeps what it
+// had.
+TEST_F(MissionStoreTest, SaveRefusesBrokenOverlayMasks) {
+  const fs::path path = File("overlays.saker");
+  const Mission full = MakeFullMission();
+  WriteMissionFile(path, full);
+  const auto refused = [&](const Mission& bad, const std::string& expected) {
+    auto store = MissionStore::Open(path.string(), OpenMode::kReadWrite);
+    ASSERT_TRUE(store.ok()) << store.status().ToString();
+    const Status saved = (*store)->Save(bad);
+    EXPECT_FALSE(saved.ok());
+    EXPECT_NE(saved.message().find(expected), std::string::npos) << saved.ToString();
+  };
+  Mission overlapping = full;
+  overlapping.overlays[1].first_frame = 5;
+  refused(overlapping, "overlay mask 1 starts at frame 5, within the previous one (to frame 5)");
+  Mission value = full;
+  value.overlays[0].cells[3] = 2;
+  refused(value, "overlay mask 0: a cell is neither 0 nor 1");
+  Mission grid = full;
+  grid.overlays[0].cell_px = 0;
+  refused(grid, "overlay mask 0: cell size 0 px is outside [1, 1024]");
+  auto m = LoadFile(path);
+  ASSERT_TRUE(m.ok()) << m.status().ToString();
   EXPECT_SAME_MISSION(*m, full);
 }
 
@@ -750,6 +843,9 @@ TEST_F(MissionStoreTest, OpenRefusesBadFilesWithoutTouchingThem) {
   WriteMissionFile(File("no_links.saker"), MakeFullMission());
   ExecSql(File("no_links.saker"), "DROP TABLE links");
   cases.push_back({"no_links.saker", StatusCode::kInvalidData});
+  WriteMissionFile(File("no_overlays.saker"), MakeFullMission());
+  ExecSql(File("no_overlays.saker"), "DROP TABLE overlays");
+  cases.push_back({"no_overlays.saker", StatusCode::kInvalidData});
   // Newer schema, in meta only and in both places.
   WriteMissionFile(File("newer.saker"), MakeFullMission());
   ExecSql(File("newer.saker"), "UPDATE meta SET value = 9 WHERE key = 'schema_version'");
@@ -802,6 +898,13 @@ TEST_F(MissionStoreTest, LoadRefusesInconsistentContent) {
       {"UPDATE key_frames SET id = 5000000000 WHERE ordinal = 2", "key_frames"},
       {"UPDATE key_frames SET node = 2", "key_frames"},
       {"UPDATE links SET kind = 'telepathic' WHERE ordinal = 2", "links"},
+      {"UPDATE overlays SET cells = zeroblob(3) WHERE ordinal = 0", "overlays"},
+      {"UPDATE overlays SET cells = 'text' WHERE ordinal = 1", "overlays"},
+      {"UPDATE overlays SET first_frame = 4 WHERE ordinal = 1", "overlays"},
+      {"UPDATE overlays SET last_frame = 0 WHERE ordinal = 0", "overlays"},
+      {"UPDATE overlays SET cols = 100000 WHERE ordinal = 0", "overlays"},
+      {"UPDATE overlays SET cell_px = -8 WHERE ordinal = 1", "overlays"},
+      {"DELETE FROM overlays WHERE ordinal = 0", "overlays"},
       {"UPDATE links SET kind = 42", "links"},
       {"DELETE FROM links WHERE ordinal = 1", "links"},
       {"UPDATE links SET covariance = zeroblob(511)", "links"},
