@@ -5,6 +5,7 @@
 #include "core/util/timer.h"
 
 #include <algorithm>
+#include <limits>
 #include <map>
 #include <utility>
 
@@ -122,11 +123,46 @@ StatusOr<bool> TilesStage(const StageOptions& options, const StageHooks& hooks, 
   for (const track::KeyFrameImage& image : run->front.key_frame_images) {
     images[static_cast<int>(image.id)] = &image;
   }
+  // Each key frame's overlay mask for the picture: its frame's and the last of its chain segment
+  // (the overlay was there from the start, and the evidence grows: the first masks hold part of
+  // it). Unions are kept per pair, which key frames share for seconds.
+  std::map<int, int64_t> segment_start;
+  for (const mosaic::Node& node : run->mosaic->graph.nodes) {
+    auto [it, added] = segment_start.emplace(node.segment, node.frame_index);
+    if (!added) it->second = std::min(it->second, node.frame_index);
+  }
+  std::map<std::pair<const mission::OverlayRecord*, const mission::OverlayRecord*>,
+           mission::OverlayRecord>
+      unions;
+  const auto overlay_of = [&](const mosaic::Node& node) -> const mission::OverlayRecord* {
+    const mission::OverlayRecord* own = mission::OverlayAt(m.overlays, node.frame_index);
+    const auto next_segment = segment_start.upper_bound(node.segment);
+    const int64_t segment_end = next_segment != segment_start.end()
+                                    ? next_segment->second
+                                    : std::numeric_limits<int64_t>::max();
+    // The last mask that starts in the segment, at or after the key frame's.
+    const auto after = std::lower_bound(
+        m.overlays.begin(), m.overlays.end(), segment_end,
+        [](const mission::OverlayRecord& o, int64_t frame) { return o.first_frame < frame; });
+    const mission::OverlayRecord* last =
+        after != m.overlays.begin() && std::prev(after)->last_frame >= node.frame_index
+            ? &*std::prev(after)
+            : nullptr;
+    if (own == nullptr || last == nullptr || own == last) return own != nullptr ? own : last;
+    if (own->cols != last->cols || own->rows != last->rows || own->cell_px != last->cell_px) {
+      return own;
+    }
+    auto [it, added] = unions.try_emplace({own, last}, *own);
+    if (added) {
+      for (size_t c = 0; c < it->second.cells.size(); ++c) it->second.cells[c] |= last->cells[c];
+    }
+    return &it->second;
+  };
   std::vector<tiles::KeyFrameView> views;
   for (const mosaic::Node& node : run->mosaic->graph.nodes) {
     const auto it = images.find(static_cast<int>(node.id));
     if (it == images.end() || it->second->grey.empty()) continue;
-    views.push_back({&it->second->grey, it->second->scale, node.map_from_frame});
+    views.push_back({&it->second->grey, it->second->scale, node.map_from_frame, overlay_of(node)});
   }
   StatusOr<mission::PyramidInfo> info = tiles::PlanPyramid(views, m.source.width, m.source.height,
                                                            m.map.geo_referenced, options.pyramid);

@@ -153,6 +153,63 @@ class Renderer {
     return feathers_.emplace(std::make_pair(size.width, size.height), feather).first->second;
   }
 
+  // A key frame as it is blended: its picture and the weight of its pixels, the feather (the
+  // distance to the border). On its overlay mask the weight fades to almost nothing and the
+  // picture is filled from the pixels around it, so that another key frame's ground wins there
+  // and where none covers the place the map shows a smooth fill rather than text or a hole. Kept
+  // for the last few key frames (the tiles of a region need the same ones), not all.
+  struct Layer {
+    const cv::Mat* grey;
+    const cv::Mat* weight;
+  };
+  Layer LayerOf(size_t i) {
+    const KeyFrameView& frame = frames_[i];
+    const cv::Size size = frame.grey->size();
+    if (frame.overlay == nullptr) return {frame.grey, &Feather(size)};
+    for (const OverlayLayer& layer : overlay_layers_) {
+      if (layer.frame == i) return {&layer.grey, &layer.weight};
+    }
+    cv::Mat excluded(size, CV_8U, cv::Scalar(0));
+    for (int v = 0; v < size.height; ++v) {
+      uint8_t* row = excluded.ptr<uint8_t>(v);
+      for (int u = 0; u < size.width; ++u) {
+        // Grey pixel (u, v) is full-resolution ((u + 0.5) s - 0.5, (v + 0.5) s - 0.5).
+        const Eigen::Vector2d full((u + 0.5) * frame.scale - 0.5, (v + 0.5) * frame.scale - 0.5);
+        if (frame.overlay->Contains(full)) row[u] = 255;
+      }
+    }
+    cv::Mat inside(size, CV_8U, cv::Scalar(255)), weight;
+    cv::rectangle(inside, cv::Rect(0, 0, size.width, size.height), cv::Scalar(0), 1);
+    inside.setTo(0, excluded);
+    cv::distanceTransform(inside, weight, cv::DIST_L2, 3, CV_32F);
+    weight += 1.0f;
+    constexpr float kFillWeight = 1e-3f;
+    weight.setTo(kFillWeight, excluded);
+    // The fill: the mean of the unmasked pixels around, over a window a little wider than a
+    // text line (normalised box filter), repeated where the window held none.
+    cv::Mat valid, sum, count, grey;
+    cv::bitwise_not(excluded, valid);
+    valid.convertTo(valid, CV_32F, 1.0 / 255);
+    frame.grey->convertTo(grey, CV_32F);
+    cv::Mat filled = grey.clone();
+    for (int pass = 0, k = 31; pass < 4; ++pass, k *= 2) {
+      cv::boxFilter(filled.mul(valid), sum, CV_32F, cv::Size(k, k), cv::Point(-1, -1), false);
+      cv::boxFilter(valid, count, CV_32F, cv::Size(k, k), cv::Point(-1, -1), false);
+      cv::Mat mean;
+      cv::divide(sum, cv::max(count, 1e-6), mean);
+      const cv::Mat reached = (count > 0.5) & (valid < 0.5);
+      mean.copyTo(filled, reached);
+      valid.setTo(1.0f, reached);
+      if (cv::countNonZero(valid < 0.5) == 0) break;
+    }
+    OverlayLayer layer{i, cv::Mat(), weight};
+    filled.convertTo(layer.grey, CV_8U);
+    constexpr size_t kKept = 8;
+    if (overlay_layers_.size() >= kKept) overlay_layers_.erase(overlay_layers_.begin());
+    overlay_layers_.push_back(std::move(layer));
+    return {&overlay_layers_.back().grey, &overlay_layers_.back().weight};
+  }
+
   cv::Mat RenderLevel0(int x, int y, const std::vector<size_t>& covering) {
     const int t = info_.tile_size;
     // Tile pixel from map: inverse of map = origin + ((x t + i) sx, (y t + j) sy).
@@ -170,10 +227,11 @@ class Renderer {
           0.5 * frame.scale - 0.5, 0, 0, 1;
       cv::Mat h;
       cv::eigen2cv(Eigen::Matrix3d(tile_from_map * frame.map_from_frame * full_from_grey), h);
-      cv::warpPerspective(*frame.grey, warped, h, sum.size(), cv::INTER_LINEAR, cv::BORDER_CONSTANT,
+      const Layer layer = LayerOf(i);
+      cv::warpPerspective(*layer.grey, warped, h, sum.size(), cv::INTER_LINEAR, cv::BORDER_CONSTANT,
                           cv::Scalar(0));
-      cv::warpPerspective(Feather(frame.grey->size()), warped_weight, h, sum.size(),
-                          cv::INTER_LINEAR, cv::BORDER_CONSTANT, cv::Scalar(0));
+      cv::warpPerspective(*layer.weight, warped_weight, h, sum.size(), cv::INTER_LINEAR,
+                          cv::BORDER_CONSTANT, cv::Scalar(0));
       warped.convertTo(product, CV_32F);
       product = product.mul(warped_weight);
       sum += product;
@@ -231,6 +289,12 @@ class Renderer {
   JobContext* job_;
   std::vector<Box> boxes_;
   std::map<std::pair<int, int>, cv::Mat> feathers_;
+  struct OverlayLayer {
+    size_t frame;  // in frames_
+    cv::Mat grey;  // the picture, filled on the mask
+    cv::Mat weight;
+  };
+  std::vector<OverlayLayer> overlay_layers_;
   std::vector<mission::EncodedTile> batch_;
   RenderSummary summary_;
   int64_t level0_done_ = 0;

@@ -24,6 +24,10 @@ struct KeyFrameView {
   const cv::Mat* grey = nullptr;  // CV_8UC1, not owned
   double scale = 1;               // full-resolution video pixels per pixel of `grey`
   Eigen::Matrix3d map_from_frame = Eigen::Matrix3d::Identity();  // full-resolution pixels
+  // The overlay mask of its frame (burned-in text, logos; not owned, may be null): not ground, so
+  // never drawn as it is. Another key frame's picture fills the place where one sees it; where
+  // none does, a smooth fill from the pixels around it.
+  const mission::OverlayRecord* overlay = nullptr;
 };
 
 // The largest tile side PyramidOptions admits (a 64 MiB BGRA tile); a stored tile never exceeds it.

@@ -100,6 +100,51 @@ TEST(Pyramid, PlacesAndBlendsKeyFramesAcrossLevels) {
   EXPECT_EQ(top->at<cv::Vec4b>(50, 60)[3], 0);  // row 50 * 16 = 800 > 480: below the footprint
 }
 
+// A key frame's overlay mask (burned-in text) is never drawn as it is: in the overlap the other
+// key frame's picture is there alone, and where no other frame covers the masked place the map
+// shows a fill from the ground around it, not the text and not a hole.
+TEST(Pyramid, OverlayMasksAreNotDrawn) {
+  // Frame a is dark with a line of bright "text" on full-resolution rows 40-79, which its mask
+  // covers; frame b is bright.
+  cv::Mat a(kHeight / 2, kWidth / 2, CV_8U, cv::Scalar(40));
+  a.rowRange(20, 40).setTo(250);
+  const cv::Mat b(kHeight / 2, kWidth / 2, CV_8U, cv::Scalar(200));
+  mission::OverlayRecord mask;
+  mask.first_frame = mask.last_frame = 0;
+  mask.cell_px = 8;
+  mask.cols = kWidth / 8;
+  mask.rows = kHeight / 8;
+  mask.cells.assign(static_cast<size_t>(mask.cols * mask.rows), 0);
+  for (int y = 5; y < 10; ++y) {
+    for (int x = 0; x < mask.cols; ++x) mask.cells[static_cast<size_t>(y * mask.cols + x)] = 1;
+  }
+  const std::vector<KeyFrameView> frames = {{&a, 2.0, MapFromFrame(0), &mask},
+                                            {&b, 2.0, MapFromFrame(100)}};
+  PyramidOptions options;
+  options.tile_size = 64;
+  const auto info = PlanPyramid(frames, kWidth, kHeight, /*geo_referenced=*/true, options);
+  ASSERT_TRUE(info.ok()) << info.status().ToString();
+  Store store;
+  ASSERT_TRUE(RenderPyramid(frames, kWidth, kHeight, *info, options, Into(&store)).ok());
+  const auto pixel = [&](const Eigen::Vector2d& map) {
+    const auto [tx, ty, col, row] = Locate(*info, map);
+    const auto tile = DecodeTile(store.at({0, tx, ty}), info->tile_size);
+    EXPECT_TRUE(tile.ok());
+    return tile->at<cv::Vec4b>(row, col);
+  };
+  // Full-resolution row 60 is y = -30 m. On a alone (x = 20 m): the ground around, not the text;
+  // off the mask (row 200, y = -100 m): a's grey.
+  EXPECT_EQ(pixel({20.5, -30.5})[3], 255);
+  EXPECT_NEAR(pixel({20.5, -30.5})[0], 40, 2);
+  EXPECT_EQ(pixel({20.5, -100.5})[3], 255);
+  EXPECT_NEAR(pixel({20.5, -100.5})[0], 40, 1);
+  // In the overlap (x = 200 m): b alone on a's mask, a blend of both elsewhere.
+  EXPECT_NEAR(pixel({200.5, -30.5})[0], 200, 1);
+  const cv::Vec4b blend = pixel({200.5, -100.5});
+  EXPECT_GT(blend[0], 45);
+  EXPECT_LT(blend[0], 195);
+}
+
 TEST(Pyramid, TilesNoFrameCoversAreNotWritten) {
   // Two frames far apart on a diagonal: the tiles between them stay empty.
   const cv::Mat a = TestCard(kWidth, kHeight, 0);
