@@ -243,6 +243,8 @@ class FrontEnd {
   // The mask handed out last, still growing (its frames), and the detector's version it is.
   std::optional<track::OverlayMask> open_overlay_;
   int64_t open_overlay_version_ = -1;
+  // The latest frame's ground motion (current_from_previous), none after a frame without one.
+  std::optional<Eigen::Matrix3d> last_motion_;
   int64_t overlay_min_frames_ = 1;  // frames a mask handed out covers before it may be replaced
   // The latest frame's matches off the overlay mask: the ground motion's and the segmentation's.
   std::vector<track::Correspondence> ground_matches_;
@@ -477,13 +479,18 @@ Status FrontEnd::ProcessFrame(const video::Frame& frame) {
   fr.key_frame = frame.key_frame;
   FrontEndTiming& timing = result_.timing;
   const Stopwatch watch;
-  tracker_.Process(frame.index, frame.grey);
+  // In the low-frame-rate mode the ground moves far between frames: the flow starts where the
+  // previous frame's ground motion would take the points.
+  tracker_.Process(frame.index, frame.grey,
+                   low_frame_rate_ && last_motion_ ? &*last_motion_ : nullptr);
   SelectGroundMatches();
   timing.track_ms += watch.ElapsedMs();
   fr.tracked = static_cast<int>(tracker_.points().size());
 
   std::optional<Eigen::Vector3d> epipole;
   const std::optional<track::HomographyEstimate> estimate = EstimateGroundMotion(&epipole);
+  last_motion_.reset();
+  if (estimate) last_motion_ = estimate->target_from_source;
   if (estimate) {
     // Every match, those on the mask too: an overlay's corners keep it.
     overlays_.AddFeatures(tracker_.matches(), estimate->target_from_source, frame.grey.size());

@@ -4,6 +4,7 @@
 #include "core/util/check.h"
 #include "core/util/timer.h"
 
+#include <Eigen/LU>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/video/tracking.hpp>
 
@@ -203,7 +204,8 @@ bool FeatureTracker::SetFrame(const cv::Mat& grey) {
   return true;
 }
 
-void FeatureTracker::Process(int64_t frame_index, const cv::Mat& grey) {
+void FeatureTracker::Process(int64_t frame_index, const cv::Mat& grey,
+                             const Eigen::Matrix3d* predicted) {
   SAKER_CHECK(!grey.empty() && grey.type() == CV_8UC1) << "the tracker needs a CV_8UC1 image";
   SAKER_CHECK(frame_index >= 0) << "frame index " << frame_index;
   SAKER_CHECK(last_frame_ < 0 || frame_index > last_frame_)
@@ -225,7 +227,7 @@ void FeatureTracker::Process(int64_t frame_index, const cv::Mat& grey) {
   timing_.pyramid_ms = start.ElapsedMs();
 
   const Stopwatch flow_start;
-  TrackPoints(frame_index);
+  TrackPoints(frame_index, predicted);
   timing_.flow_ms = flow_start.ElapsedMs();
   last_frame_ = frame_index;
   have_previous_ = true;
@@ -251,14 +253,35 @@ void FeatureTracker::Process(int64_t frame_index, const cv::Mat& grey) {
   timing_.total_ms = start.ElapsedMs();
 }
 
-void FeatureTracker::TrackPoints(int64_t frame_index) {
+void FeatureTracker::TrackPoints(int64_t frame_index, const Eigen::Matrix3d* predicted) {
   matches_.clear();
   if (live_.empty() || !have_previous_) return;
   const cv::Size window(options_.window_px, options_.window_px);
   const cv::TermCriteria criteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS,
                                   options_.max_iterations, kFlowEpsilonPx);
+  // Processing pixel q is full-resolution ((q + 0.5) s - 0.5); a prediction maps between them.
+  Eigen::Matrix3d small_from_full = Eigen::Matrix3d::Identity(), predicted_small;
+  small_from_full << 1 / scale_x_, 0, 0.5 / scale_x_ - 0.5, 0, 1 / scale_y_, 0.5 / scale_y_ - 0.5,
+      0, 0, 1;
+  const bool guided =
+      predicted != nullptr && predicted->allFinite() && std::abs(predicted->determinant()) > 1e-9;
+  const auto apply = [](const Eigen::Matrix3d& h, const cv::Point2f& p) {
+    const Eigen::Vector3d q = h * Eigen::Vector3d(p.x, p.y, 1);
+    return std::abs(q.z()) > 1e-12
+               ? cv::Point2f(static_cast<float>(q.x() / q.z()), static_cast<float>(q.y() / q.z()))
+               : p;
+  };
+  int flags = 0;
+  if (guided) {
+    predicted_small = small_from_full * *predicted * small_from_full.inverse();
+    forward_.resize(live_small_.size());
+    for (size_t i = 0; i < live_small_.size(); ++i) {
+      forward_[i] = apply(predicted_small, live_small_[i]);
+    }
+    flags = cv::OPTFLOW_USE_INITIAL_FLOW;
+  }
   cv::calcOpticalFlowPyrLK(previous_pyramid_, pyramid_, live_small_, forward_, forward_status_,
-                           cv::noArray(), window, options_.pyramid_levels, criteria);
+                           cv::noArray(), window, options_.pyramid_levels, criteria, flags);
 
   // Only points that arrived inside the image and still look like themselves go back. The
   // backward flow starts from where the point arrived (no initial guess): starting it at the known
@@ -286,8 +309,15 @@ void FeatureTracker::TrackPoints(int64_t frame_index) {
     arrived.push_back(p);
   }
   if (!arrived.empty()) {
+    // Guided, the way back starts from the prediction's inverse: not the known origin (see
+    // above), where the prediction says it came from.
+    if (guided) {
+      const Eigen::Matrix3d back = predicted_small.inverse();
+      backward_.resize(arrived.size());
+      for (size_t k = 0; k < arrived.size(); ++k) backward_[k] = apply(back, arrived[k]);
+    }
     cv::calcOpticalFlowPyrLK(pyramid_, previous_pyramid_, arrived, backward_, backward_status_,
-                             cv::noArray(), window, options_.pyramid_levels, criteria);
+                             cv::noArray(), window, options_.pyramid_levels, criteria, flags);
   }
   // For each live track, its index in `sent` (and new_patches_), or -1 when it ends.
   std::vector<int> keep(live_.size(), -1);

@@ -121,7 +121,13 @@ class FeatureTracker {
   // corners where tracks ran out. Frame indices must increase between resets (CheckError
   // otherwise); gaps are allowed up to `max_frame_gap_s`. A change of image size or a longer gap
   // ends every track first. Frames under 16 pixels wide or high (after shrinking) get no tracks.
-  void Process(int64_t frame_index, const cv::Mat& grey);
+  // `predicted`: where the ground motion is expected to take the previous frame's points
+  // (current_from_previous, full resolution; null: nowhere in particular). The flow then starts
+  // from there and goes back from its inverse, so that motions beyond the pyramid's reach (about
+  // window_px / 2 * 2^pyramid_levels processing pixels: 44 by default) are followed when they are
+  // steady, as between frames a second apart.
+  void Process(int64_t frame_index, const cv::Mat& grey,
+               const Eigen::Matrix3d* predicted = nullptr);
 
   // The latest frame given to Process, -1 before the first and after Reset().
   int64_t last_frame() const { return last_frame_; }
@@ -163,7 +169,7 @@ class FeatureTracker {
   void Finish(FeatureTrack track);
   bool SetFrame(const cv::Mat& grey);
   // Tracks the live points into the pyramid of the new frame; keeps the survivors.
-  void TrackPoints(int64_t frame_index);
+  void TrackPoints(int64_t frame_index, const Eigen::Matrix3d* predicted);
   // Detects corners in the grid cells that ran short and starts tracks on them.
   void Detect(int64_t frame_index);
   Eigen::Vector2d ToFull(const cv::Point2f& p) const;
