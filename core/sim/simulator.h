@@ -27,7 +27,9 @@ namespace saker::sim {
 
 // Version of what the simulator draws: raise it whenever the same options and seed would give a
 // different world, traffic or video, so truth files and the cached demo say what made them.
-inline constexpr int kSimulatorVersion = 1;
+// Version 2: oblique views no longer draw the targets behind the camera (mirrored ghosts, and a
+// vehicle across its principal plane filling the frame).
+inline constexpr int kSimulatorVersion = 2;
 
 // Which frames carry a KLV packet, and how accurate it is. The paper studies metadata that is
 // only moderately accurate and not on every frame.

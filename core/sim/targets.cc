@@ -4,6 +4,8 @@
 #include "core/sim/world_raster.h"
 #include "core/util/check.h"
 
+#include <Eigen/LU>
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -473,7 +475,25 @@ void TargetSimulation::Draw(const Eigen::Matrix3d& image_from_ground, cv::Mat* i
 
 void DrawTargets(const std::vector<Target>& targets, const Vector2d& shadow_per_m,
                  const Eigen::Matrix3d& image_from_ground, cv::Mat* image) {
+  // The sign of the third coordinate of the ground points in front of the camera: that of the
+  // point seen at the image centre (image_from_ground is known up to scale, its sign too).
+  const Eigen::Vector3d centre =
+      image_from_ground.inverse() * Eigen::Vector3d(0.5 * image->cols, 0.5 * image->rows, 1);
+  const double front =
+      (image_from_ground * Eigen::Vector3d(centre.x() / centre.z(), centre.y() / centre.z(), 1))
+                  .z() >= 0
+          ? 1
+          : -1;
   for (const Target& t : targets) {
+    // Only targets in front of the camera and near the frame: behind it a target would be drawn
+    // mirrored, and one straddling the camera's principal plane as a polygon across the frame.
+    const Eigen::Vector3d q =
+        image_from_ground * Eigen::Vector3d(t.position.x(), t.position.y(), 1);
+    if (!(front * q.z() > 0)) continue;
+    const double x = q.x() / q.z(), y = q.y() / q.z();
+    if (x < -image->cols || x > 2.0 * image->cols || y < -image->rows || y > 2.0 * image->rows) {
+      continue;
+    }
     if (t.target_class == TargetClass::kPerson) {
       DrawPerson(image_from_ground, t.position, t.heading_deg, t.clothes_bgr, shadow_per_m, image);
     } else {

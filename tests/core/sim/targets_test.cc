@@ -1,6 +1,9 @@
 #include "core/sim/targets.h"
 
+#include "core/sim/camera.h"
+
 #include <gtest/gtest.h>
+#include <opencv2/core.hpp>
 
 #include <map>
 
@@ -23,6 +26,37 @@ double OffRoad(const World& world, const Eigen::Vector2d& p) {
   const RoadNode& r = world.nodes[world.roundabout_node];
   best = std::min(best, (p - r.position).norm() - r.roundabout_radius_m);
   return best;
+}
+
+// An oblique camera sees only the targets in front of it: one behind it (the ground homography's
+// third coordinate of the other sign) would be drawn mirrored into the frame, and one straddling
+// its principal plane as a polygon across the whole frame. Neither is drawn; one in view is.
+TEST(TargetsTest, AnObliqueCameraDrawsNoTargetBehindIt) {
+  CameraIntrinsics lens;
+  lens.width = 640, lens.height = 360;
+  CameraPose pose;
+  pose.position_m = {0, 0, 200};
+  pose.gimbal_off_nadir_deg = 45;  // looking north, 45 degrees down
+  const Eigen::Matrix3d image_from_ground = FrameFromGround(lens, pose);
+  const auto ahead = GroundCentre(lens, pose);
+  ASSERT_TRUE(ahead.has_value());
+  const auto image_of = [&](const Eigen::Vector2d& ground, const Eigen::Matrix3d& h) {
+    cv::Mat image(lens.height, lens.width, CV_8UC3, cv::Scalar(90, 120, 90));
+    Target car;
+    car.position = ground;
+    car.look.body_bgr = cv::Scalar(250, 250, 250);
+    DrawTargets({car}, Eigen::Vector2d(0.3, 0.2), h, &image);
+    return cv::norm(image, cv::Mat(image.size(), CV_8UC3, cv::Scalar(90, 120, 90)), cv::NORM_L1);
+  };
+  EXPECT_GT(image_of(*ahead, image_from_ground), 0) << "the car in view is drawn";
+  // Behind the camera (the principal plane meets the ground 200 m south of it) and just on it.
+  for (const Eigen::Vector2d& behind :
+       {Eigen::Vector2d(10, -400), Eigen::Vector2d(-30, -250), Eigen::Vector2d(0, -200.5)}) {
+    EXPECT_EQ(image_of(behind, image_from_ground), 0) << behind.transpose();
+    // Whatever the homography's scale and sign.
+    EXPECT_EQ(image_of(behind, -2.0 * image_from_ground), 0) << behind.transpose();
+  }
+  EXPECT_GT(image_of(*ahead, -2.0 * image_from_ground), 0);
 }
 
 TEST(TargetsTest, VehiclesStayOnRoadsAtRealisticSpeedsAndStopAndStart) {
