@@ -493,19 +493,15 @@ TEST(CliProcessTest, TheOverlayMaskIsOnByDefaultSaysWhatItMaskedAndCanBeTurnedOf
   ASSERT_EQ(run.exit_code, 0) << run.out;
   EXPECT_NE(run.out.find("overlays: screen-fixed overlays masked out in"), std::string::npos)
       << run.out;
-  run = RunCli("process -q --json --no-tiles --replace '" + video + "' -o '" + mission + "'");
-  ASSERT_EQ(run.exit_code, 0) << run.out;
-  const nlohmann::json on = nlohmann::json::parse(run.out);
-  EXPECT_GT(on.at("overlay_frames").get<int64_t>(), 0);
-  EXPECT_GT(on.at("overlay_coverage").get<double>(), 0.0);
-  EXPECT_LT(on.at("overlay_coverage").get<double>(), 0.5);
   // The mission keeps the masks; info reports them.
   run = RunCli("info --json '" + mission + "'");
   ASSERT_EQ(run.exit_code, 0) << run.out;
-  const nlohmann::json kept = nlohmann::json::parse(run.out).at("overlay_masks");
+  const nlohmann::json on = nlohmann::json::parse(run.out);
+  const nlohmann::json kept = on.at("overlay_masks");
   EXPECT_GT(kept.at("masks").get<int64_t>(), 0);
-  EXPECT_EQ(kept.at("frames").get<int64_t>(), on.at("overlay_frames").get<int64_t>());
-  EXPECT_NEAR(kept.at("coverage").get<double>(), on.at("overlay_coverage").get<double>(), 1e-9);
+  EXPECT_GT(kept.at("frames").get<int64_t>(), 0);
+  EXPECT_GT(kept.at("coverage").get<double>(), 0.0);
+  EXPECT_LT(kept.at("coverage").get<double>(), 0.5);
   run = RunCli("info '" + mission + "'");
   EXPECT_NE(
       run.out.find("overlay masks: " + std::to_string(kept.at("masks").get<int64_t>()) + " over "),
@@ -516,6 +512,7 @@ TEST(CliProcessTest, TheOverlayMaskIsOnByDefaultSaysWhatItMaskedAndCanBeTurnedOf
   ASSERT_EQ(run.exit_code, 0) << run.out;
   const nlohmann::json off = nlohmann::json::parse(run.out);
   EXPECT_EQ(off.at("overlay_frames").get<int64_t>(), 0);
+  EXPECT_EQ(off.at("overlay_coverage").get<double>(), 0.0);
   run = RunCli("info '" + mission + "'");
   EXPECT_NE(run.out.find("overlay masks: none"), std::string::npos) << run.out;
   // Without the mask the overlay's corners make tracks of their own.

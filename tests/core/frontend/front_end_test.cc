@@ -157,6 +157,7 @@ TEST_F(FrontEndTest, OutcomesAgreeWithTheFigures) {
 // Over its memory limit the front end stops at once with a message naming the video and the
 // frame, instead of letting the machine run out of memory; under it, nothing changes.
 TEST_F(FrontEndTest, MemoryLimitStopsWithAClearMessage) {
+  SAKER_SKIP_UNDER_TSAN("FrontEndRunTest.ErrorsAndCancel, which stops the threads mid-run");
   ASSERT_NE(result_, nullptr);
   const std::string video = Video();
   FrontEndOptions options;
@@ -245,6 +246,7 @@ TEST_F(FrontEndTest, TheResultDoesNotDependOnHowTheThreadsRun) {
 // the video, so nothing is split or lost at the seam. Three kill points: a quarter, half and three
 // quarters of the way through.
 TEST_F(FrontEndTest, ResumedRunEqualsTheUninterruptedOneObservationForObservation) {
+  SAKER_SKIP_UNDER_TSAN("ResumesFromACheckpointAsIfNeverStopped, which resumes the same threads");
   ASSERT_NE(result_, nullptr);
   const std::string video = Video();
   const std::vector<FrontEndCheckpoint>& deliveries = *checkpoints_;
