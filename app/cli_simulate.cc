@@ -200,8 +200,9 @@ SimulateCommand::SimulateCommand(CLI::App& app) : state_(std::make_unique<State>
 
   auto* pointing = "Pointing";
   c->add_option("--off-nadir", o.flight.gimbal_off_nadir_deg,
-                "Oblique view: the camera's angle off nadir, 0 (straight down) .. 60 degrees\n"
-                "(the orbit scenario sets its own, staring at the centre)")
+                "Oblique view: the camera's angle off nadir, 0 (straight down) .. 88 degrees;\n"
+                "from about 70 (with the default lens) the top of the frame shows the horizon\n"
+                "and the sky (the orbit scenario sets its own, staring at the centre)")
       ->capture_default_str()
       ->group(pointing);
   c->add_option("--look", s.look,

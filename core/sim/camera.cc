@@ -1,6 +1,7 @@
 #include "core/sim/camera.h"
 
 #include <Eigen/Geometry>
+#include <Eigen/LU>
 
 #include <cmath>
 #include <sstream>
@@ -153,9 +154,67 @@ std::optional<std::array<Eigen::Vector2d, 4>> GroundFootprint(const CameraIntrin
   return footprint;
 }
 
+std::vector<Eigen::Vector2d> VisibleGroundOutline(const CameraIntrinsics& intrinsics,
+                                                  const CameraPose& pose, double max_heights) {
+  const double height = pose.position_m.z();
+  std::vector<Eigen::Vector2d> outline;
+  if (!(height > 0.0)) return outline;
+  const double least_sin = 1.0 / std::sqrt(1.0 + max_heights * max_heights);
+  const Eigen::Matrix3d world_from_camera = pose.WorldFromCamera();
+  const std::array<Eigen::Vector2d, 4> corners = ImageCorners(intrinsics);
+  constexpr int kPerEdge = 16;
+  bool meets = false;
+  for (size_t k = 0; k < corners.size(); ++k) {
+    const Eigen::Vector2d& a = corners[k];
+    const Eigen::Vector2d& b = corners[(k + 1) % corners.size()];
+    for (int i = 0; i < kPerEdge; ++i) {
+      const Eigen::Vector2d pixel = a + (b - a) * (static_cast<double>(i) / kPerEdge);
+      const Eigen::Vector3d ray =
+          (world_from_camera * Eigen::Vector3d((pixel.x() - intrinsics.cx()) / intrinsics.fx(),
+                                               (pixel.y() - intrinsics.cy()) / intrinsics.fy(), 1))
+              .normalized();
+      const Eigen::Vector2d across = ray.head<2>();
+      if (-ray.z() >= least_sin) {
+        meets = true;
+        outline.push_back(pose.position_m.head<2>() + across * (height / -ray.z()));
+      } else if (across.norm() > 1e-9) {
+        outline.push_back(pose.position_m.head<2>() + across.normalized() * max_heights * height);
+      }
+    }
+  }
+  if (!meets) outline.clear();
+  return outline;
+}
+
 std::optional<Eigen::Vector2d> GroundCentre(const CameraIntrinsics& intrinsics,
                                             const CameraPose& pose) {
   return GroundPointOfPixel(intrinsics, pose, Eigen::Vector2d(intrinsics.cx(), intrinsics.cy()));
+}
+
+double ViewGeometry::SinDepression(double x, double y) const {
+  const Eigen::Vector3d ray = world_ray_from_pixel * Eigen::Vector3d(x, y, 1.0);
+  return -ray.z() / ray.norm();
+}
+
+std::optional<ViewGeometry> ViewOfHomography(const CameraIntrinsics& intrinsics,
+                                             const Eigen::Matrix3d& frame_from_ground) {
+  Eigen::Matrix3d m = intrinsics.K().inverse() * frame_from_ground;
+  const double scale = m.col(0).norm();
+  if (!(scale > 0) || !std::isfinite(scale)) return std::nullopt;
+  m /= scale;
+  // Columns r1, r2 (the ground's east and north axes in the camera) and t = -R C; r1 x r2 is the
+  // ground's up axis in the camera whatever the sign of H, and the camera's height, -(r3 . t),
+  // must be positive.
+  const Eigen::Vector3d r3 = m.col(0).cross(m.col(1));
+  if (r3.dot(m.col(2)) > 0) m = -m;
+  Eigen::Matrix3d camera_from_world;
+  camera_from_world << m.col(0), m.col(1), r3;
+  ViewGeometry view;
+  view.position_m = -camera_from_world.transpose() * m.col(2);
+  if (!(view.position_m.z() > 0)) return std::nullopt;
+  view.world_ray_from_pixel = camera_from_world.transpose() * intrinsics.K().inverse();
+  view.depth_of_ground = m.row(2);
+  return view;
 }
 
 double NadirGsd(const CameraIntrinsics& intrinsics, double height_m) {

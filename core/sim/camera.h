@@ -27,6 +27,7 @@
 
 #include <array>
 #include <optional>
+#include <vector>
 
 namespace saker::sim {
 
@@ -103,9 +104,34 @@ std::optional<Eigen::Vector2d> GroundPointOfPixel(const CameraIntrinsics& intrin
 std::optional<std::array<Eigen::Vector2d, 4>> GroundFootprint(const CameraIntrinsics& intrinsics,
                                                               const CameraPose& pose);
 
+// Ground points bounding what the camera sees out to `max_heights` camera heights: where the rays
+// of the image border meet the ground, a ray that meets it farther out (or not at all: the sky)
+// cut at that distance in its direction. Empty when no border ray meets the ground within it.
+std::vector<Eigen::Vector2d> VisibleGroundOutline(const CameraIntrinsics& intrinsics,
+                                                  const CameraPose& pose, double max_heights);
+
 // Where the optical axis meets the ground, or nullopt as for GroundPointOfPixel.
 std::optional<Eigen::Vector2d> GroundCentre(const CameraIntrinsics& intrinsics,
                                             const CameraPose& pose);
+
+// The orientation and height of the camera behind a ground homography, for the pixels whose rays
+// miss the ground (sky) or meet it too far away to be drawn (near the horizon).
+struct ViewGeometry {
+  // Pixel (x, y, 1) -> the direction of its ray in (east, north, up), not normalised.
+  Eigen::Matrix3d world_ray_from_pixel;
+  Eigen::Vector3d position_m;  // the camera's (east, north, height above the ground plane)
+  // Ground point (east, north, 1) -> its depth along the optical axis (> 0 in front).
+  Eigen::RowVector3d depth_of_ground;
+  double height_m() const { return position_m.z(); }
+  // The sine of the ray's angle below the horizon (negative above it) at pixel (x, y).
+  double SinDepression(double x, double y) const;
+};
+
+// Recovered from `frame_from_ground` (FrameFromGround of `intrinsics`, at any scale and sign):
+// K^-1 H is proportional to [r1 r2 t] of the camera's rotation and translation. nullopt when the
+// matrix is not such a homography (singular) or puts the camera on or below the ground.
+std::optional<ViewGeometry> ViewOfHomography(const CameraIntrinsics& intrinsics,
+                                             const Eigen::Matrix3d& frame_from_ground);
 
 // Metres per pixel on the ground straight below a nadir camera at `height_m`: height / fx.
 double NadirGsd(const CameraIntrinsics& intrinsics, double height_m);

@@ -203,7 +203,7 @@ Status FlightOptions::Validate() const {
   SAKER_RETURN_IF_ERROR(CheckRange("straight_length_m", straight_length_m, 1, 1e6, "m"));
   SAKER_RETURN_IF_ERROR(CheckRange("straight_heading_deg", straight_heading_deg, -360, 360, "deg"));
   SAKER_RETURN_IF_ERROR(CheckRange("orbit_radius_m", orbit_radius_m, 10, 1e5, "m"));
-  SAKER_RETURN_IF_ERROR(CheckRange("gimbal_off_nadir_deg", gimbal_off_nadir_deg, 0, 60, "deg"));
+  SAKER_RETURN_IF_ERROR(CheckRange("gimbal_off_nadir_deg", gimbal_off_nadir_deg, 0, 88, "deg"));
   SAKER_RETURN_IF_ERROR(CheckRange("gimbal_azimuth_deg", gimbal_azimuth_deg, -360, 360, "deg"));
   return Status::Ok();
 }

@@ -71,8 +71,9 @@ struct FlightOptions {
   double straight_heading_deg = 90;  // clockwise from north
   // Orbit: radius of the circle round the site centre.
   double orbit_radius_m = 400;
-  // Oblique views (every scenario but the orbit): the camera's angle off nadir (0 .. 60 degrees)
-  // and the direction it leans, clockwise from the nose (0 forward, 90 right, 270 left).
+  // Oblique views (every scenario but the orbit): the camera's angle off nadir (0 .. 88 degrees;
+  // from about 70 a default lens sees the horizon and the sky) and the direction it leans,
+  // clockwise from the nose (0 forward, 90 right, 270 left).
   double gimbal_off_nadir_deg = 0;
   double gimbal_azimuth_deg = 0;
 

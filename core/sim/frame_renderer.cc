@@ -93,9 +93,81 @@ Eigen::Vector2d LensDistort(const Eigen::Vector2d& pixel, int width, int height,
   return lens.centre + u * (1 + k1 * u.squaredNorm()) * lens.half_diagonal;
 }
 
+namespace {
+
+constexpr int kSkyCols = 2048;  // azimuth 0..360 degrees
+constexpr int kSkyRows = 256;   // elevation 0..kSkyRowsDeg
+constexpr double kSkyRowsDeg = 45.0;
+const cv::Vec3f kHazeBgr(206, 200, 192);   // the sky at the horizon and the distant ground
+const cv::Vec3f kZenithBgr(186, 140, 96);  // the sky high up
+const cv::Vec3f kCloudBgr(240, 240, 238);
+
+// Smooth value noise with `cell`-pixel cells, periodic across the panorama's azimuth.
+void AddNoiseOctave(int cell, double amplitude, Random* random, cv::Mat* sum) {
+  const int grid_cols = kSkyCols / cell;
+  const int grid_rows = kSkyRows / cell + 2;
+  std::vector<float> grid(static_cast<size_t>(grid_rows * grid_cols));
+  for (float& v : grid) v = static_cast<float>(random->Uniform(-1, 1));
+  const auto at = [&](int r, int c) {
+    return grid[static_cast<size_t>(r * grid_cols + (c % grid_cols))];
+  };
+  const auto smooth = [](double t) { return t * t * (3 - 2 * t); };
+  for (int y = 0; y < kSkyRows; ++y) {
+    const double v = static_cast<double>(y) / cell;
+    const int r = static_cast<int>(v);
+    const double fy = smooth(v - r);
+    float* row = sum->ptr<float>(y);
+    for (int x = 0; x < kSkyCols; ++x) {
+      const double u = static_cast<double>(x) / cell;
+      const int c = static_cast<int>(u);
+      const double fx = smooth(u - c);
+      const double top = at(r, c) + fx * (at(r, c + 1) - at(r, c));
+      const double bottom = at(r + 1, c) + fx * (at(r + 1, c + 1) - at(r + 1, c));
+      row[x] += static_cast<float>(amplitude * (top + fy * (bottom - top)));
+    }
+  }
+}
+
+// Patchy cloud cover in [0, 1] by direction (kSkyCols x kSkyRows).
+cv::Mat MakeClouds(uint64_t seed) {
+  Random random(seed);
+  cv::Mat sum = cv::Mat::zeros(kSkyRows, kSkyCols, CV_32F);
+  double amplitude = 1.0;
+  for (int cell : {128, 64, 32, 16, 8}) {
+    AddNoiseOctave(cell, amplitude, &random, &sum);
+    amplitude *= 0.55;
+  }
+  cv::Mat cover;
+  sum.convertTo(cover, CV_32F, 1.6, -0.15);
+  cv::min(cv::max(cover, 0.0), 1.0, cover);
+  return cover;
+}
+
+// The sine of the depression of every pixel's ray (negative above the horizon).
+cv::Mat SinDepressionMap(const ViewGeometry& view, int width, int height) {
+  cv::Mat map(height, width, CV_32F);
+  const Eigen::Matrix3d& m = view.world_ray_from_pixel;
+  for (int y = 0; y < height; ++y) {
+    float* row = map.ptr<float>(y);
+    const Eigen::Vector3d start = m * Eigen::Vector3d(0, y, 1);
+    const Eigen::Vector3d step = m.col(0);
+    for (int x = 0; x < width; ++x) {
+      const Eigen::Vector3d ray = start + static_cast<double>(x) * step;
+      row[x] = static_cast<float>(-ray.z() / ray.norm());
+    }
+  }
+  return map;
+}
+
+// The sine of the depression of a ray meeting the ground `heights` camera heights away.
+double SinDepressionAt(double heights) { return 1.0 / std::sqrt(1.0 + heights * heights); }
+
+}  // namespace
+
 FrameRenderer::FrameRenderer(const GroundSource& ground, const CameraIntrinsics& camera,
                              const ImagingOptions& imaging, uint64_t seed)
     : ground_(ground), camera_(camera), imaging_(imaging), seed_(seed) {
+  clouds_ = MakeClouds(HashCombine(seed, 0x534B59u));
   if (imaging_.lens_k1 != 0) {
     // For each distorted pixel, the ideal one it shows: invert r_d = r_u (1 + k1 r_u^2) by
     // fixed-point iteration (it converges for |k1| <= 0.3 within the image).
@@ -129,21 +201,34 @@ int FrameRenderer::LevelFor(double ratio) {
 }
 
 void FrameRenderer::RenderRows(const Eigen::Matrix3d& frame_from_ground, int row0, int row1,
-                               int level, cv::Mat* bgr_out, cv::Mat* valid) const {
+                               int level, cv::Mat* bgr_out, cv::Mat* valid,
+                               const std::vector<Eigen::Vector2d>& outline) const {
   // A coarser source when there is one for this level; else the full-detail raster, reduced.
   const bool direct = level > 0 && static_cast<size_t>(level) <= coarser_levels_.size();
   const GroundSource& source = direct ? *coarser_levels_[static_cast<size_t>(level) - 1] : ground_;
   const int levels = direct ? 0 : level;
   const Eigen::Matrix3d raster_from_frame =
       RasterFromGround(source.gsd_m()) * frame_from_ground.inverse();
-  // The raster area under the rows: their corners, with a margin for the interpolation kernel.
+  // The raster area under the rows: their corners (or the outline of their ground), with a margin
+  // for the interpolation kernel.
   double x0 = 1e300, y0 = 1e300, x1 = -1e300, y1 = -1e300;
   const double left = -0.5, right = camera_.width - 0.5;
-  for (const Eigen::Vector2d& corner :
-       {Eigen::Vector2d(left, row0 - 0.5), Eigen::Vector2d(right, row0 - 0.5),
-        Eigen::Vector2d(right, row1 - 0.5), Eigen::Vector2d(left, row1 - 0.5)}) {
+  std::vector<Eigen::Vector2d> corners = outline;
+  if (corners.empty()) {
+    corners = {Eigen::Vector2d(left, row0 - 0.5), Eigen::Vector2d(right, row0 - 0.5),
+               Eigen::Vector2d(right, row1 - 0.5), Eigen::Vector2d(left, row1 - 0.5)};
+  }
+  // The sign of raster_from_frame's third coordinate in front of the camera: that of the frame
+  // centre's in a downward view; ViewOfHomography's depth in general.
+  const std::optional<ViewGeometry> view = ViewOfHomography(camera_, frame_from_ground);
+  for (const Eigen::Vector2d& corner : corners) {
     const Eigen::Vector3d q = raster_from_frame * corner.homogeneous();
-    SAKER_CHECK(q.z() > 0);  // every corner ray hits the ground in front of the camera
+    if (view) {
+      const Eigen::Vector3d ground = frame_from_ground.inverse() * corner.homogeneous();
+      SAKER_CHECK(view->depth_of_ground.dot(ground / ground.z()) > 0);  // in front of the camera
+    } else {
+      SAKER_CHECK(q.z() > 0);  // every corner ray hits the ground in front of the camera
+    }
     const Eigen::Vector2d p = q.hnormalized();
     x0 = std::min(x0, p.x()), x1 = std::max(x1, p.x());
     y0 = std::min(y0, p.y()), y1 = std::max(y1, p.y());
@@ -189,43 +274,112 @@ void FrameRenderer::RenderRows(const Eigen::Matrix3d& frame_from_ground, int row
 cv::Mat FrameRenderer::RenderGround(const Eigen::Matrix3d& frame_from_ground,
                                     cv::Mat* valid) const {
   const int width = camera_.width, height = camera_.height;
+  // The set of rays at least a given angle below the horizon is a cone about the downward vertical,
+  // whose image is convex: when the frame's corners are inside, so is the whole frame.
+  const std::optional<ViewGeometry> view = ViewOfHomography(camera_, frame_from_ground);
+  double least_sin = 1;
+  if (view) {
+    for (const Eigen::Vector2d& p : ImageCorners(camera_)) {
+      least_sin = std::min(least_sin, view->SinDepression(p.x(), p.y()));
+    }
+  }
+  if (!view || least_sin >= SinDepressionAt(kHazeStartHeights)) {
+    return RenderBands(frame_from_ground, 0, {}, valid);
+  }
+  // A view reaching the horizon: the ground of each row out to the draw distance, then the haze
+  // and the sky over it.
+  const cv::Mat sin_map = SinDepressionMap(*view, width, height);
+  const float far_sin = static_cast<float>(SinDepressionAt(kDrawDistanceHeights));
+  std::vector<std::pair<double, double>> spans(static_cast<size_t>(height), {1.0, 0.0});
+  int first_row = height;
+  for (int y = height - 1; y >= 0; --y) {
+    const float* row = sin_map.ptr<float>(y);
+    int x0 = 0;
+    while (x0 < width && row[x0] < far_sin) ++x0;
+    if (x0 == width) continue;
+    int x1 = width - 1;
+    while (row[x1] < far_sin) --x1;
+    spans[static_cast<size_t>(y)] = {x0, x1};
+    first_row = y;
+  }
+  cv::Mat frame;
+  if (first_row < height) {
+    frame = RenderBands(frame_from_ground, first_row, spans, valid);
+  } else {
+    frame = cv::Mat::zeros(height, width, CV_8UC3);
+    if (valid != nullptr) *valid = cv::Mat::zeros(height, width, CV_8U);
+  }
+  DrawSkyAndHaze(*view, &frame, valid);
+  return frame;
+}
+
+cv::Mat FrameRenderer::RenderBands(const Eigen::Matrix3d& frame_from_ground, int first_row,
+                                   const std::vector<std::pair<double, double>>& spans,
+                                   cv::Mat* valid) const {
+  const int width = camera_.width, height = camera_.height;
   const Eigen::Matrix3d raster_from_frame =
       RasterFromGround(ground_.gsd_m()) * frame_from_ground.inverse();
   // Raster pixels per frame pixel at a frame point: the square root of the Jacobian determinant
   // of raster_from_frame there, det(M) / w^3 for a homography M with w the point's third
   // coordinate.
   const double det = std::abs(raster_from_frame.determinant());
-  const auto ratio_at = [&](double x, double y) {
+  const auto isotropic_ratio_at = [&](double x, double y) {
     const double w = (raster_from_frame * Eigen::Vector3d(x, y, 1)).z();
     return std::sqrt(det / std::abs(w * w * w));
   };
-  std::vector<Eigen::Vector2d> quad;
-  for (const Eigen::Vector2d& corner : ImageCorners(camera_)) quad.push_back(corner);
-  double least = 1e300, most = 0;
-  for (const Eigen::Vector2d& p : quad) {
-    least = std::min(least, ratio_at(p.x(), p.y()));
-    most = std::max(most, ratio_at(p.x(), p.y()));
-  }
-  cv::Mat frame, weight_valid;
-  if (most < 1.5 * least) {
-    // One scale (nadir views): one level for the whole frame, from the area it covers.
-    std::vector<cv::Point2f> raster_quad;
+  // Near the horizon a pixel is foreshortened many times more along the view than across it: the
+  // larger singular value of the Jacobian there, or the warp aliases (moire on striped fields).
+  const auto stretched_ratio_at = [&](double x, double y) {
+    const Eigen::Matrix3d& m = raster_from_frame;
+    const Eigen::Vector3d q = m * Eigen::Vector3d(x, y, 1);
+    const double u = q.x() / q.z(), v = q.y() / q.z();
+    Eigen::Matrix2d j;
+    j << m(0, 0) - u * m(2, 0), m(0, 1) - u * m(2, 1), m(1, 0) - v * m(2, 0), m(1, 1) - v * m(2, 1);
+    j /= q.z();
+    const double a = j.squaredNorm() / 2, d = j.determinant();
+    return std::sqrt(a + std::sqrt(std::max(a * a - d * d, 0.0)));
+  };
+  // Views whose rows end at the horizon use the stretched one; others keep the isotropic one
+  // (their pictures, and the corpus measured on them, stay as they were).
+  const auto ratio_at = [&](double x, double y) {
+    return spans.empty() ? isotropic_ratio_at(x, y) : stretched_ratio_at(x, y);
+  };
+  // The columns of row r that show ground (an empty span: none).
+  const auto span_of = [&](int r) {
+    return spans.empty() ? std::pair<double, double>(-0.5, width - 0.5)
+                         : spans[static_cast<size_t>(r)];
+  };
+  cv::Mat frame;
+  if (spans.empty()) {
+    std::vector<Eigen::Vector2d> quad;
+    for (const Eigen::Vector2d& corner : ImageCorners(camera_)) quad.push_back(corner);
+    double least = 1e300, most = 0;
     for (const Eigen::Vector2d& p : quad) {
-      const Eigen::Vector2d q = (raster_from_frame * p.homogeneous()).hnormalized();
-      raster_quad.emplace_back(static_cast<float>(q.x()), static_cast<float>(q.y()));
+      least = std::min(least, ratio_at(p.x(), p.y()));
+      most = std::max(most, ratio_at(p.x(), p.y()));
     }
-    const double ratio = std::sqrt(cv::contourArea(raster_quad) /
-                                   (static_cast<double>(width) * static_cast<double>(height)));
-    RenderRows(frame_from_ground, 0, height, LevelFor(ratio), &frame, valid);
-    if (valid != nullptr) cv::threshold(*valid, *valid, 254, 255, cv::THRESH_BINARY);
-    return frame;
+    if (most < 1.5 * least) {
+      // One scale (nadir views): one level for the whole frame, from the area it covers.
+      std::vector<cv::Point2f> raster_quad;
+      for (const Eigen::Vector2d& p : quad) {
+        const Eigen::Vector2d q = (raster_from_frame * p.homogeneous()).hnormalized();
+        raster_quad.emplace_back(static_cast<float>(q.x()), static_cast<float>(q.y()));
+      }
+      const double ratio = std::sqrt(cv::contourArea(raster_quad) /
+                                     (static_cast<double>(width) * static_cast<double>(height)));
+      RenderRows(frame_from_ground, 0, height, LevelFor(ratio), &frame, valid);
+      if (valid != nullptr) cv::threshold(*valid, *valid, 254, 255, cv::THRESH_BINARY);
+      return frame;
+    }
   }
   // Bands of rows needing the same level (the coarser of the row's two ends), merged until each
   // is at least two blending widths high.
   constexpr int kBlendRows = 8;
   std::vector<std::pair<int, int>> bands;  // (first row, level)
-  for (int r = 0; r < height; ++r) {
-    const int level = LevelFor(std::max(ratio_at(-0.5, r), ratio_at(width - 0.5, r)));
+  for (int r = first_row; r < height; ++r) {
+    const auto [x0, x1] = span_of(r);
+    const int level = x0 <= x1 ? LevelFor(std::max(ratio_at(x0, r), ratio_at(x1, r)))
+                               : (bands.empty() ? 0 : bands.back().second);
     if (bands.empty() || bands.back().second != level) bands.emplace_back(r, level);
   }
   for (size_t i = 1; i < bands.size();) {
@@ -242,11 +396,24 @@ cv::Mat FrameRenderer::RenderGround(const Eigen::Matrix3d& frame_from_ground,
   for (size_t i = 0; i < bands.size(); ++i) {
     const int top = bands[i].first;
     const int bottom = i + 1 < bands.size() ? bands[i + 1].first : height;
-    const int row0 = i == 0 ? 0 : top - kBlendRows;
+    const int row0 = i == 0 ? top : top - kBlendRows;
     const int row1 = i + 1 == bands.size() ? height : bottom + kBlendRows;
+    // The ground of these rows, sampled every few rows (it is convex, and the sampled rows'
+    // pixel edges bound it up to a fraction of a pixel, within the warp's margin).
+    std::vector<Eigen::Vector2d> outline;
+    if (!spans.empty()) {
+      for (int r = row0; r < row1; r = (r + 4 < row1 || r == row1 - 1) ? r + 4 : row1 - 1) {
+        const auto [x0, x1] = span_of(r);
+        if (x0 > x1) continue;
+        for (const double y : {r - 0.5, r + 0.5}) {
+          outline.emplace_back(x0 - 0.5, y);
+          outline.emplace_back(x1 + 0.5, y);
+        }
+      }
+    }
     cv::Mat band, band_valid;
     RenderRows(frame_from_ground, row0, row1, bands[i].second, &band,
-               valid != nullptr ? &band_valid : nullptr);
+               valid != nullptr ? &band_valid : nullptr, outline);
     band.convertTo(band, CV_32FC3);
     if (valid != nullptr) band_valid.convertTo(band_valid, CV_32F);
     for (int r = row0; r < row1; ++r) {
@@ -270,6 +437,64 @@ cv::Mat FrameRenderer::RenderGround(const Eigen::Matrix3d& frame_from_ground,
     cv::threshold(*valid, *valid, 253, 255, cv::THRESH_BINARY);
   }
   return frame;
+}
+
+void FrameRenderer::DrawSkyAndHaze(const ViewGeometry& view, cv::Mat* frame, cv::Mat* valid) const {
+  const int width = frame->cols, height = frame->rows;
+  const double far_heights = kDrawDistanceHeights, haze_heights = kHazeStartHeights;
+  const double haze_sin = SinDepressionAt(haze_heights), far_sin = SinDepressionAt(far_heights);
+  const Eigen::Matrix3d& m = view.world_ray_from_pixel;
+  constexpr double kDegPerRad = 180.0 / M_PI;
+  for (int y = 0; y < height; ++y) {
+    cv::Vec3b* row = frame->ptr<cv::Vec3b>(y);
+    uint8_t* valid_row = valid != nullptr ? valid->ptr<uint8_t>(y) : nullptr;
+    const Eigen::Vector3d start = m * Eigen::Vector3d(0, y, 1);
+    for (int x = 0; x < width; ++x) {
+      const Eigen::Vector3d ray = start + static_cast<double>(x) * m.col(0);
+      const double sin_dep = -ray.z() / ray.norm();
+      if (sin_dep >= haze_sin) continue;
+      // How much haze: none at haze_heights away, all of it at far_heights and beyond.
+      double haze = 1;
+      if (sin_dep > far_sin) {
+        const double heights = std::sqrt(1 - sin_dep * sin_dep) / sin_dep;
+        haze = (heights - haze_heights) / (far_heights - haze_heights);
+      }
+      cv::Vec3f backdrop = kHazeBgr;
+      if (sin_dep < 0) {
+        // The sky: bluer with elevation, and the clouds of this direction, fading in over the
+        // first degrees above the horizon.
+        const double elevation = -std::asin(sin_dep) * kDegPerRad;
+        const double blue = std::pow(std::min(elevation / 25.0, 1.0), 0.6);
+        backdrop = kHazeBgr + static_cast<float>(blue) * (kZenithBgr - kHazeBgr);
+        double azimuth = std::atan2(ray.x(), ray.y()) * kDegPerRad;
+        if (azimuth < 0) azimuth += 360;
+        const double u = azimuth / 360.0 * kSkyCols;
+        const double v = std::min(elevation / kSkyRowsDeg, 1.0) * (kSkyRows - 1);
+        const int c = std::min(static_cast<int>(u), kSkyCols - 1);
+        const int r = std::min(static_cast<int>(v), kSkyRows - 2);
+        const double fu = u - c, fv = v - r;
+        const int c1 = (c + 1) % kSkyCols;
+        const double cover =
+            (1 - fv) * ((1 - fu) * clouds_.at<float>(r, c) + fu * clouds_.at<float>(r, c1)) +
+            fv * ((1 - fu) * clouds_.at<float>(r + 1, c) + fu * clouds_.at<float>(r + 1, c1));
+        const double fade = std::min(elevation / 3.0, 1.0);
+        backdrop += static_cast<float>(cover * fade) * (kCloudBgr - backdrop);
+      }
+      const cv::Vec3f ground(row[x][0], row[x][1], row[x][2]);
+      const cv::Vec3f out = ground + static_cast<float>(haze) * (backdrop - ground);
+      row[x] = cv::Vec3b(cv::saturate_cast<uint8_t>(out[0]), cv::saturate_cast<uint8_t>(out[1]),
+                         cv::saturate_cast<uint8_t>(out[2]));
+      if (valid_row != nullptr) valid_row[x] = 0;
+    }
+  }
+}
+
+bool FrameRenderer::Shows(const Eigen::Matrix3d& frame_from_ground,
+                          const Eigen::Vector2d& ground_m) const {
+  const std::optional<ViewGeometry> view = ViewOfHomography(camera_, frame_from_ground);
+  if (!view) return true;
+  if (!(view->depth_of_ground.dot(ground_m.homogeneous()) > 0)) return false;
+  return (ground_m - view->position_m.head<2>()).norm() <= kHazeStartHeights * view->height_m();
 }
 
 // Thermal ground seen white-hot, from the visible ground: dark surfaces (asphalt, roofs) soak up
@@ -314,12 +539,18 @@ cv::Mat FrameRenderer::Render(const Eigen::Matrix3d& frame_from_ground,
     }
     cv::resize(small, frame, cv::Size(camera_.width, camera_.height), 0, 0, cv::INTER_CUBIC);
     if (valid != nullptr) *valid = cv::Mat::zeros(frame.size(), CV_8U);
-  } else if (imaging_.infrared()) {
-    frame = ThermalGround(RenderGround(frame_from_ground, valid));
-    DrawTargets(ThermalTargets(targets), Eigen::Vector2d::Zero(), frame_from_ground, &frame);
   } else {
-    frame = RenderGround(frame_from_ground, valid);
-    DrawTargets(targets, shadow_per_m, frame_from_ground, &frame);
+    std::vector<Target> shown;
+    for (const Target& t : targets) {
+      if (Shows(frame_from_ground, t.position)) shown.push_back(t);
+    }
+    if (imaging_.infrared()) {
+      frame = ThermalGround(RenderGround(frame_from_ground, valid));
+      DrawTargets(ThermalTargets(shown), Eigen::Vector2d::Zero(), frame_from_ground, &frame);
+    } else {
+      frame = RenderGround(frame_from_ground, valid);
+      DrawTargets(shown, shadow_per_m, frame_from_ground, &frame);
+    }
   }
   if (!distortion_x_.empty()) {
     cv::Mat distorted;

@@ -65,6 +65,11 @@ class FrameRenderer {
                  const Eigen::Vector2d& shadow_per_m, int64_t frame_index, double time_s,
                  cv::Mat* valid = nullptr) const;
 
+  // Whether a target at `ground_m` is drawn in the frame seen through `frame_from_ground`: in
+  // front of the camera and nearer than the haze (see RenderGround). The truth's visibility
+  // follows it, together with the frame's bounds.
+  bool Shows(const Eigen::Matrix3d& frame_from_ground, const Eigen::Vector2d& ground_m) const;
+
   // Only the ground, no targets and no imaging effects (for tests and the truth check).
   //
   // The ground is sampled from the level of detail that fits each part of the frame: a nadir view
@@ -72,7 +77,18 @@ class FrameRenderer {
   // the near ones. Rows are then rendered in bands, each from its own level (a coarser source of
   // `coarser_levels` when there is one, else the ground reduced by image pyramid), blended over a
   // few rows where bands meet.
+  //
+  // Near the horizon (a low oblique view) the ground is drawn out to kDrawDistanceHeights camera
+  // heights, fading into haze from kHazeStartHeights on; the rays that miss it show the sky: a
+  // gradient from the haze at the horizon to blue overhead, with clouds fixed in direction (they
+  // move in the frame with the camera's rotation alone, as distant things do). `valid` is 0 on
+  // haze and sky.
   cv::Mat RenderGround(const Eigen::Matrix3d& frame_from_ground, cv::Mat* valid = nullptr) const;
+
+  // The ground is drawn out to this many camera heights (a ray 7.1 degrees below the horizon) and
+  // fades into haze from kHazeStartHeights (11.3 degrees); targets beyond that are not drawn.
+  static constexpr double kDrawDistanceHeights = 8.0;
+  static constexpr double kHazeStartHeights = 5.0;
 
   // Sources of the same ground at 2, 4, 8... times the ground's metres per pixel (element k at
   // 2^(k+1) times), used instead of reducing the full-detail raster where a frame needs them.
@@ -82,8 +98,17 @@ class FrameRenderer {
  private:
   // Frame rows [row0, row1) rendered from level `level` (raster pixels of 2^level times the
   // ground's size), into `bgr` and `valid` of (row1 - row0) rows.
+  // `outline`, when not empty, bounds the part of the rows that shows ground (frame points); by
+  // default the rows' corners do.
   void RenderRows(const Eigen::Matrix3d& frame_from_ground, int row0, int row1, int level,
-                  cv::Mat* bgr, cv::Mat* valid) const;
+                  cv::Mat* bgr, cv::Mat* valid,
+                  const std::vector<Eigen::Vector2d>& outline = {}) const;
+  // RenderGround's bands of rows, each from its level of detail, over rows [first_row, height)
+  // whose ground spans columns `spans` (one [x0, x1] pair a row, all of them by default).
+  cv::Mat RenderBands(const Eigen::Matrix3d& frame_from_ground, int first_row,
+                      const std::vector<std::pair<double, double>>& spans, cv::Mat* valid) const;
+  // Haze and sky over the rows of a view that reaches the horizon, blended into `frame`.
+  void DrawSkyAndHaze(const ViewGeometry& view, cv::Mat* frame, cv::Mat* valid) const;
   // Infrared: the ground's thermal image (white-hot) and the targets made warm.
   static cv::Mat ThermalGround(const cv::Mat& bgr);
   static std::vector<Target> ThermalTargets(const std::vector<Target>& targets);
@@ -96,6 +121,8 @@ class FrameRenderer {
   CameraIntrinsics camera_;
   ImagingOptions imaging_;
   uint64_t seed_;
+  // Cloud cover by direction: columns azimuth 0..360 degrees, rows elevation 0..kSkyRowsDeg.
+  cv::Mat clouds_;
 };
 
 }  // namespace saker::sim

@@ -109,20 +109,25 @@ StatusOr<std::vector<uint8_t>> FrameKlv(const geo::LocalTangentPlane& plane, uin
                                         const CameraIntrinsics& lens, const CameraPose& pose,
                                         const SimulationOptions& options,
                                         const std::string& mission, Random* random) {
+  // A view reaching the horizon has no ground under some corners (or the centre): the packet
+  // leaves them out, as a real one does. The noise is drawn all the same, to keep the order.
   const auto footprint = GroundFootprint(lens, pose);
   const auto centre = GroundCentre(lens, pose);
-  if (!footprint || !centre) {
-    return InvalidArgumentError("simulate: the camera looks above the horizon");
-  }
   const Vector2d bias(options.metadata.bias_east_m, options.metadata.bias_north_m);
   const double sigma = options.metadata.position_noise_m;
   const auto noisy = [&](const Vector2d& p) {
     const double e = random->Normal(), n = random->Normal();
     return Vector2d(p + bias + sigma * Vector2d(e, n));
   };
-  std::array<Vector2d, 4> corners;
-  for (int k = 0; k < 4; ++k) corners[k] = noisy((*footprint)[k]);
-  const Vector2d centre_noisy = noisy(*centre);
+  std::optional<std::array<Vector2d, 4>> corners;
+  if (footprint) corners.emplace();
+  for (int k = 0; k < 4; ++k) {
+    const Vector2d p = noisy(footprint ? (*footprint)[k] : Vector2d::Zero());
+    if (corners) (*corners)[k] = p;
+  }
+  const Vector2d centre_drawn = noisy(centre ? *centre : Vector2d::Zero());
+  std::optional<Vector2d> centre_noisy;
+  if (centre) centre_noisy = centre_drawn;
   const Vector2d sensor_xy = noisy(pose.position_m.head<2>());
   const Eigen::Vector3d sensor(sensor_xy.x(), sensor_xy.y(), pose.position_m.z());
   return EncodeFrameKlv(plane, utc_us, lens, pose, sensor, centre_noisy, corners, mission);
@@ -428,14 +433,14 @@ Status ApplyOptionsJson(const nlohmann::json& overrides, SimulationOptions* opti
 
 StatusOr<std::vector<uint8_t>> EncodeFrameKlv(
     const geo::LocalTangentPlane& plane, uint64_t time_us, const CameraIntrinsics& camera,
-    const CameraPose& pose, const Eigen::Vector3d& sensor_m, const Vector2d& centre_m,
-    const std::array<Vector2d, 4>& corners_m, const std::string& mission) {
+    const CameraPose& pose, const Eigen::Vector3d& sensor_m,
+    const std::optional<Vector2d>& centre_m,
+    const std::optional<std::array<Vector2d, 4>>& corners_m, const std::string& mission) {
   // Heights: 75 and 78 are above the ellipsoid, as the simulator's world is. 15 and 25 are
   // defined above mean sea level; with no geoid model available offline the simulator takes the
   // geoid as the ellipsoid there (docs/simulator.md).
   const double ground_height = plane.origin().height_m;
   const geo::Wgs84 sensor = plane.Wgs84FromEnu(sensor_m);
-  const geo::Wgs84 centre = plane.LatLonFromMap(centre_m);
   const double heading = std::fmod(std::fmod(pose.heading_deg, 360.0) + 360.0, 360.0);
   klv::St0601Encoder e;
   e.AddUnsigned(2, time_us)
@@ -454,35 +459,44 @@ StatusOr<std::vector<uint8_t>> EncodeFrameKlv(
       .Add(18, std::fmod(std::fmod(pose.gimbal_azimuth_deg, 360.0) + 360.0, 360.0))
       .Add(19, pose.gimbal_off_nadir_deg - 90.0)
       .Add(20, 0.0)
-      .Add(21, (Eigen::Vector3d(centre_m.x(), centre_m.y(), 0) - pose.position_m).norm())
-      .Add(23, centre.latitude_deg)
-      .Add(24, centre.longitude_deg)
-      .Add(25, ground_height)
-      .Add(75, sensor.height_m)
-      .Add(78, ground_height);
-  // Target width (22) only reaches 10 km; very wide footprints leave it out.
-  const double target_width = (corners_m[2] - corners_m[3]).norm();
-  if (target_width <= 10000) e.Add(22, target_width);
-  std::array<geo::Wgs84, 4> corners;
-  std::array<double, 4> longitude_offsets{};  // across the antimeridian the short way round
-  bool offsets_fit = true;
-  for (int k = 0; k < 4; ++k) {
-    corners[k] = plane.LatLonFromMap(corners_m[k]);
-    longitude_offsets[k] =
-        geo::UnwrapLongitude(corners[k].longitude_deg, centre.longitude_deg) - centre.longitude_deg;
-    offsets_fit &= std::abs(corners[k].latitude_deg - centre.latitude_deg) <= 0.075 &&
-                   std::abs(longitude_offsets[k]) <= 0.075;
+      .Add(75, sensor.height_m);
+  if (centre_m) {
+    const geo::Wgs84 centre = plane.LatLonFromMap(*centre_m);
+    e.Add(21, (Eigen::Vector3d(centre_m->x(), centre_m->y(), 0) - pose.position_m).norm())
+        .Add(23, centre.latitude_deg)
+        .Add(24, centre.longitude_deg)
+        .Add(25, ground_height)
+        .Add(78, ground_height);
   }
-  // Offset corners (26-33) only reach 0.075 degrees from the centre; wider footprints carry only
-  // the full corners.
-  if (offsets_fit) {
-    for (int k = 0; k < 4; ++k) {
-      e.Add(26 + 2 * k, corners[k].latitude_deg - centre.latitude_deg)
-          .Add(27 + 2 * k, longitude_offsets[k]);
+  if (corners_m) {
+    // Target width (22) only reaches 10 km; very wide footprints leave it out.
+    const double target_width = ((*corners_m)[2] - (*corners_m)[3]).norm();
+    if (target_width <= 10000) e.Add(22, target_width);
+    std::array<geo::Wgs84, 4> corners;
+    for (int k = 0; k < 4; ++k) corners[k] = plane.LatLonFromMap((*corners_m)[k]);
+    // Offset corners (26-33) are relative to the centre and only reach 0.075 degrees from it;
+    // wider footprints carry only the full corners.
+    if (centre_m) {
+      const geo::Wgs84 centre = plane.LatLonFromMap(*centre_m);
+      std::array<double, 4> longitude_offsets{};  // across the antimeridian the short way round
+      bool offsets_fit = true;
+      for (int k = 0; k < 4; ++k) {
+        longitude_offsets[k] =
+            geo::UnwrapLongitude(corners[k].longitude_deg, centre.longitude_deg) -
+            centre.longitude_deg;
+        offsets_fit &= std::abs(corners[k].latitude_deg - centre.latitude_deg) <= 0.075 &&
+                       std::abs(longitude_offsets[k]) <= 0.075;
+      }
+      if (offsets_fit) {
+        for (int k = 0; k < 4; ++k) {
+          e.Add(26 + 2 * k, corners[k].latitude_deg - centre.latitude_deg)
+              .Add(27 + 2 * k, longitude_offsets[k]);
+        }
+      }
     }
-  }
-  for (int k = 0; k < 4; ++k) {
-    e.Add(82 + 2 * k, corners[k].latitude_deg).Add(83 + 2 * k, corners[k].longitude_deg);
+    for (int k = 0; k < 4; ++k) {
+      e.Add(82 + 2 * k, corners[k].latitude_deg).Add(83 + 2 * k, corners[k].longitude_deg);
+    }
   }
   e.AddUnsigned(65, 17);
   return e.Finish();
@@ -557,21 +571,29 @@ StatusOr<SimulationSetup> SimulationSetup::Create(const SimulationOptions& optio
   setup.frame_count_ =
       std::max<int64_t>(1, static_cast<int64_t>(std::floor(duration / frame_interval + 1e-9)));
 
-  // Everything the camera sees, to size the world; every frame, so that a pose looking above the
-  // horizon is an error here rather than a failed check in the renderer.
+  // Everything the camera sees, to size the world; every frame, so that a pose seeing no ground is
+  // an error here rather than a failed check in the renderer.
   double x0 = 1e300, y0 = 1e300, x1 = -1e300, y1 = -1e300;
   for (int64_t i = 0; i < setup.frame_count_; ++i) {
     const double t = setup.CameraTimeAt(static_cast<double>(i) * frame_interval);
-    const auto footprint = GroundFootprint(setup.CameraAt(t), setup.flight_->PoseAt(t));
-    if (!footprint) {
-      return InvalidArgumentError("simulate: at " + std::to_string(t) +
-                                  " s the camera sees above the horizon (or within " +
-                                  std::to_string(static_cast<int>(kMinRayDepressionDeg)) +
-                                  " degrees of it); reduce the angle off nadir (in an orbit: the "
-                                  "radius against the altitude), "
-                                  "the field of view or the attitude jitter");
+    const CameraIntrinsics lens = setup.CameraAt(t);
+    const CameraPose pose = setup.flight_->PoseAt(t);
+    // A view reaching the horizon sees the ground out to the renderer's draw distance.
+    std::vector<Vector2d> seen_points;
+    if (const auto footprint = GroundFootprint(lens, pose)) {
+      seen_points.assign(footprint->begin(), footprint->end());
+    } else {
+      seen_points = VisibleGroundOutline(lens, pose, FrameRenderer::kDrawDistanceHeights);
     }
-    for (const Vector2d& p : *footprint) {
+    if (seen_points.empty()) {
+      return InvalidArgumentError(
+          "simulate: at " + std::to_string(t) + " s the camera sees no ground within " +
+          std::to_string(static_cast<int>(FrameRenderer::kDrawDistanceHeights)) +
+          " heights along its image border; reduce the angle off nadir "
+          "(in an orbit: the radius against the altitude) or the attitude "
+          "jitter");
+    }
+    for (const Vector2d& p : seen_points) {
       x0 = std::min(x0, p.x()), x1 = std::max(x1, p.x());
       y0 = std::min(y0, p.y()), y1 = std::max(y1, p.y());
     }
@@ -821,7 +843,8 @@ FrameTruth SimulationRun::NewFrameTruth(int64_t index, double time_s, bool cut,
                       camera_.width, camera_.height, options_.imaging.lens_k1);
       sample.visible = !frame.blank && sample.image_px.x() >= -0.5 && sample.image_px.y() >= -0.5 &&
                        sample.image_px.x() <= camera_.width - 0.5 &&
-                       sample.image_px.y() <= camera_.height - 0.5;
+                       sample.image_px.y() <= camera_.height - 0.5 &&
+                       renderer_.Shows(frame_from_ground, list[n].position);
       truth_.targets[n].samples.push_back(sample);
     }
   }

@@ -29,7 +29,9 @@ namespace saker::sim {
 // different world, traffic or video, so truth files and the cached demo say what made them.
 // Version 2: oblique views no longer draw the targets behind the camera (mirrored ghosts, and a
 // vehicle across its principal plane filling the frame).
-inline constexpr int kSimulatorVersion = 2;
+// Version 3: views reaching the horizon (sky, haze, ground drawn out to 8 heights); targets
+// behind the camera or in the haze are neither drawn nor counted visible in the truth.
+inline constexpr int kSimulatorVersion = 3;
 
 // Which frames carry a KLV packet, and how accurate it is. The paper studies metadata that is
 // only moderately accurate and not on every frame.
@@ -161,10 +163,13 @@ StatusOr<SimulationSummary> Simulate(const SimulationOptions& options, JobContex
 
 // The KLV packet of one frame: MISB ST 0601.17 with time stamp, platform position and attitude,
 // fields of view, slant range, frame centre, offset (26-33) and full (82-89) corners, version and
-// checksum. `corners_m` are the ground footprint (MISB order) already carrying any noise.
+// checksum. `corners_m` are the ground footprint (MISB order) already carrying any noise. A view
+// that reaches the horizon has no centre (21-25, 78) or no corners (22, 26-33, 82-89) on the
+// ground: those are left out.
 StatusOr<std::vector<uint8_t>> EncodeFrameKlv(
     const geo::LocalTangentPlane& plane, uint64_t time_us, const CameraIntrinsics& camera,
-    const CameraPose& pose, const Eigen::Vector3d& sensor_m, const Eigen::Vector2d& centre_m,
-    const std::array<Eigen::Vector2d, 4>& corners_m, const std::string& mission);
+    const CameraPose& pose, const Eigen::Vector3d& sensor_m,
+    const std::optional<Eigen::Vector2d>& centre_m,
+    const std::optional<std::array<Eigen::Vector2d, 4>>& corners_m, const std::string& mission);
 
 }  // namespace saker::sim

@@ -219,5 +219,60 @@ TEST(CameraPoseTest, RaysAtOrAboveTheHorizonHaveNoGroundPoint) {
   EXPECT_FALSE(GroundCentre(intrinsics, pose).has_value());
 }
 
+// The renderer recovers the camera from the ground homography alone (for the sky and the haze):
+// its position, and the depression of every pixel's ray, whatever the matrix's scale and sign.
+TEST(CameraPoseTest, ViewOfHomographyRecoversTheCameraAndItsRays) {
+  const CameraIntrinsics intrinsics;
+  CameraPose pose;
+  pose.position_m = Eigen::Vector3d(120, -40, 150);
+  pose.heading_deg = 37;
+  pose.roll_deg = 3;
+  pose.gimbal_off_nadir_deg = 82;  // the top of the frame above the horizon
+  const Eigen::Matrix3d h = FrameFromGround(intrinsics, pose);
+  for (const double scale : {1.0, -3.7, 1e-3}) {
+    SCOPED_TRACE(scale);
+    const std::optional<ViewGeometry> view = ViewOfHomography(intrinsics, scale * h);
+    ASSERT_TRUE(view.has_value());
+    EXPECT_LT((view->position_m - pose.position_m).norm(), 1e-6);
+    for (const Eigen::Vector2d& pixel :
+         {Eigen::Vector2d(0, 0), Eigen::Vector2d(640, 360), Eigen::Vector2d(1279, 719)}) {
+      const Eigen::Vector3d ray =
+          pose.WorldFromCamera() * Eigen::Vector3d((pixel.x() - intrinsics.cx()) / intrinsics.fx(),
+                                                   (pixel.y() - intrinsics.cy()) / intrinsics.fy(),
+                                                   1);
+      EXPECT_NEAR(view->SinDepression(pixel.x(), pixel.y()), -ray.normalized().z(), 1e-9);
+    }
+    EXPECT_LT(view->SinDepression(640, 0), 0);  // above the horizon
+    const std::optional<Eigen::Vector2d> below = GroundCentre(intrinsics, pose);
+    ASSERT_TRUE(below.has_value());
+    EXPECT_GT(view->depth_of_ground.dot(below->homogeneous()), 0);  // in front, whatever the sign
+  }
+  // A matrix that is no camera's.
+  EXPECT_FALSE(ViewOfHomography(intrinsics, Eigen::Matrix3d::Zero()).has_value());
+}
+
+// What a view reaching the horizon sees, to size the simulated world: its border's rays cut at
+// the draw distance; nothing when the camera sees no ground at all.
+TEST(CameraPoseTest, TheVisibleGroundOfAViewReachingTheHorizonEndsAtTheDrawDistance) {
+  const CameraIntrinsics intrinsics;
+  CameraPose pose;
+  pose.position_m = Eigen::Vector3d(0, 0, 100);
+  pose.gimbal_off_nadir_deg = 85;  // looking north, the horizon in the upper part of the frame
+  const std::vector<Eigen::Vector2d> outline = VisibleGroundOutline(intrinsics, pose, 8);
+  ASSERT_FALSE(outline.empty());
+  double nearest = 1e300, farthest = 0;
+  for (const Eigen::Vector2d& p : outline) {
+    nearest = std::min(nearest, p.norm());
+    farthest = std::max(farthest, p.norm());
+    EXPECT_GT(p.y(), 0);  // ahead
+  }
+  EXPECT_NEAR(farthest, 800, 1e-6);
+  // The bottom edge, 85 - 10.3 degrees off nadir (the lens's half vertical field of view).
+  EXPECT_NEAR(nearest, 100 * Tan(85 - intrinsics.vfov_deg() / 2), 1.0);
+  pose.gimbal_off_nadir_deg = 0;
+  pose.pitch_deg = 130;  // looking up and back: sky only
+  EXPECT_TRUE(VisibleGroundOutline(intrinsics, pose, 8).empty());
+}
+
 }  // namespace
 }  // namespace saker::sim

@@ -95,6 +95,62 @@ TEST_F(ConditionsTest, ObliqueViewsShowTheGroundTheTruthSays) {
   }
 }
 
+// A low oblique view, as a small drone's camera looks ahead: the top of the frame shows the sky
+// above the horizon, the ground fades into haze towards it, and below that the frame shows the
+// ground the truth homography says. No target is drawn, or counted visible, in the haze; the KLV
+// leaves out the corners that miss the ground.
+TEST_F(ConditionsTest, ALowObliqueViewShowsTheSkyAboveTheHorizonAndTheGroundBelow) {
+  SimulationOptions options = SmallOptions(dir_ / "horizon.ts");
+  options.flight.altitude_m = 30;
+  options.flight.gimbal_off_nadir_deg = 82;  // the top edge 92.3 degrees off nadir
+  options.flight.gimbal_azimuth_deg = 270;   // to the left, over the town
+  options.targets.cars = 40;
+  ASSERT_NO_FATAL_FAILURE(Run(options));
+  EXPECT_EQ(summary_.klv_packets, static_cast<int64_t>(truth_.frames.size()));
+  const CameraIntrinsics& camera = options.camera;
+  for (const int64_t i : {int64_t{0}, static_cast<int64_t>(truth_.frames.size()) - 1}) {
+    SCOPED_TRACE(i);
+    const FrameTruth& f = truth_.frames[static_cast<size_t>(i)];
+    const cv::Mat& frame = frames_[static_cast<size_t>(i)];
+    const std::optional<ViewGeometry> view = ViewOfHomography(camera, f.frame_from_ground);
+    ASSERT_TRUE(view.has_value());
+    // The horizon's row at the centre column, and the sky a few rows above it: brighter and bluer
+    // than the ground, and smooth.
+    int horizon = 0;
+    while (horizon < camera.height && view->SinDepression(159.5, horizon) < 0) ++horizon;
+    ASSERT_GT(horizon, 3);
+    ASSERT_LT(horizon, camera.height / 2);
+    const cv::Mat sky = frame.rowRange(0, horizon - 2);
+    const cv::Scalar sky_mean = cv::mean(sky);
+    EXPECT_GT(sky_mean[0], 150);              // bright
+    EXPECT_GT(sky_mean[0], sky_mean[2] + 4);  // blue over red
+    // Below: the ground of the truth's homography (the renderer's own picture of it, without the
+    // targets and the noise), where it is not hazed.
+    FrameRenderer renderer(setup_->ground(), camera, ImagingOptions{}, options.seed);
+    renderer.SetCoarserLevels(setup_->coarser_ground());
+    cv::Mat valid;
+    const cv::Mat expected = renderer.RenderGround(f.frame_from_ground, &valid);
+    EXPECT_EQ(cv::countNonZero(valid.rowRange(0, horizon + 1)), 0);
+    EXPECT_EQ(cv::countNonZero(valid.row(camera.height - 1)), camera.width);
+    EXPECT_GT(Ncc(frame, expected, valid), 0.9);
+    // The truth counts a target visible only in front of the camera and short of the haze.
+    for (const TargetTruth& t : truth_.targets) {
+      const TargetSampleTruth& sample = t.samples[static_cast<size_t>(i)];
+      if (!sample.visible) continue;
+      EXPECT_GT(view->depth_of_ground.dot(sample.ground_m.homogeneous()), 0);
+      EXPECT_LE((sample.ground_m - view->position_m.head<2>()).norm(),
+                FrameRenderer::kHazeStartHeights * view->height_m() + 1e-6);
+    }
+  }
+  // Some targets are seen, some are too far or behind.
+  int64_t visible = 0, hidden = 0;
+  for (const TargetTruth& t : truth_.targets) {
+    for (const TargetSampleTruth& sample : t.samples) (sample.visible ? visible : hidden) += 1;
+  }
+  EXPECT_GT(visible, 0);
+  EXPECT_GT(hidden, 0);
+}
+
 TEST_F(ConditionsTest, TheOrbitStaresAtTheCentre) {
   SimulationOptions options = SmallOptions(dir_ / "orbit.ts");
   options.scenario = Scenario::kOrbit;
