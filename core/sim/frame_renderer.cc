@@ -196,17 +196,19 @@ int FrameRenderer::LevelFor(double ratio) {
   // Above ~1.5 raster pixels per frame pixel, sample a reduced level of the raster to avoid
   // aliasing (the warp's bilinear kernel only filters one pixel).
   int level = 0;
-  while (level < 6 && ratio / static_cast<double>(1 << level) > 1.5) ++level;
+  while (level < 7 && ratio / static_cast<double>(1 << level) > 1.5) ++level;
   return level;
 }
 
 void FrameRenderer::RenderRows(const Eigen::Matrix3d& frame_from_ground, int row0, int row1,
                                int level, cv::Mat* bgr_out, cv::Mat* valid,
                                const std::vector<Eigen::Vector2d>& outline) const {
-  // A coarser source when there is one for this level; else the full-detail raster, reduced.
-  const bool direct = level > 0 && static_cast<size_t>(level) <= coarser_levels_.size();
-  const GroundSource& source = direct ? *coarser_levels_[static_cast<size_t>(level) - 1] : ground_;
-  const int levels = direct ? 0 : level;
+  // The coarser source of this level when there is one; else the coarsest there is (or the
+  // full-detail raster), reduced the rest of the way. The far rows of a view reaching the horizon
+  // need up to 128 times the ground's metres per pixel.
+  const size_t coarser = std::min(static_cast<size_t>(level), coarser_levels_.size());
+  const GroundSource& source = coarser > 0 ? *coarser_levels_[coarser - 1] : ground_;
+  const int levels = level - static_cast<int>(coarser);
   const Eigen::Matrix3d raster_from_frame =
       RasterFromGround(source.gsd_m()) * frame_from_ground.inverse();
   // The raster area under the rows: their corners (or the outline of their ground), with a margin
