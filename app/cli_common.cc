@@ -49,18 +49,37 @@ CLI::Option* AddAcceptBadChecksumsFlag(CLI::App* command, bool* accept) {
       "hours or kilometres)");
 }
 
-CLI::Option* AddOverlayMaskOption(CLI::App* command, bool* enabled) {
+namespace {
+
+// An on|off switch, a bare flag meaning on; `what` ends before the values and the default.
+CLI::Option* AddOnOffOption(CLI::App* command, const std::string& name, bool* enabled,
+                            const std::string& what, const std::string& docs) {
   return command
       ->add_option_function<std::string>(
-          "--overlay-mask", [enabled](const std::string& text) { *enabled = text != "off"; },
-          std::string("Find screen-fixed overlays (burned-in HUD text, reticles, logos) and keep "
-                      "them out of the ground motion, change detection and targets, where they "
-                      "would become false tracks: on or off (a bare --overlay-mask is on; "
-                      "default: ") +
-              (*enabled ? "on" : "off") + "; docs/front-end.md, Overlays)")
+          name, [enabled](const std::string& text) { *enabled = text != "off"; },
+          what + ": on or off (a bare " + name + " is on; default: " + (*enabled ? "on" : "off") +
+              "; " + docs + ")")
       ->check(CLI::IsMember({"on", "off"}))
       ->expected(0, 1)
       ->type_name("on|off");
+}
+
+}  // namespace
+
+CLI::Option* AddOverlayMaskOption(CLI::App* command, bool* enabled) {
+  return AddOnOffOption(command, "--overlay-mask", enabled,
+                        "Find screen-fixed overlays (burned-in HUD text, reticles, logos) and keep "
+                        "them out of the ground motion, change detection and targets, where they "
+                        "would become false tracks",
+                        "docs/front-end.md, Overlays");
+}
+
+CLI::Option* AddHorizonMaskOption(CLI::App* command, bool* enabled) {
+  return AddOnOffOption(command, "--horizon-mask", enabled,
+                        "Find the horizon of low oblique views and keep the sky and the distant "
+                        "ground above it out of the ground motion, key frames, change detection "
+                        "and targets, where clouds and haze would become false tracks",
+                        "docs/front-end.md, Oblique views");
 }
 
 CLI::Option* AddMinConfidenceOption(CLI::App* command, double* min_confidence,

@@ -42,6 +42,8 @@ CLI::Option* AddAcceptBadChecksumsFlag(CLI::App* command, bool* accept);
 // `--overlay-mask on|off` (track::OverlayOptions::enabled; a bare `--overlay-mask` is on), shared
 // by the subcommands that run the front end. `*enabled` holds the default.
 CLI::Option* AddOverlayMaskOption(CLI::App* command, bool* enabled);
+// `--horizon-mask on|off` (track::HorizonOptions::enabled), the same way.
+CLI::Option* AddHorizonMaskOption(CLI::App* command, bool* enabled);
 
 // `--min-confidence X`: a number from 0 to 1 (activity/confidence.h); anything else is refused
 // with a message naming the value. `what` says what happens to the tracks below it.

@@ -21,6 +21,7 @@ struct EvaluateCommand::State {
   bool no_metadata = false;
   bool no_change = false;
   bool overlay_mask = frontend::FrontEndOptions{}.overlays.enabled;
+  bool horizon_mask = frontend::FrontEndOptions{}.horizon.enabled;
   frontend::LowFrameRateOptions::Mode low_frame_rate = frontend::LowFrameRateOptions::Mode::kAuto;
   std::string adjust = "decomposed";
   mosaic::DecompositionOptions decomposition;
@@ -74,6 +75,7 @@ EvaluateCommand::EvaluateCommand(CLI::App& app) : state_(std::make_unique<State>
   s.command->add_flag("--no-change-detection", s.no_change,
                       "Run the front end without change detection (feature tracks only)");
   AddOverlayMaskOption(s.command, &s.overlay_mask);
+  AddHorizonMaskOption(s.command, &s.horizon_mask);
   AddLowFrameRateOption(s.command, &s.low_frame_rate);
 }
 
@@ -90,6 +92,7 @@ int EvaluateCommand::Run() const {
   eval::VideoEvaluationOptions options;
   options.front_end.change.enabled = !s.no_change;
   options.front_end.overlays.enabled = s.overlay_mask;
+  options.front_end.horizon.enabled = s.horizon_mask;
   options.front_end.low_frame_rate.mode = s.low_frame_rate;
   options.evaluation = s.evaluation;
   options.mosaic.use_metadata = !s.no_metadata;

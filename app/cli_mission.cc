@@ -72,6 +72,7 @@ ProcessCommand::ProcessCommand(CLI::App& app) : state_(std::make_unique<State>()
   s.command->add_flag("--no-tiles", s.no_tiles, "Do not render the mosaic's tile pyramid");
   AddAcceptBadChecksumsFlag(s.command, &s.options.front_end.metadata.accept_bad_checksums);
   AddOverlayMaskOption(s.command, &s.options.front_end.overlays.enabled);
+  AddHorizonMaskOption(s.command, &s.options.front_end.horizon.enabled);
   AddLowFrameRateOption(s.command, &s.options.front_end.low_frame_rate.mode);
   AddAdjustOption(s.command, &s.adjust);
   s.command
@@ -131,6 +132,7 @@ int ProcessCommand::RunOn(const std::string& video, const std::string& mission,
                                 {"overlay_frames", p.overlay_frames},
                                 {"overlay_coverage", p.overlay_coverage},
                                 {"polarity_switches", p.polarity_switches},
+                                {"horizon_frames", p.horizon_frames},
                                 {"front_end_s", p.front_end_s},
                                 {"mosaic_s", p.mosaic_s},
                                 {"activity_s", p.activity_s},
@@ -353,15 +355,9 @@ int InfoCommand::Run() const {
   }
   if (stages.empty()) stages = "none";
   // The screen-fixed overlay masks: the frames they cover and the image fraction they take there.
-  int64_t overlay_frames = 0;
-  double overlay_masked = 0;
-  for (const mission::OverlayRecord& o : m->overlays) {
-    const int64_t n = o.last_frame - o.first_frame + 1;
-    overlay_frames += n;
-    overlay_masked += static_cast<double>(n) * o.Coverage();
-  }
-  const double overlay_coverage =
-      overlay_frames > 0 ? overlay_masked / static_cast<double>(overlay_frames) : 0.0;
+  const mission::OverlayExtent overlay_extent = mission::ExtentOf(m->overlays);
+  const int64_t overlay_frames = overlay_extent.frames;
+  const double overlay_coverage = overlay_extent.coverage;
   const bool overlays_kept = m->schema_version >= 5;
   if (s.json) {
     nlohmann::json visit_json = nlohmann::json::object();

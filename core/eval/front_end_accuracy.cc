@@ -1,11 +1,14 @@
 #include "core/eval/front_end_accuracy.h"
 
+#include "core/sim/camera.h"
+#include "core/sim/frame_renderer.h"
 #include "core/util/statistics.h"
 
 #include <Eigen/Geometry>
 #include <Eigen/LU>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <map>
 #include <sstream>
@@ -15,13 +18,35 @@ namespace {
 
 // The pairing distance for a target in a frame: the option, or half the target's length in the
 // image plus a margin when that is larger (features on a car's bumper are a detection of the car).
-double Gate(const sim::TargetTruth& target, const sim::FrameTruth& frame,
-            const FrontEndEvaluationOptions& options) {
+double Gate(const sim::TargetTruth& target, const sim::TargetSampleTruth& sample,
+            const sim::FrameTruth& frame, const FrontEndEvaluationOptions& options) {
   const Eigen::Matrix3d& h = frame.frame_from_ground;
-  // Pixels per ground metre, from the homography's local scale (near nadir it barely varies).
-  const double scale =
-      std::sqrt(std::abs(h.topLeftCorner<2, 2>().determinant())) / std::abs(h(2, 2));
+  // Pixels per ground metre where the target is: the square root of the Jacobian determinant of
+  // the homography at its ground point (an oblique view's far rows have fewer).
+  const Eigen::Vector3d q = h * sample.ground_m.homogeneous();
+  const Eigen::Vector2d image = q.head<2>() / q.z();
+  Eigen::Matrix2d jacobian = h.topLeftCorner<2, 2>() - image * h.block<1, 2>(2, 0);
+  jacobian /= q.z();
+  const double scale = std::sqrt(std::abs(jacobian.determinant()));
   return std::max(options.gate_px, 0.5 * target.length_m * scale + 4.0);
+}
+
+std::array<Eigen::Vector2d, 4> GroundCorners(const sim::Truth& truth, const sim::FrameTruth& frame,
+                                             double w, double h) {
+  std::array<Eigen::Vector2d, 4> corners = {
+      Eigen::Vector2d(-0.5, -0.5), Eigen::Vector2d(w - 0.5, -0.5),
+      Eigen::Vector2d(w - 0.5, h - 0.5), Eigen::Vector2d(-0.5, h - 0.5)};
+  sim::CameraIntrinsics camera;
+  camera.width = truth.width;
+  camera.height = truth.height;
+  camera.hfov_deg = frame.hfov_deg;
+  const std::optional<sim::ViewGeometry> view = ViewOfHomography(camera, frame.frame_from_ground);
+  if (!view) return corners;
+  const double least_sin = 1.0 / std::hypot(1.0, sim::FrameRenderer::kHazeStartHeights);
+  for (Eigen::Vector2d& c : corners) {
+    while (c.y() < h - 1 && view->SinDepression(c.x(), c.y()) < least_sin) c.y() += 1;
+  }
+  return corners;
 }
 
 HomographyAccuracy EvaluateHomographies(const frontend::FrontEndResult& result,
@@ -29,9 +54,10 @@ HomographyAccuracy EvaluateHomographies(const frontend::FrontEndResult& result,
   HomographyAccuracy accuracy;
   std::vector<double> errors;
   const double w = truth.width, h = truth.height;
-  const Eigen::Vector2d corners[4] = {
-      {-0.5, -0.5}, {w - 0.5, -0.5}, {w - 0.5, h - 0.5}, {-0.5, h - 0.5}};
   for (size_t i = 1; i < result.frames.size() && i < truth.frames.size(); ++i) {
+    // The frame's corners; in a view reaching the horizon, each moved down its column to where the
+    // previous frame shows ground nearer than the haze.
+    const std::array<Eigen::Vector2d, 4> corners = GroundCorners(truth, truth.frames[i - 1], w, h);
     const frontend::FrameResult& frame = result.frames[i];
     if (truth.frames[i].blank || truth.frames[i - 1].blank) continue;
     if (!frame.homography_ok) {
@@ -137,7 +163,7 @@ Pairing PairDetections(const frontend::FrontEndResult& result, const sim::Truth&
         const sim::TargetSampleTruth& s = considered[t]->samples[f];
         if (!s.visible) continue;
         const double distance = (p - s.image_px).norm();
-        if (distance <= Gate(*considered[t], truth.frames[f], options))
+        if (distance <= Gate(*considered[t], s, truth.frames[f], options))
           candidates.push_back({distance, d, t});
       }
     }

@@ -19,6 +19,7 @@
 #include <sstream>
 #include <string>
 #include <thread>
+#include <unordered_map>
 #include <utility>
 
 namespace saker::frontend {
@@ -198,6 +199,9 @@ class FrontEnd {
   void ApplyChangeThrough(int64_t frame);
   void ApplyChangeAnswer(const ChangeThread::Answer& answer);
   void KeepTarget(track::TargetTrack target, int64_t cut, std::vector<track::TargetTrack>* to);
+  // Whether `p` of frame `frame` was masked by that frame's horizon.
+  bool AboveHorizon(int64_t frame, const Eigen::Vector2d& p) const;
+  bool MostlyAboveHorizon(const track::TargetTrack& target) const;
   void SelectGroundMatches();
   void NoteOverlayMask(int64_t frame);
   void CloseOverlayMask(int64_t last_frame);
@@ -236,6 +240,11 @@ class FrontEnd {
   track::KeyFrameChain chain_;
   track::BlobTracker change_tracks_;
   track::OverlayDetector overlays_;
+  track::HorizonTracker horizon_;
+  // The horizon of each frame whose sky was masked (the change answers and the targets come
+  // frames later).
+  std::unordered_map<int64_t, track::HorizonLine> horizon_lines_;
+  double horizon_margin_px_ = 0;
   // Which chain breaks are scene cuts, for joining the pieces of tracks (frames this run tracked;
   // a resumed run does not know the frames before its warm-up, and joins across those breaks).
   track::SceneContinuity scenes_;
@@ -283,6 +292,7 @@ FrontEnd::FrontEnd(std::unique_ptr<video::VideoReader> reader, const FrontEndOpt
       chain_(options.key_frames),
       change_tracks_(options.EffectiveChangeTracks(rate_.fps()), rate_),
       overlays_(options.overlays, rate_),
+      horizon_(options.horizon, rate_),
       change_through_(start_.change_through_frame) {
   overlay_min_frames_ = rate_.Frames(options.overlays.window_s, 1);
   if (start_.resuming && !start_.complete && !start_.exact) {
@@ -479,6 +489,11 @@ Status FrontEnd::ProcessFrame(const video::Frame& frame) {
   fr.key_frame = frame.key_frame;
   FrontEndTiming& timing = result_.timing;
   const Stopwatch watch;
+  if (const std::optional<track::HorizonLine> line = horizon_.Add(frame.grey)) {
+    horizon_lines_[frame.index] = *line;
+    horizon_margin_px_ = horizon_.margin_px();
+    if (frame.index >= start_.through_frame) ++result_.horizon_frames;
+  }
   // In the low-frame-rate mode the ground moves far between frames: the flow starts where the
   // previous frame's ground motion would take the points.
   tracker_.Process(frame.index, frame.grey,
@@ -615,7 +630,9 @@ void FrontEnd::ApplyChangeAnswer(const ChangeThread::Answer& answer) {
     std::vector<track::ChangeBlob> blobs;
     blobs.reserve(c.blobs.size());
     for (const track::ChangeBlob& b : c.blobs) {
-      if (!overlays_.Contains(b.position)) blobs.push_back(b);
+      if (!overlays_.Contains(b.position) && !AboveHorizon(c.frame, b.position)) {
+        blobs.push_back(b);
+      }
     }
     change_tracks_.AddFrame(c.frame, blobs, c.frame_motion);
     // Within the target's box, and a few pixels round a single point.
@@ -634,10 +651,28 @@ void FrontEnd::ApplyChangeAnswer(const ChangeThread::Answer& answer) {
   result_.timing.change_tracks_ms += watch.ElapsedMs();
 }
 
-// A target this run finished, cut at the seam when resuming; none that lies on the overlay mask.
+bool FrontEnd::AboveHorizon(int64_t frame, const Eigen::Vector2d& p) const {
+  const auto it = horizon_lines_.find(frame);
+  return it != horizon_lines_.end() && p.y() < it->second.YAt(p.x()) + horizon_margin_px_;
+}
+
+// Whether the target lies above the horizon (or in the distant ground below it) in at least the
+// overlay's fraction of its frames: sky, clouds or haze, not a mover on the ground.
+bool FrontEnd::MostlyAboveHorizon(const track::TargetTrack& target) const {
+  if (horizon_lines_.empty() || target.observations.empty()) return false;
+  int64_t above = 0;
+  for (const track::TargetObservation& o : target.observations) {
+    if (AboveHorizon(o.frame, o.position)) ++above;
+  }
+  return static_cast<double>(above) >=
+         options_.overlays.max_target_fraction * static_cast<double>(target.observations.size());
+}
+
+// A target this run finished, cut at the seam when resuming; none that lies on the overlay mask
+// or above the horizon.
 void FrontEnd::KeepTarget(track::TargetTrack target, int64_t cut,
                           std::vector<track::TargetTrack>* to) {
-  if (overlays_.Covers(target)) return;
+  if (overlays_.Covers(target) || MostlyAboveHorizon(target)) return;
   if (!target_seam_) {
     to->push_back(std::move(target));
   } else if (std::optional<track::TargetTrack> kept = target_seam_->Trim(std::move(target), cut)) {
@@ -645,11 +680,11 @@ void FrontEnd::KeepTarget(track::TargetTrack target, int64_t cut,
   }
 }
 
-// The tracker's matches whose latest position is off the overlay mask.
+// The tracker's matches whose latest position is off the overlay mask and below the horizon.
 void FrontEnd::SelectGroundMatches() {
   ground_matches_.clear();
   for (const track::Correspondence& m : tracker_.matches()) {
-    if (!overlays_.Contains(m.target)) ground_matches_.push_back(m);
+    if (!overlays_.Contains(m.target) && !horizon_.Masks(m.target)) ground_matches_.push_back(m);
   }
 }
 
@@ -704,7 +739,7 @@ bool FrontEnd::AddToChain(const video::Frame& frame,
   stationary.reserve(tracker_.points().size());
   for (const track::TrackedPoint& p : tracker_.points()) {
     if (segmenter_.LabelOf(p.id) != track::MotionLabel::kMoving &&
-        !overlays_.Contains(p.position)) {
+        !overlays_.Contains(p.position) && !horizon_.Masks(p.position)) {
       stationary.emplace_back(p.id, p.position);
     }
   }
@@ -961,6 +996,7 @@ Status FrontEndOptions::Validate() const {
   SAKER_RETURN_IF_ERROR(change_tracks.Validate());
   SAKER_RETURN_IF_ERROR(change_echoes.Validate());
   SAKER_RETURN_IF_ERROR(overlays.Validate());
+  SAKER_RETURN_IF_ERROR(horizon.Validate());
   SAKER_RETURN_IF_ERROR(low_frame_rate.Validate());
   SAKER_RETURN_IF_ERROR(metadata.Validate());
   if (!(min_change_support >= 0 && min_change_support <= 1)) {

@@ -15,6 +15,7 @@
 #include "core/track/change_detector.h"
 #include "core/track/feature_tracker.h"
 #include "core/track/homography.h"
+#include "core/track/horizon.h"
 #include "core/track/key_frames.h"
 #include "core/track/motion_segmentation.h"
 #include "core/track/overlay_mask.h"
@@ -87,8 +88,12 @@ struct FrontEndOptions {
   track::ChangeEchoOptions change_echoes;  // change-only tracks beside a car are dropped
   // Screen-fixed overlays (HUD text, reticles, logos), found from the change detector's evidence
   // and kept out of the ground motion, the change tracks and the targets (docs/front-end.md,
-  // "Overlays"). Off by default for now (its recall cost, docs/accuracy.md "Overlays").
+  // "Overlays").
   track::OverlayOptions overlays;
+  // Low oblique views: the sky above the horizon and the distant ground just below it, found in
+  // the image and kept out of the ground motion, the key frames, the change tracks and the targets
+  // (docs/front-end.md, "Oblique views").
+  track::HorizonOptions horizon;
   LowFrameRateOptions low_frame_rate;
   bool parallax_check = true;    // estimate the epipole (fundamental matrix) for the MTI test
   int min_parallax_points = 20;  // matches on F but off the ground plane needed to use F's epipole
@@ -187,6 +192,9 @@ struct FrontEndResult {
   // (track::PolarityWatch), so the chain goes on across it.
   std::vector<int64_t> polarity_switches;
   bool low_frame_rate = false;  // the low-frame-rate mode ran (LowFrameRateOptions)
+  // Frames of this run whose sky and distant ground above the horizon were masked (a resumed run
+  // counts from its resume).
+  int64_t horizon_frames = 0;
   // The same pass's KLV: packets, per-frame metadata (scan.MetadataOf(frame)), warnings.
   ingest::VideoScan scan;
   FrontEndTiming timing;

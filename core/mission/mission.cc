@@ -63,6 +63,18 @@ std::string OverlayRecord::Problem() const {
   return {};
 }
 
+OverlayExtent ExtentOf(const std::vector<OverlayRecord>& overlays) {
+  OverlayExtent extent;
+  double masked = 0;
+  for (const OverlayRecord& o : overlays) {
+    const int64_t n = o.last_frame - o.first_frame + 1;
+    extent.frames += n;
+    masked += static_cast<double>(n) * o.Coverage();
+  }
+  if (extent.frames > 0) extent.coverage = masked / static_cast<double>(extent.frames);
+  return extent;
+}
+
 const OverlayRecord* OverlayAt(const std::vector<OverlayRecord>& overlays, int64_t frame) {
   // The first mask ending at or after `frame`; it applies when it starts at or before it.
   const auto it =

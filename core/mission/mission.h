@@ -145,6 +145,14 @@ struct OverlayRecord {
 // The overlay mask that applies to `frame`, or null: `overlays` in frame order, disjoint.
 const OverlayRecord* OverlayAt(const std::vector<OverlayRecord>& overlays, int64_t frame);
 
+// The frames the masks cover, and the mean fraction of the image they mask there (0 and 0 for
+// none).
+struct OverlayExtent {
+  int64_t frames = 0;
+  double coverage = 0;
+};
+OverlayExtent ExtentOf(const std::vector<OverlayRecord>& overlays);
+
 // Where the mosaic's tile pyramid lies on the map. Level 0 is full resolution; level l is
 // downsampled by 2^l; tile (x, y) of level l covers pixels [x, x+1) * tile_size of that level.
 struct PyramidInfo {

@@ -132,6 +132,14 @@ std::string ProcessSummary::ToText() const {
                   100 * overlay_coverage);
     out << line;
   }
+  if (horizon_frames > 0) {
+    std::snprintf(line, sizeof(line),
+                  "horizon: the view reaches the horizon in %lld of %lld frames; the sky and the "
+                  "distant ground above it were masked out (too oblique for the ground mosaic "
+                  "there)\n",
+                  static_cast<long long>(horizon_frames), static_cast<long long>(frames));
+    out << line;
+  }
   if (polarity_switches > 0) {
     out << "thermal polarity: " << polarity_switches
         << (polarity_switches == 1 ? " switch" : " switches")
@@ -221,15 +229,10 @@ StatusOr<ProcessSummary> ProcessVideo(const std::string& video, const std::strin
       checkpoint.reset();  // the result holds what it had
       summary.low_frame_rate = done->front.low_frame_rate;
       summary.polarity_switches = static_cast<int64_t>(done->front.polarity_switches.size());
-      double masked = 0;
-      for (const mission::OverlayRecord& m : done->mission.overlays) {
-        const int64_t n = m.last_frame - m.first_frame + 1;
-        summary.overlay_frames += n;
-        masked += static_cast<double>(n) * m.Coverage();
-      }
-      if (summary.overlay_frames > 0) {
-        summary.overlay_coverage = masked / static_cast<double>(summary.overlay_frames);
-      }
+      const mission::OverlayExtent overlays = mission::ExtentOf(done->mission.overlays);
+      summary.overlay_frames = overlays.frames;
+      summary.overlay_coverage = overlays.coverage;
+      summary.horizon_frames = done->front.horizon_frames;
       summary.frame_rate = done->mission.source.frame_rate;
       if (!done->front.frames.empty() && done->mission.source.frame_rate > 0) {
         summary.video_duration_s =

@@ -58,7 +58,10 @@ struct ProcessSummary {
   int64_t overlay_frames = 0;
   double overlay_coverage = 0;
   int64_t polarity_switches = 0;  // a thermal camera's, inverted back (FrontEndResult)
-  std::string map_frame;          // DescribeMapFrame (open_mission.h): what the map is, and why
+  // Frames of a low oblique view whose sky and distant ground above the horizon were masked out
+  // (FrontEndResult::horizon_frames).
+  int64_t horizon_frames = 0;
+  std::string map_frame;  // DescribeMapFrame (open_mission.h): what the map is, and why
   double front_end_s = 0, mosaic_s = 0, activity_s = 0, tiles_s = 0, save_s = 0, total_s = 0;
   double video_duration_s = 0;
   int64_t resumed_from_frame = -1;    // the checkpoint's last frame a resumed job went on from

@@ -1,0 +1,140 @@
+#include "core/track/horizon.h"
+
+#include <opencv2/imgproc.hpp>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <vector>
+
+namespace saker::track {
+
+namespace {
+
+constexpr int kReducedWidth = 256;  // the reduced image the lines are tried on
+constexpr double kTiltStepDeg = 2.5;
+
+// Sums over pixels of 1 and of the gradient.
+using Moments = std::array<double, 2>;
+
+}  // namespace
+
+Status HorizonOptions::Validate() const {
+  if (!(max_tilt_deg >= 0 && max_tilt_deg <= 45)) {
+    return InvalidArgumentError("horizon: the tilt tried must be 0 .. 45 degrees");
+  }
+  if (!(min_sky_fraction > 0 && min_sky_fraction < max_sky_fraction && max_sky_fraction < 1)) {
+    return InvalidArgumentError("horizon: sky fractions must satisfy 0 < min < max < 1");
+  }
+  if (!(max_texture_ratio > 0 && max_texture_ratio < 1)) {
+    return InvalidArgumentError("horizon: the texture ratio must be in (0, 1)");
+  }
+  if (!(margin_fraction >= 0 && margin_fraction <= 0.5)) {
+    return InvalidArgumentError("horizon: the margin must be 0 .. 0.5 of the frame's height");
+  }
+  if (!(window_s > 0 && window_s <= 60) || min_window_frames < 1) {
+    return InvalidArgumentError("horizon: the window must be (0, 60] s and at least one frame");
+  }
+  return Status::Ok();
+}
+
+std::optional<HorizonLine> FindHorizon(const cv::Mat& grey, const HorizonOptions& options) {
+  if (grey.empty() || grey.type() != CV_8UC1 || grey.cols < 16 || grey.rows < 16) {
+    return std::nullopt;
+  }
+  const int width = kReducedWidth;
+  const int height = std::max(
+      16, static_cast<int>(std::lround(static_cast<double>(grey.rows) * width / grey.cols)));
+  cv::Mat small, intensity, gx, gy;
+  cv::resize(grey, small, cv::Size(width, height), 0, 0, cv::INTER_AREA);
+  small.convertTo(intensity, CV_32F);
+  // The reduction averages away the noise; no more smoothing, which would spread the ground's
+  // texture into the sky and pull the line up.
+  cv::Sobel(intensity, gx, CV_32F, 1, 0);
+  cv::Sobel(intensity, gy, CV_32F, 0, 1);
+  const cv::Mat texture = cv::abs(gx) + cv::abs(gy);
+
+  const double centre_x = (width - 1) / 2.0;
+  const double pixels = static_cast<double>(width) * height;
+  double best_score = 0;
+  double best_y = 0, best_slope = 0, best_sky = 0, best_ground = 0;
+  const int steps = static_cast<int>(std::floor(options.max_tilt_deg / kTiltStepDeg + 1e-9));
+  for (int k = -steps; k <= steps; ++k) {
+    const double slope = std::tan(k * kTiltStepDeg * M_PI / 180.0);
+    // Each pixel falls in the bucket of its line offset at the centre, y - slope (x - centre_x).
+    const int offset = static_cast<int>(std::ceil(std::abs(slope) * centre_x)) + 1;
+    const int buckets = height + 2 * offset + 1;
+    std::vector<Moments> sums(static_cast<size_t>(buckets) + 1, Moments{});
+    for (int y = 0; y < height; ++y) {
+      const float* row = texture.ptr<float>(y);
+      for (int x = 0; x < width; ++x) {
+        const double key = y - slope * (x - centre_x);
+        const int b = std::clamp(static_cast<int>(std::floor(key + 0.5)) + offset, 0, buckets - 1);
+        Moments& m = sums[static_cast<size_t>(b) + 1];
+        m[0] += 1, m[1] += row[x];
+      }
+    }
+    for (size_t b = 1; b < sums.size(); ++b) {
+      sums[b][0] += sums[b - 1][0], sums[b][1] += sums[b - 1][1];
+    }
+    const Moments& total = sums.back();
+    // Cut before bucket b: the sky is the buckets below it (rows above the line). The score is the
+    // gradient's variance between the two sides (Otsu's criterion), the smoother side above.
+    for (int b = 1; b < buckets; ++b) {
+      const Moments& sky = sums[static_cast<size_t>(b)];
+      const double fraction = sky[0] / pixels;
+      if (fraction < options.min_sky_fraction || fraction > options.max_sky_fraction) continue;
+      const double sky_texture = sky[1] / sky[0];
+      const double ground_texture = (total[1] - sky[1]) / (total[0] - sky[0]);
+      const double gap = ground_texture - sky_texture;
+      const double score = fraction * (1 - fraction) * gap * gap;
+      if (gap > 0 && score > best_score) {
+        best_score = score;
+        best_y = b - offset - 0.5;
+        best_slope = slope;
+        best_sky = sky_texture;
+        best_ground = ground_texture;
+      }
+    }
+  }
+  if (!(best_score > 0) || !(best_sky < options.max_texture_ratio * best_ground)) {
+    return std::nullopt;
+  }
+  // Back to full-resolution pixels (pixel centres at integers in both).
+  const double sx = static_cast<double>(grey.cols) / width;
+  const double sy = static_cast<double>(grey.rows) / height;
+  HorizonLine line;
+  line.centre_x = (grey.cols - 1) / 2.0;
+  line.y_at_centre = (best_y + 0.5) * sy - 0.5;
+  line.slope = best_slope * sy / sx;
+  return line;
+}
+
+HorizonTracker::HorizonTracker(const HorizonOptions& options, const FrameRate& rate)
+    : options_(options), window_frames_(rate.Frames(options.window_s, options.min_window_frames)) {}
+
+std::optional<HorizonLine> HorizonTracker::Add(const cv::Mat& grey) {
+  if (!options_.enabled) return std::nullopt;
+  const std::optional<HorizonLine> found = FindHorizon(grey, options_);
+  margin_px_ = options_.margin_fraction * grey.rows;
+  found_.push_back(found.has_value());
+  while (static_cast<int>(found_.size()) > window_frames_) found_.pop_front();
+  if (found) latest_ = found;
+  const auto hits = std::count(found_.begin(), found_.end(), true);
+  const bool enough = static_cast<int>(found_.size()) >= std::min(window_frames_, 3) &&
+                      2 * hits > static_cast<int64_t>(found_.size());
+  line_ = enough ? latest_ : std::nullopt;
+  return line_;
+}
+
+bool HorizonTracker::Masks(const Eigen::Vector2d& p) const {
+  return line_ && p.y() < line_->YAt(p.x()) + margin_px_;
+}
+
+void HorizonTracker::Reset() {
+  found_.clear();
+  latest_.reset();
+  line_.reset();
+}
+
+}  // namespace saker::track
