@@ -244,7 +244,6 @@ class FrontEnd {
   // The horizon of each frame whose sky was masked (the change answers and the targets come
   // frames later).
   std::unordered_map<int64_t, track::HorizonLine> horizon_lines_;
-  double horizon_margin_px_ = 0;
   // Which chain breaks are scene cuts, for joining the pieces of tracks (frames this run tracked;
   // a resumed run does not know the frames before its warm-up, and joins across those breaks).
   track::SceneContinuity scenes_;
@@ -491,7 +490,6 @@ Status FrontEnd::ProcessFrame(const video::Frame& frame) {
   const Stopwatch watch;
   if (const std::optional<track::HorizonLine> line = horizon_.Add(frame.grey)) {
     horizon_lines_[frame.index] = *line;
-    horizon_margin_px_ = horizon_.margin_px();
     if (frame.index >= start_.through_frame) ++result_.horizon_frames;
   }
   // In the low-frame-rate mode the ground moves far between frames: the flow starts where the
@@ -653,7 +651,7 @@ void FrontEnd::ApplyChangeAnswer(const ChangeThread::Answer& answer) {
 
 bool FrontEnd::AboveHorizon(int64_t frame, const Eigen::Vector2d& p) const {
   const auto it = horizon_lines_.find(frame);
-  return it != horizon_lines_.end() && p.y() < it->second.YAt(p.x()) + horizon_margin_px_;
+  return it != horizon_lines_.end() && p.y() < it->second.YAt(p.x()) + horizon_.margin_px();
 }
 
 // Whether the target lies above the horizon (or in the distant ground below it) in at least the

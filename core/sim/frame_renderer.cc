@@ -223,10 +223,11 @@ void FrameRenderer::RenderRows(const Eigen::Matrix3d& frame_from_ground, int row
   // The sign of raster_from_frame's third coordinate in front of the camera: that of the frame
   // centre's in a downward view; ViewOfHomography's depth in general.
   const std::optional<ViewGeometry> view = ViewOfHomography(camera_, frame_from_ground);
+  const Eigen::Matrix3d ground_from_frame = frame_from_ground.inverse();
   for (const Eigen::Vector2d& corner : corners) {
     const Eigen::Vector3d q = raster_from_frame * corner.homogeneous();
     if (view) {
-      const Eigen::Vector3d ground = frame_from_ground.inverse() * corner.homogeneous();
+      const Eigen::Vector3d ground = ground_from_frame * corner.homogeneous();
       SAKER_CHECK(view->depth_of_ground.dot(ground / ground.z()) > 0);  // in front of the camera
     } else {
       SAKER_CHECK(q.z() > 0);  // every corner ray hits the ground in front of the camera
