@@ -17,6 +17,7 @@
 #include <nlohmann/json.hpp>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
@@ -301,8 +302,10 @@ InfoCommand::InfoCommand(CLI::App& app) : state_(std::make_unique<State>()) {
   s.command = app.add_subcommand(
       "info",
       "What a mission holds: its video (and whether it is still where it was, which frame\n"
-      "recall needs), the stages completed, frames, key frames, links, tracks by visit, the map\n"
-      "frame and the mosaic pyramid. Opens the file read-only; never reprocesses.");
+      "recall needs), the stages completed, frames, the screen-fixed overlay masks and the\n"
+      "frames whose sky was masked (low oblique views), key frames, links, tracks by visit and\n"
+      "confidence, the map frame and the mosaic pyramid. Opens the file read-only; never\n"
+      "reprocesses.");
   s.command->add_option("MISSION", s.mission, "Mission file (.saker)")->required();
   s.command->add_flag("--json", s.json, "Print as JSON");
 }
@@ -359,6 +362,11 @@ int InfoCommand::Run() const {
   const int64_t overlay_frames = overlay_extent.frames;
   const double overlay_coverage = overlay_extent.coverage;
   const bool overlays_kept = m->schema_version >= 5;
+  // Low oblique views: the frames whose sky above the horizon was masked.
+  const bool sky_kept = m->schema_version >= 6;
+  const int64_t sky_frames =
+      std::count_if(m->frames.begin(), m->frames.end(),
+                    [](const mission::FrameRecord& f) { return f.sky_line.has_value(); });
   if (s.json) {
     nlohmann::json visit_json = nlohmann::json::object();
     for (const auto& [v, n] : visits) visit_json[std::to_string(v)] = n;
@@ -392,6 +400,7 @@ int InfoCommand::Run() const {
                           {"activity", p.activity},
                           {"tiles", p.tiles}}},
                         {"cancelled", p.cancelled}};
+    if (sky_kept) j["sky_frames"] = sky_frames;
     if (overlays_kept) {
       j["overlay_masks"] = {{"masks", m->overlays.size()},
                             {"frames", overlay_frames},
@@ -448,6 +457,16 @@ int InfoCommand::Run() const {
                   m->overlays.size(), static_cast<long long>(overlay_frames),
                   100 * overlay_coverage);
     std::cout << line;
+  }
+  std::cout << "  sky masked: ";
+  if (!sky_kept) {
+    std::cout << "not kept (written before Saker kept it)\n";
+  } else if (sky_frames == 0) {
+    std::cout << "none (no frame reaches the horizon)\n";
+  } else {
+    std::cout << sky_frames << " of " << m->frames.size()
+              << " frames reach the horizon; their sky and distant ground are left out of the "
+                 "mosaic\n";
   }
   std::cout << "  key frames: " << m->key_frames.size() << "; links:";
   for (const auto& [kind, n] : links) std::cout << " " << n << " " << kind;

@@ -13,6 +13,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <deque>
 #include <limits>
 #include <memory>
 #include <optional>
@@ -199,6 +200,9 @@ class FrontEnd {
   void ApplyChangeThrough(int64_t frame);
   void ApplyChangeAnswer(const ChangeThread::Answer& answer);
   void KeepTarget(track::TargetTrack target, int64_t cut, std::vector<track::TargetTrack>* to);
+  // Masks the sky above `horizon` in frame `index`: for its targets, the count, and its frame
+  // result (`current`, the frame being processed; else the one in the result, when it is there).
+  void MaskSky(int64_t index, const track::HorizonLine& horizon, FrameResult* current);
   // Whether `p` of frame `frame` was masked by that frame's horizon.
   bool AboveHorizon(int64_t frame, const Eigen::Vector2d& p) const;
   bool MostlyAboveHorizon(const track::TargetTrack& target) const;
@@ -244,6 +248,9 @@ class FrontEnd {
   // The horizon of each frame whose sky was masked (the change answers and the targets come
   // frames later).
   std::unordered_map<int64_t, track::HorizonLine> horizon_lines_;
+  // Recent frames whose own horizon was found while the window had not confirmed it (within the
+  // window, in order).
+  std::deque<std::pair<int64_t, track::HorizonLine>> unconfirmed_sky_;
   // Which chain breaks are scene cuts, for joining the pieces of tracks (frames this run tracked;
   // a resumed run does not know the frames before its warm-up, and joins across those breaks).
   track::SceneContinuity scenes_;
@@ -489,8 +496,17 @@ Status FrontEnd::ProcessFrame(const video::Frame& frame) {
   FrontEndTiming& timing = result_.timing;
   const Stopwatch watch;
   if (const std::optional<track::HorizonLine> line = horizon_.Add(frame.grey)) {
-    horizon_lines_[frame.index] = *line;
-    if (frame.index >= start_.through_frame) ++result_.horizon_frames;
+    // The frames just before, whose own horizon was found before the window confirmed it, are
+    // masked too (the first frames of a video that starts with the horizon in view).
+    for (const auto& [index, earlier] : unconfirmed_sky_) MaskSky(index, earlier, nullptr);
+    unconfirmed_sky_.clear();
+    MaskSky(frame.index, *line, &fr);
+  } else if (const std::optional<track::HorizonLine>& found = horizon_.found()) {
+    unconfirmed_sky_.emplace_back(frame.index, *found);
+  }
+  while (!unconfirmed_sky_.empty() &&
+         unconfirmed_sky_.front().first <= frame.index - horizon_.window_frames()) {
+    unconfirmed_sky_.pop_front();
   }
   // In the low-frame-rate mode the ground moves far between frames: the flow starts where the
   // previous frame's ground motion would take the points.
@@ -652,6 +668,20 @@ void FrontEnd::ApplyChangeAnswer(const ChangeThread::Answer& answer) {
 bool FrontEnd::AboveHorizon(int64_t frame, const Eigen::Vector2d& p) const {
   const auto it = horizon_lines_.find(frame);
   return it != horizon_lines_.end() && p.y() < it->second.YAt(p.x()) + horizon_.margin_px();
+}
+
+void FrontEnd::MaskSky(int64_t index, const track::HorizonLine& horizon, FrameResult* current) {
+  if (!horizon_lines_.emplace(index, horizon).second) return;
+  if (index >= start_.through_frame) ++result_.horizon_frames;
+  const track::HorizonLine edge{horizon.centre_x, horizon.y_at_centre + horizon_.margin_px(),
+                                horizon.slope};
+  if (current != nullptr) {
+    current->sky_line = edge;
+    return;
+  }
+  const auto it = std::lower_bound(result_.frames.begin(), result_.frames.end(), index,
+                                   [](const FrameResult& f, int64_t i) { return f.index < i; });
+  if (it != result_.frames.end() && it->index == index) it->sky_line = edge;
 }
 
 // Whether the target lies above the horizon (or in the distant ground below it) in at least the

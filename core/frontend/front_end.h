@@ -159,6 +159,9 @@ struct FrameResult {
   int tracked = 0;  // live feature tracks
   int inliers = 0;  // stationary correspondences supporting the homography
   int moving = 0;   // features labelled moving
+  // A low oblique view's sky mask in this frame: the pixels above this line (the horizon, moved
+  // down by the mask's margin) were left out as sky and distant ground (HorizonTracker).
+  std::optional<track::HorizonLine> sky_line;
 };
 
 // Time spent per frame in each stage (milliseconds, averaged), and the whole run.

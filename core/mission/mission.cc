@@ -40,6 +40,18 @@ double OverlayRecord::Coverage() const {
   return static_cast<double>(on) / static_cast<double>(cells.size());
 }
 
+std::string SkyLine::Problem() const {
+  if (!std::isfinite(y0) || !std::isfinite(slope) || std::abs(y0) > 1e7) {
+    return "sky line y = " + std::to_string(y0) + " + " + std::to_string(slope) +
+           " x is not a finite line across the frame";
+  }
+  if (std::abs(slope) > kMaxSkySlope) {
+    return "sky line slope " + std::to_string(slope) + " is steeper than " +
+           std::to_string(kMaxSkySlope);
+  }
+  return {};
+}
+
 std::string OverlayRecord::Problem() const {
   if (first_frame < 0 || last_frame < first_frame) {
     return "frames " + std::to_string(first_frame) + " to " + std::to_string(last_frame) +

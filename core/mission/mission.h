@@ -25,8 +25,9 @@ namespace saker::mission {
 // Version of the mission file's schema. A file with a newer version is refused, never written.
 // Version 2 added the frames' presentation time stamps and key-frame flags, version 3 the table of
 // processing checkpoints, version 4 the tracks' confidence, version 5 the screen-fixed overlay
-// masks; an older file is read as it is and upgraded in place when it is opened for writing.
-inline constexpr int kSchemaVersion = 5;
+// masks, version 6 the frames' sky lines; an older file is read as it is and upgraded in place
+// when it is opened for writing.
+inline constexpr int kSchemaVersion = 6;
 
 using Covariance8 = Eigen::Matrix<double, 8, 8>;
 
@@ -46,6 +47,19 @@ struct MapFrame {
   std::optional<geo::Wgs84> origin;  // set exactly when geo_referenced
 };
 
+// The lower edge of a low oblique view's sky mask (docs/front-end.md, "Oblique views"): the
+// pixels above the line y = y0 + slope * x (full-resolution frame pixels, y down) are sky or
+// ground too distant to map, left out of the mosaic's tiles.
+struct SkyLine {
+  double y0 = 0;
+  double slope = 0;
+  bool Masks(const Eigen::Vector2d& p) const { return p.y() < y0 + slope * p.x(); }
+  // Why the line cannot be stored ("" when it can): values not finite, or steeper than
+  // kMaxSkySlope (the front end finds lines within 25 degrees of level).
+  std::string Problem() const;
+};
+inline constexpr double kMaxSkySlope = 10;
+
 struct FrameRecord {
   int64_t index = 0;
   double time_s = 0;
@@ -60,6 +74,8 @@ struct FrameRecord {
   // Absent in missions of schema version 1.
   std::optional<int64_t> pts;
   bool key_frame = false;
+  // The sky mask's edge, when the front end found the horizon in this frame (schema version 6).
+  std::optional<SkyLine> sky_line;
 };
 
 struct KeyFrameRecord {

@@ -30,9 +30,9 @@ constexpr int kCornerValues = 8;  // four (x, y) pairs
 constexpr int kMaxPyramidLevels = 32;
 constexpr int kMaxTileSize = 1 << 16;
 
-// Schema v5 (docs/mission-file.md): the tables of version 2 here with the tracks' confidence (new
-// in version 4), the checkpoint table (new in version 3) and the overlay masks (new in version 5)
-// below. REAL columns are nullable on
+// Schema v6 (docs/mission-file.md): the tables of version 2 here with the tracks' confidence (new
+// in version 4) and the frames' sky lines (new in version 6), the checkpoint table (new in
+// version 3) and the overlay masks (new in version 5) below. REAL columns are nullable on
 // purpose: SQLite stores NaN as NULL.
 constexpr const char* kSchemaSql = R"sql(
 CREATE TABLE meta (
@@ -60,7 +60,9 @@ CREATE TABLE frames (
   sensor_longitude_deg REAL,
   sensor_height_m REAL,
   pts INTEGER,
-  key_frame INTEGER
+  key_frame INTEGER,
+  sky_y0 REAL,
+  sky_slope REAL
 );
 CREATE TABLE key_frames (
   ordinal INTEGER PRIMARY KEY,
@@ -413,8 +415,8 @@ Status WriteFrames(const sqlite::Database& db, const std::vector<FrameRecord>& f
       sqlite::Statement stmt,
       db.Prepare(
           "INSERT INTO frames (frame_index, time_s, utc_us, map_from_frame, metadata_corners, "
-          "sensor_latitude_deg, sensor_longitude_deg, sensor_height_m, pts, key_frame) "
-          "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10)",
+          "sensor_latitude_deg, sensor_longitude_deg, sensor_height_m, pts, key_frame, sky_y0, "
+          "sky_slope) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12)",
           "saving table frames"));
   uint8_t matrix[kMatrix3Values * 8];
   uint8_t corners[kCornerValues * 8];
@@ -454,6 +456,13 @@ Status WriteFrames(const sqlite::Database& db, const std::vector<FrameRecord>& f
       b.Int64(10, f.key_frame ? 1 : 0);
     } else {
       b.Null(10);
+    }
+    if (f.sky_line) {
+      b.Double(11, f.sky_line->y0);
+      b.Double(12, f.sky_line->slope);
+    } else {
+      b.Null(11);
+      b.Null(12);
     }
     SAKER_RETURN_IF_ERROR(db.Run(stmt.get(), b, "saving table frames"));
   }
@@ -726,14 +735,14 @@ Status LoadSource(const sqlite::Database& db, SourceVideo* s) {
 }
 
 Status LoadFrames(const sqlite::Database& db, int schema, std::vector<FrameRecord>* frames) {
-  const char* sql =
-      schema >= 2 ? "SELECT frame_index, time_s, utc_us, map_from_frame, metadata_corners, "
-                    "sensor_latitude_deg, sensor_longitude_deg, sensor_height_m, pts, key_frame "
-                    "FROM frames ORDER BY frame_index"
-                  : "SELECT frame_index, time_s, utc_us, map_from_frame, metadata_corners, "
-                    "sensor_latitude_deg, sensor_longitude_deg, sensor_height_m, NULL, NULL "
-                    "FROM frames ORDER BY frame_index";
-  return LoadRows(db, sql, "frames", frames, [&](sqlite::RowReader& row, FrameRecord* f) {
+  // Columns a version did not have yet read as NULL.
+  const std::string sql =
+      std::string(
+          "SELECT frame_index, time_s, utc_us, map_from_frame, metadata_corners, "
+          "sensor_latitude_deg, sensor_longitude_deg, sensor_height_m, ") +
+      (schema >= 2 ? "pts, key_frame, " : "NULL, NULL, ") +
+      (schema >= 6 ? "sky_y0, sky_slope " : "NULL, NULL ") + "FROM frames ORDER BY frame_index";
+  return LoadRows(db, sql.c_str(), "frames", frames, [&](sqlite::RowReader& row, FrameRecord* f) {
     f->index = row.Int64(0);
     if (!frames->empty() && f->index <= frames->back().index) {
       row.Fail(0, "frame index " + std::to_string(f->index) + " appears twice");
@@ -756,6 +765,15 @@ Status LoadFrames(const sqlite::Database& db, int schema, std::vector<FrameRecor
     }
     f->pts = row.OptionalInt64(8);
     if (f->pts) f->key_frame = row.Bool(9);
+    if (!row.IsNull(10) || !row.IsNull(11)) {
+      const SkyLine line{row.Real(10), row.Real(11)};
+      const std::string problem = line.Problem();
+      if (!problem.empty()) {
+        row.Fail(10, problem);
+        return;
+      }
+      f->sky_line = line;
+    }
   });
 }
 
@@ -941,6 +959,10 @@ std::string PartsProblem(const Mission& mission, unsigned parts) {
     }
   }
   if (parts & kSaveFrames) {
+    for (const FrameRecord& f : mission.frames) {
+      const std::string problem = f.sky_line ? f.sky_line->Problem() : "";
+      if (!problem.empty()) return "frame " + std::to_string(f.index) + ": " + problem;
+    }
     const std::string problem = OverlaysProblem(mission.overlays);
     if (!problem.empty()) return problem;
   }
@@ -1043,6 +1065,7 @@ Status Create(const sqlite::Database& db) {
 // Version 3 -> 4: the tracks' confidence. NULL (unknown): it needs the front end's evidence
 // (features and change per observation), which older files did not keep.
 // Version 4 -> 5: the overlay masks' table, empty (older files did not keep them).
+// Version 5 -> 6: the frames' sky lines, NULL (no sky masked: older files did not keep them).
 Status Upgrade(const sqlite::Database& db, int schema) {
   sqlite::Transaction transaction(db);
   SAKER_RETURN_IF_ERROR(transaction.Begin(/*write=*/true));
@@ -1063,6 +1086,12 @@ Status Upgrade(const sqlite::Database& db, int schema) {
   }
   if (schema < 5) {
     SAKER_RETURN_IF_ERROR(db.Exec(kOverlaysSql, "upgrading the mission to schema 5"));
+  }
+  if (schema < 6) {
+    SAKER_RETURN_IF_ERROR(
+        db.Exec("ALTER TABLE frames ADD COLUMN sky_y0 REAL; "
+                "ALTER TABLE frames ADD COLUMN sky_slope REAL",
+                "upgrading the mission to schema 6"));
   }
   const std::string version = std::to_string(kSchemaVersion);
   const std::string sql = "UPDATE meta SET value = " + version + " WHERE key = '" +

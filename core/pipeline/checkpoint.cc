@@ -6,6 +6,7 @@
 
 #include <opencv2/imgcodecs.hpp>
 
+#include <cmath>
 #include <map>
 #include <string>
 #include <vector>
@@ -38,6 +39,12 @@ std::vector<uint8_t> EncodeFrame(const frontend::FrameResult& f) {
   w.Put<int32_t>(f.tracked);
   w.Put<int32_t>(f.inliers);
   w.Put<int32_t>(f.moving);
+  // Added after the first layout: a record that ends before it has no sky line.
+  w.Put<uint8_t>(f.sky_line ? 1 : 0);
+  if (f.sky_line) {
+    w.Put<double>(f.sky_line->YAt(0));
+    w.Put<double>(f.sky_line->slope);
+  }
   return w.Take();
 }
 
@@ -50,6 +57,17 @@ bool DecodeFrame(ByteReader& r, frontend::FrameResult* f) {
   }
   f->key_frame = flags & 1;
   f->homography_ok = flags & 2;
+  if (r.AtEnd()) return true;  // written before frames had sky lines
+  uint8_t has_sky = 0;
+  if (!r.Get(&has_sky) || has_sky > 1) return false;
+  if (has_sky == 1) {
+    track::HorizonLine line;
+    if (!r.Get(&line.y_at_centre) || !r.Get(&line.slope) || !std::isfinite(line.y_at_centre) ||
+        !std::isfinite(line.slope)) {
+      return false;
+    }
+    f->sky_line = line;  // centre_x 0: y_at_centre is the line's y at x = 0
+  }
   return true;
 }
 

@@ -162,7 +162,13 @@ StatusOr<bool> TilesStage(const StageOptions& options, const StageHooks& hooks, 
   for (const mosaic::Node& node : run->mosaic->graph.nodes) {
     const auto it = images.find(static_cast<int>(node.id));
     if (it == images.end() || it->second->grey.empty()) continue;
-    views.push_back({&it->second->grey, it->second->scale, node.map_from_frame, overlay_of(node)});
+    std::optional<mission::SkyLine> sky;
+    const auto frame = std::lower_bound(
+        m.frames.begin(), m.frames.end(), node.frame_index,
+        [](const mission::FrameRecord& f, int64_t index) { return f.index < index; });
+    if (frame != m.frames.end() && frame->index == node.frame_index) sky = frame->sky_line;
+    views.push_back(
+        {&it->second->grey, it->second->scale, node.map_from_frame, overlay_of(node), sky});
   }
   StatusOr<mission::PyramidInfo> info = tiles::PlanPyramid(views, m.source.width, m.source.height,
                                                            m.map.geo_referenced, options.pyramid);
@@ -268,6 +274,10 @@ std::vector<mission::FrameRecord> FrameRecords(const frontend::FrontEndResult& f
       f.map_from_frame = mosaic->in_between.map_from_frame[i];
     }
     if (corners) f.metadata_corners = input->metadata_corners[i];
+    if (const std::optional<track::HorizonLine>& sky = front.frames[i].sky_line) {
+      const mission::SkyLine line{sky->YAt(0), sky->slope};
+      if (line.Problem().empty()) f.sky_line = line;
+    }
     if (const klv::FrameMetadata* metadata = front.scan.MetadataOf(i)) {
       if (metadata->unix_time_us) f.utc_us = static_cast<int64_t>(*metadata->unix_time_us);
       if (metadata->sensor_latitude_deg && metadata->sensor_longitude_deg) {

@@ -37,16 +37,38 @@ struct Box {
   }
 };
 
-// The map box of a frame's footprint; invalid when a corner is at or beyond the horizon.
-Box Footprint(const Eigen::Matrix3d& map_from_frame, int width, int height) {
+// The part of convex `polygon` where normal . p + offset >= 0 (Sutherland-Hodgman, one edge).
+std::vector<Eigen::Vector2d> ClipToHalfPlane(const std::vector<Eigen::Vector2d>& polygon,
+                                             const Eigen::Vector2d& normal, double offset) {
+  std::vector<Eigen::Vector2d> kept;
+  const size_t n = polygon.size();
+  for (size_t i = 0; i < n; ++i) {
+    const Eigen::Vector2d& a = polygon[i];
+    const Eigen::Vector2d& b = polygon[(i + 1) % n];
+    const double da = normal.dot(a) + offset, db = normal.dot(b) + offset;
+    if (da >= 0) kept.push_back(a);
+    if ((da >= 0) != (db >= 0)) kept.push_back(a + (b - a) * (da / (da - db)));
+  }
+  return kept;
+}
+
+// The map box of the drawn part of a frame (DrawnPart); invalid when there is none.
+Box Footprint(const std::vector<Eigen::Vector2d>& part, const Eigen::Matrix3d& map_from_frame) {
+  if (part.size() < 3) return Box{};
   Box box;
-  for (const Eigen::Vector2d& c : Corners(width, height)) {
+  for (const Eigen::Vector2d& c : part) {
     const Eigen::Vector3d q = map_from_frame * c.homogeneous();
     if (!(q.z() > 1e-12) || !q.allFinite()) return Box{};
     box.lo = box.lo.cwiseMin(q.hnormalized());
     box.hi = box.hi.cwiseMax(q.hnormalized());
   }
   return box;
+}
+
+// Whether `part` is the whole frame (nothing cut away).
+bool WholeFrame(const std::vector<Eigen::Vector2d>& part, int width, int height) {
+  const std::array<Eigen::Vector2d, 4> corners = Corners(width, height);
+  return part.size() == 4 && std::equal(part.begin(), part.end(), corners.begin());
 }
 
 class Renderer {
@@ -56,9 +78,12 @@ class Renderer {
            JobContext* job)
       : frames_(frames), info_(info), options_(options), write_(write), job_(job) {
     boxes_.reserve(frames.size());
+    parts_.reserve(frames.size());
     for (const KeyFrameView& frame : frames) {
+      parts_.push_back(DrawnPart(frame, width, height));
+      cut_.push_back(!WholeFrame(parts_.back(), width, height));
       boxes_.push_back(frame.grey && !frame.grey->empty()
-                           ? Footprint(frame.map_from_frame, width, height)
+                           ? Footprint(parts_.back(), frame.map_from_frame)
                            : Box{});
     }
   }
@@ -156,8 +181,10 @@ class Renderer {
   // A key frame as it is blended: its picture and the weight of its pixels, the feather (the
   // distance to the border). On its overlay mask the weight fades to almost nothing and the
   // picture is filled from the pixels around it, so that another key frame's ground wins there
-  // and where none covers the place the map shows a smooth fill rather than text or a hole. Kept
-  // for the last few key frames (the tiles of a region need the same ones), not all.
+  // and where none covers the place the map shows a smooth fill rather than text or a hole.
+  // Outside its drawn part (the sky, the distant ground) the weight is zero and the feather is
+  // the distance to that part's edge. Kept for the last few key frames (the tiles of a region
+  // need the same ones), not all.
   struct Layer {
     const cv::Mat* grey;
     const cv::Mat* weight;
@@ -165,26 +192,42 @@ class Renderer {
   Layer LayerOf(size_t i) {
     const KeyFrameView& frame = frames_[i];
     const cv::Size size = frame.grey->size();
-    if (frame.overlay == nullptr) return {frame.grey, &Feather(size)};
+    if (frame.overlay == nullptr && !cut_[i]) return {frame.grey, &Feather(size)};
     for (const OverlayLayer& layer : overlay_layers_) {
       if (layer.frame == i) return {&layer.grey, &layer.weight};
     }
     cv::Mat excluded(size, CV_8U, cv::Scalar(0));
-    for (int v = 0; v < size.height; ++v) {
-      uint8_t* row = excluded.ptr<uint8_t>(v);
-      for (int u = 0; u < size.width; ++u) {
-        // Grey pixel (u, v) is full-resolution ((u + 0.5) s - 0.5, (v + 0.5) s - 0.5).
-        const Eigen::Vector2d full((u + 0.5) * frame.scale - 0.5, (v + 0.5) * frame.scale - 0.5);
-        if (frame.overlay->Contains(full)) row[u] = 255;
+    if (frame.overlay != nullptr) {
+      for (int v = 0; v < size.height; ++v) {
+        uint8_t* row = excluded.ptr<uint8_t>(v);
+        for (int u = 0; u < size.width; ++u) {
+          // Grey pixel (u, v) is full-resolution ((u + 0.5) s - 0.5, (v + 0.5) s - 0.5).
+          const Eigen::Vector2d full((u + 0.5) * frame.scale - 0.5, (v + 0.5) * frame.scale - 0.5);
+          if (frame.overlay->Contains(full)) row[u] = 255;
+        }
       }
+    }
+    // Outside the drawn part: the polygon in grey pixels, 1/16 pixel precision.
+    cv::Mat outside(size, CV_8U, cv::Scalar(255));
+    if (parts_[i].size() >= 3) {
+      constexpr int kShift = 4;
+      std::vector<cv::Point> polygon;
+      for (const Eigen::Vector2d& p : parts_[i]) {
+        const Eigen::Vector2d g = (p.array() + 0.5) / frame.scale - 0.5;
+        polygon.emplace_back(static_cast<int>(std::lround(g.x() * (1 << kShift))),
+                             static_cast<int>(std::lround(g.y() * (1 << kShift))));
+      }
+      cv::fillConvexPoly(outside, polygon, cv::Scalar(0), cv::LINE_8, kShift);
     }
     cv::Mat inside(size, CV_8U, cv::Scalar(255)), weight;
     cv::rectangle(inside, cv::Rect(0, 0, size.width, size.height), cv::Scalar(0), 1);
     inside.setTo(0, excluded);
+    inside.setTo(0, outside);
     cv::distanceTransform(inside, weight, cv::DIST_L2, 3, CV_32F);
     weight += 1.0f;
     constexpr float kFillWeight = 1e-3f;
     weight.setTo(kFillWeight, excluded);
+    weight.setTo(0.0f, outside);
     // The fill: the mean of the unmasked pixels around, over a window a little wider than a
     // text line (normalised box filter), repeated where the window held none.
     cv::Mat valid, sum, count, grey;
@@ -288,10 +331,12 @@ class Renderer {
   const TileSink& write_;
   JobContext* job_;
   std::vector<Box> boxes_;
+  std::vector<std::vector<Eigen::Vector2d>> parts_;  // DrawnPart of each frame
+  std::vector<bool> cut_;                            // ... when it is not the whole frame
   std::map<std::pair<int, int>, cv::Mat> feathers_;
   struct OverlayLayer {
     size_t frame;  // in frames_
-    cv::Mat grey;  // the picture, filled on the mask
+    cv::Mat grey;  // the picture, filled on the overlay mask
     cv::Mat weight;
   };
   std::vector<OverlayLayer> overlay_layers_;
@@ -301,6 +346,30 @@ class Renderer {
 };
 
 }  // namespace
+
+std::vector<Eigen::Vector2d> DrawnPart(const KeyFrameView& frame, int width, int height) {
+  const std::array<Eigen::Vector2d, 4> corners = Corners(width, height);
+  std::vector<Eigen::Vector2d> part(corners.begin(), corners.end());
+  if (frame.sky_line) {  // keep y >= y0 + slope x
+    part = ClipToHalfPlane(part, Eigen::Vector2d(-frame.sky_line->slope, 1), -frame.sky_line->y0);
+  }
+  // The map's scale at a pixel goes as w^(-3/2), w = the third row of map_from_frame . (p, 1)
+  // (the area scale is det(H) / w^3): the nearest ground has the largest w.
+  // A part that reaches behind the map's plane is not drawn at all: its homography contradicts
+  // the horizon the frame shows (or, without a sky line, the frame sees beyond the map's horizon,
+  // and the place where its ground would end is unknown).
+  const Eigen::Vector3d row = frame.map_from_frame.row(2).transpose();
+  double nearest = 0;
+  for (const Eigen::Vector2d& p : part) {
+    const double w = row.dot(p.homogeneous());
+    if (!(w > 0) || !std::isfinite(w)) return {};
+    nearest = std::max(nearest, w);
+  }
+  if (part.empty()) return {};
+  const double farthest = nearest * std::pow(kMaxScaleSpread, -2.0 / 3.0);
+  part = ClipToHalfPlane(part, row.head<2>(), row.z() - farthest);
+  return part.size() >= 3 ? part : std::vector<Eigen::Vector2d>{};
+}
 
 Status PyramidOptions::Validate() const {
   if (tile_size < 16 || tile_size > kMaxTileSize) {
@@ -327,12 +396,16 @@ StatusOr<mission::PyramidInfo> PlanPyramid(const std::vector<KeyFrameView>& fram
   Box extent;
   std::vector<double> resolutions;
   for (const KeyFrameView& frame : frames) {
-    const Box box = Footprint(frame.map_from_frame, width, height);
+    const std::vector<Eigen::Vector2d> part = DrawnPart(frame, width, height);
+    const Box box = Footprint(part, frame.map_from_frame);
     if (!box.Valid() || !frame.grey || frame.grey->empty()) continue;
     extent.lo = extent.lo.cwiseMin(box.lo);
     extent.hi = extent.hi.cwiseMax(box.hi);
-    // Map units per full-resolution pixel at the image centre.
-    const Eigen::Vector2d centre((width - 1) / 2.0, (height - 1) / 2.0);
+    // Map units per full-resolution pixel at the centre of the drawn part (the image centre
+    // when the whole frame is drawn).
+    Eigen::Vector2d centre(0, 0);
+    for (const Eigen::Vector2d& p : part) centre += p;
+    centre /= static_cast<double>(part.size());
     const Eigen::Vector3d q = frame.map_from_frame * centre.homogeneous();
     const Eigen::Matrix<double, 2, 3> d =
         (Eigen::Matrix<double, 2, 3>() << 1 / q.z(), 0, -q.x() / (q.z() * q.z()), 0, 1 / q.z(),

@@ -116,6 +116,7 @@ HorizonTracker::HorizonTracker(const HorizonOptions& options, const FrameRate& r
 std::optional<HorizonLine> HorizonTracker::Add(const cv::Mat& grey) {
   if (!options_.enabled) return std::nullopt;
   const std::optional<HorizonLine> found = FindHorizon(grey, options_);
+  found_line_ = found;
   margin_px_ = options_.margin_fraction * grey.rows;
   found_.push_back(found.has_value());
   while (static_cast<int>(found_.size()) > window_frames_) found_.pop_front();
@@ -134,6 +135,7 @@ bool HorizonTracker::Masks(const Eigen::Vector2d& p) const {
 void HorizonTracker::Reset() {
   found_.clear();
   latest_.reset();
+  found_line_.reset();
   line_.reset();
 }
 

@@ -64,6 +64,10 @@ class HorizonTracker {
   std::optional<HorizonLine> Add(const cv::Mat& grey);
   // The line of the latest frame added (nullopt: no mask), and whether `p` is masked by it.
   const std::optional<HorizonLine>& line() const { return line_; }
+  // The horizon found in the latest frame itself, confirmed or not.
+  const std::optional<HorizonLine>& found() const { return found_line_; }
+  // Frames in the window the majority is taken over.
+  int window_frames() const { return window_frames_; }
   bool Masks(const Eigen::Vector2d& p) const;
   // Masked rows below the line, pixels.
   double margin_px() const { return margin_px_; }
@@ -75,6 +79,7 @@ class HorizonTracker {
   int window_frames_ = 3;
   std::deque<bool> found_;  // the latest window's frames: horizon found
   std::optional<HorizonLine> latest_;
+  std::optional<HorizonLine> found_line_;
   std::optional<HorizonLine> line_;
   double margin_px_ = 0;
 };

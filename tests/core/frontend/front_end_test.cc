@@ -544,6 +544,24 @@ TEST(FrontEndRunTest, ALowObliqueViewMasksTheSkyAndNoTargetLiesAboveTheHorizon) 
   const int64_t frames = static_cast<int64_t>(result->frames.size());
   EXPECT_GE(result->horizon_frames, frames * 9 / 10);
   sim::CameraIntrinsics camera = options.camera;
+  // Every masked frame keeps its sky line, the first frames too, and the line lies below the
+  // true horizon across the frame (what is above it is sky or ground too far to map).
+  int64_t with_sky = 0;
+  for (const FrameResult& f : result->frames) {
+    if (!f.sky_line) continue;
+    ++with_sky;
+    camera.hfov_deg = truth->frames[static_cast<size_t>(f.index)].hfov_deg;
+    const std::optional<sim::ViewGeometry> view = sim::ViewOfHomography(
+        camera, truth->frames[static_cast<size_t>(f.index)].frame_from_ground);
+    ASSERT_TRUE(view.has_value());
+    for (const double x : {0.0, 0.5 * (camera.width - 1), camera.width - 1.0}) {
+      EXPECT_GT(view->SinDepression(x, f.sky_line->YAt(x)), 0)
+          << "frame " << f.index << ": the sky line at x " << x << " is above the horizon";
+    }
+  }
+  EXPECT_EQ(with_sky, result->horizon_frames);
+  ASSERT_FALSE(result->frames.empty());
+  EXPECT_TRUE(result->frames.front().sky_line.has_value());
   const double haze_sin = 1.0 / std::hypot(1.0, sim::FrameRenderer::kDrawDistanceHeights);
   for (const track::TargetTrack& t : result->targets) {
     for (const track::TargetObservation& o : t.observations) {

@@ -92,6 +92,11 @@ inline bool MissionsEqual(const Mission& a, const Mission& b, std::string* why) 
     if (!SameOptional(fa.sensor, fb.sensor, same_wgs84)) return differ("sensor");
     if (!SameOptional(fa.pts, fb.pts, same_int64)) return differ("pts");
     if (fa.pts && fa.key_frame != fb.key_frame) return differ("key_frame");
+    if (fa.sky_line.has_value() != fb.sky_line.has_value() ||
+        (fa.sky_line && (!SameDouble(fa.sky_line->y0, fb.sky_line->y0) ||
+                         !SameDouble(fa.sky_line->slope, fb.sky_line->slope)))) {
+      return differ("sky_line");
+    }
     out.str("");
   }
 
@@ -238,6 +243,7 @@ inline Mission MakeFullMission() {
       f.pts = 3600 * f.index - 7;  // may be negative
       f.key_frame = i == 0;
     }
+    if (all || i == 3) f.sky_line = SkyLine{120.375 + i, -0.0625 * i};
     m.frames.push_back(f);
   }
 

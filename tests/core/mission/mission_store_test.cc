@@ -131,6 +131,7 @@ TEST_F(MissionStoreTest, SchemaOneFileIsReadAndUpgradedForWriting) {
   ExecSql(path,
           "DROP TABLE overlays; DROP TABLE checkpoint; ALTER TABLE tracks DROP COLUMN confidence; "
           "ALTER TABLE frames DROP COLUMN pts; ALTER TABLE frames DROP COLUMN key_frame; "
+          "ALTER TABLE frames DROP COLUMN sky_y0; ALTER TABLE frames DROP COLUMN sky_slope; "
           "UPDATE meta SET value = 1 WHERE key = 'schema_version'; PRAGMA user_version = 1");
   {
     auto store = MissionStore::Open(path.string());
@@ -162,6 +163,7 @@ TEST_F(MissionStoreTest, SchemaTwoFileHasNoCheckpointUntilUpgraded) {
   WriteMissionFile(path, full);
   ExecSql(path,
           "DROP TABLE overlays; DROP TABLE checkpoint; ALTER TABLE tracks DROP COLUMN confidence; "
+          "ALTER TABLE frames DROP COLUMN sky_y0; ALTER TABLE frames DROP COLUMN sky_slope; "
           "UPDATE meta SET value = 2 WHERE key = 'schema_version'; PRAGMA user_version = 2");
   {
     auto store = MissionStore::Open(path.string());
@@ -188,10 +190,12 @@ TEST_F(MissionStoreTest, SchemaTwoFileHasNoCheckpointUntilUpgraded) {
   ASSERT_TRUE(m.ok()) << m.status().ToString();
   EXPECT_EQ(m->schema_version, kSchemaVersion);
   // Upgraded, not saved again: the tracks' confidence is unknown (schema 4 adds it empty), and
-  // there is no overlay mask (schema 5 adds the table empty).
+  // there is no overlay mask (schema 5 adds the table empty) nor sky line (schema 6 adds the
+  // columns empty).
   Mission upgraded = full;
   for (ActivityTrack& t : upgraded.tracks) t.confidence.reset();
   upgraded.overlays.clear();
+  for (FrameRecord& f : upgraded.frames) f.sky_line.reset();
   EXPECT_SAME_MISSION(*m, upgraded);
 }
 
@@ -203,6 +207,7 @@ TEST_F(MissionStoreTest, SchemaThreeFileHasUnknownConfidenceUntilUpgraded) {
   WriteMissionFile(path, full);
   ExecSql(path,
           "DROP TABLE overlays; ALTER TABLE tracks DROP COLUMN confidence; "
+          "ALTER TABLE frames DROP COLUMN sky_y0; ALTER TABLE frames DROP COLUMN sky_slope; "
           "UPDATE meta SET value = 3 WHERE key = 'schema_version'; PRAGMA user_version = 3");
   {
     auto store = MissionStore::Open(path.string());
@@ -237,6 +242,7 @@ TEST_F(MissionStoreTest, SchemaFourFileHasNoOverlayMaskUntilSaved) {
   WriteMissionFile(path, full);
   ExecSql(path,
           "DROP TABLE overlays; "
+          "ALTER TABLE frames DROP COLUMN sky_y0; ALTER TABLE frames DROP COLUMN sky_slope; "
           "UPDATE meta SET value = 4 WHERE key = 'schema_version'; PRAGMA user_version = 4");
   {
     auto m = LoadFile(path);
@@ -257,6 +263,69 @@ TEST_F(MissionStoreTest, SchemaFourFileHasNoOverlayMaskUntilSaved) {
   auto m = LoadFile(path);
   ASSERT_TRUE(m.ok()) << m.status().ToString();
   EXPECT_SAME_MISSION(*m, full);
+}
+
+// Schema 5 (before the sky lines): read without them, upgraded in place when opened for writing
+// (the columns added, empty), and then keeps them.
+TEST_F(MissionStoreTest, SchemaFiveFileHasNoSkyLineUntilSaved) {
+  const fs::path path = File("v5.saker");
+  const Mission full = MakeFullMission();
+  ASSERT_TRUE(std::any_of(full.frames.begin(), full.frames.end(),
+                          [](const FrameRecord& f) { return f.sky_line.has_value(); }));
+  WriteMissionFile(path, full);
+  ExecSql(path,
+          "ALTER TABLE frames DROP COLUMN sky_y0; ALTER TABLE frames DROP COLUMN sky_slope; "
+          "UPDATE meta SET value = 5 WHERE key = 'schema_version'; PRAGMA user_version = 5");
+  const auto no_sky = [](const Mission& m) {
+    return std::none_of(m.frames.begin(), m.frames.end(),
+                        [](const FrameRecord& f) { return f.sky_line.has_value(); });
+  };
+  {
+    auto m = LoadFile(path);
+    ASSERT_TRUE(m.ok()) << m.status().ToString();
+    EXPECT_EQ(m->schema_version, 5);
+    EXPECT_TRUE(no_sky(*m));
+    EXPECT_EQ(m->overlays.size(), full.overlays.size());
+  }
+  {
+    auto store = MissionStore::Open(path.string(), OpenMode::kReadWrite);
+    ASSERT_TRUE(store.ok()) << store.status().ToString();
+    auto m = (*store)->Load();
+    ASSERT_TRUE(m.ok()) << m.status().ToString();
+    EXPECT_EQ(m->schema_version, kSchemaVersion);
+    EXPECT_TRUE(no_sky(*m));
+    ASSERT_TRUE((*store)->Save(full).ok());
+  }
+  auto m = LoadFile(path);
+  ASSERT_TRUE(m.ok()) << m.status().ToString();
+  EXPECT_SAME_MISSION(*m, full);
+}
+
+// A sky line that is not a line across the frame is refused on saving and on loading, naming the
+// frame.
+TEST_F(MissionStoreTest, ABadSkyLineIsRefused) {
+  Mission bad = MakeFullMission();
+  bad.frames[1].sky_line = SkyLine{100, std::numeric_limits<double>::quiet_NaN()};
+  auto store = CreateOrDie(File("bad_sky.saker"));
+  ASSERT_NE(store, nullptr);
+  const Status saved = store->Save(bad);
+  ASSERT_FALSE(saved.ok());
+  EXPECT_NE(saved.message().find("frame " + std::to_string(bad.frames[1].index)), std::string::npos)
+      << saved.ToString();
+  store.reset();
+
+  const fs::path path = File("steep_sky.saker");
+  WriteMissionFile(path, MakeFullMission());
+  ExecSql(path,
+          "UPDATE frames SET sky_y0 = 10, sky_slope = 1e6 WHERE frame_index = (SELECT frame_index "
+          "FROM frames ORDER BY frame_index LIMIT 1 OFFSET 1)");
+  const auto loaded = LoadFile(path);
+  ASSERT_FALSE(loaded.ok());
+  EXPECT_NE(loaded.status().message().find("sky"), std::string::npos) << loaded.status().ToString();
+  ExecSql(path,
+          "UPDATE frames SET sky_y0 = 10, sky_slope = NULL WHERE frame_index = (SELECT frame_index "
+          "FROM frames ORDER BY frame_index LIMIT 1 OFFSET 1)");
+  EXPECT_FALSE(LoadFile(path).ok());
 }
 
 // A mask is found by frame (OverlayAt), and its cells by pixel, the cell's edges exactly.

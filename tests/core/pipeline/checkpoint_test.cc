@@ -62,6 +62,7 @@ frontend::FrontEndCheckpoint MakeCheckpoint() {
     f.tracked = 300 + i;
     f.inliers = 200 + i;
     f.moving = i;
+    if (i % 3 == 1) f.sky_line = track::HorizonLine{427, 100.5 + i, 0.01 * i};
     c.frames.push_back(f);
   }
   for (int k = 0; k < 3; ++k) {
@@ -195,8 +196,12 @@ TEST_F(CheckpointTest, EveryFieldRoundTrips) {
                 a.key_frame == b.key_frame && a.homography_ok == b.homography_ok &&
                 a.current_from_previous == b.current_from_previous &&
                 a.covariance == b.covariance && a.tracked == b.tracked && a.inliers == b.inliers &&
-                a.moving == b.moving)
+                a.moving == b.moving && a.sky_line.has_value() == b.sky_line.has_value())
         << "frame " << i;
+    if (a.sky_line && b.sky_line) {
+      EXPECT_EQ(a.sky_line->YAt(0), b.sky_line->YAt(0)) << "frame " << i;
+      EXPECT_EQ(a.sky_line->slope, b.sky_line->slope) << "frame " << i;
+    }
   }
   ASSERT_EQ(r.key_frames.size(), c.key_frames.size());
   for (size_t k = 0; k < c.key_frames.size(); ++k) {

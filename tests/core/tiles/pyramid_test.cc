@@ -1,9 +1,11 @@
 #include "core/tiles/pyramid.h"
 
+#include <Eigen/Geometry>
 #include <gtest/gtest.h>
 #include <opencv2/imgproc.hpp>
 
 #include <map>
+#include <optional>
 #include <tuple>
 
 namespace saker::tiles {
@@ -30,6 +32,13 @@ Eigen::Matrix3d MapFromFrame(double east) {
   return h;
 }
 
+// A key frame to draw, with an overlay mask or a sky line when given.
+KeyFrameView View(const cv::Mat& grey, double scale, const Eigen::Matrix3d& map_from_frame,
+                  const mission::OverlayRecord* overlay = nullptr,
+                  std::optional<mission::SkyLine> sky_line = std::nullopt) {
+  return {&grey, scale, map_from_frame, overlay, sky_line};
+}
+
 using Store = std::map<std::tuple<int, int, int>, std::vector<uint8_t>>;
 
 TileSink Into(Store* store) {
@@ -50,8 +59,8 @@ std::array<int, 4> Locate(const mission::PyramidInfo& info, const Eigen::Vector2
 TEST(Pyramid, PlacesAndBlendsKeyFramesAcrossLevels) {
   // Two 640 x 480 frames stored at half size (scale 2), 100 m apart (overlapping by 220 m).
   const cv::Mat a = TestCard(kWidth / 2, kHeight / 2, 0), b = TestCard(kWidth / 2, kHeight / 2, 0);
-  const std::vector<KeyFrameView> frames = {{&a, 2.0, MapFromFrame(0)},
-                                            {&b, 2.0, MapFromFrame(100)}};
+  const std::vector<KeyFrameView> frames = {View(a, 2.0, MapFromFrame(0)),
+                                            View(b, 2.0, MapFromFrame(100))};
   PyramidOptions options;
   options.tile_size = 64;
   const auto info = PlanPyramid(frames, kWidth, kHeight, /*geo_referenced=*/true, options);
@@ -118,8 +127,8 @@ TEST(Pyramid, OverlayMasksAreNotDrawn) {
   for (int y = 5; y < 10; ++y) {
     for (int x = 0; x < mask.cols; ++x) mask.cells[static_cast<size_t>(y * mask.cols + x)] = 1;
   }
-  const std::vector<KeyFrameView> frames = {{&a, 2.0, MapFromFrame(0), &mask},
-                                            {&b, 2.0, MapFromFrame(100)}};
+  const std::vector<KeyFrameView> frames = {View(a, 2.0, MapFromFrame(0), &mask),
+                                            View(b, 2.0, MapFromFrame(100))};
   PyramidOptions options;
   options.tile_size = 64;
   const auto info = PlanPyramid(frames, kWidth, kHeight, /*geo_referenced=*/true, options);
@@ -150,7 +159,7 @@ TEST(Pyramid, TilesNoFrameCoversAreNotWritten) {
   const cv::Mat a = TestCard(kWidth, kHeight, 0);
   Eigen::Matrix3d far = MapFromFrame(2000);
   far(1, 2) = -2000;
-  const std::vector<KeyFrameView> frames = {{&a, 1.0, MapFromFrame(0)}, {&a, 1.0, far}};
+  const std::vector<KeyFrameView> frames = {View(a, 1.0, MapFromFrame(0)), View(a, 1.0, far)};
   PyramidOptions options;
   options.tile_size = 128;
   const auto info = PlanPyramid(frames, kWidth, kHeight, true, options);
@@ -168,7 +177,7 @@ TEST(Pyramid, TilesNoFrameCoversAreNotWritten) {
 
 TEST(Pyramid, CancelAndErrors) {
   const cv::Mat a = TestCard(kWidth, kHeight, 0);
-  const std::vector<KeyFrameView> frames = {{&a, 1.0, MapFromFrame(0)}};
+  const std::vector<KeyFrameView> frames = {View(a, 1.0, MapFromFrame(0))};
   PyramidOptions options;
   const auto info = PlanPyramid(frames, kWidth, kHeight, false, options);
   ASSERT_TRUE(info.ok());
@@ -188,13 +197,75 @@ TEST(Pyramid, CancelAndErrors) {
   ASSERT_FALSE(failed.ok());
   EXPECT_NE(failed.status().message().find("disk full"), std::string::npos);
 
-  // Nothing drawable.
-  Eigen::Matrix3d beyond = Eigen::Matrix3d::Identity();
-  beyond(2, 0) = -0.01;  // the right of the image is beyond the horizon
-  EXPECT_FALSE(PlanPyramid({{&a, 1.0, beyond}}, kWidth, kHeight, false, options).ok());
+  // Nothing drawable: the whole frame behind the map's plane, or above its sky line.
+  Eigen::Matrix3d behind = Eigen::Matrix3d::Identity();
+  behind(2, 2) = -1;
+  EXPECT_FALSE(PlanPyramid({View(a, 1.0, behind)}, kWidth, kHeight, false, options).ok());
+  EXPECT_FALSE(PlanPyramid({View(a, 1.0, MapFromFrame(0), nullptr, mission::SkyLine{kHeight, 0})},
+                           kWidth, kHeight, false, options)
+                   .ok());
   EXPECT_FALSE(DecodeTile({1, 2, 3}, options.tile_size).ok());
   options.tile_size = 3;
   EXPECT_FALSE(options.Validate().ok());
+}
+
+// A low oblique view's sky: nothing above the sky line is drawn, the ground below it is.
+TEST(Pyramid, TheSkyAboveTheSkyLineIsNotDrawn) {
+  const cv::Mat a = TestCard(kWidth, kHeight, 0);
+  const mission::SkyLine sky{200, 0.1};  // from row 200 at the left to row 264 at the right
+  const std::vector<KeyFrameView> frames = {View(a, 1.0, MapFromFrame(0), nullptr, sky)};
+  const std::vector<Eigen::Vector2d> part = DrawnPart(frames[0], kWidth, kHeight);
+  ASSERT_EQ(part.size(), 4u);
+  for (const Eigen::Vector2d& p : part) EXPECT_FALSE(sky.Masks(p + Eigen::Vector2d(0, 1e-9)));
+  PyramidOptions options;
+  options.tile_size = 64;
+  const auto info = PlanPyramid(frames, kWidth, kHeight, true, options);
+  ASSERT_TRUE(info.ok()) << info.status().ToString();
+  // The map covers the ground below the line only: 280 rows at most of 480.
+  EXPECT_LE(std::abs(info->height * info->step_y), 0.5 * 281 + 1);
+  Store store;
+  ASSERT_TRUE(RenderPyramid(frames, kWidth, kHeight, *info, options, Into(&store)).ok());
+  const auto alpha_at = [&](const Eigen::Vector2d& pixel) -> int {
+    const Eigen::Vector2d map = (MapFromFrame(0) * pixel.homogeneous()).hnormalized();
+    const auto [tx, ty, col, row] = Locate(*info, map);
+    const auto it = store.find({0, tx, ty});
+    if (it == store.end()) return 0;
+    const auto tile = DecodeTile(it->second, info->tile_size);
+    if (!tile.ok()) return -1;
+    return tile->at<cv::Vec4b>(row, col)[3];
+  };
+  EXPECT_EQ(alpha_at({100, 400}), 255);  // ground
+  EXPECT_EQ(alpha_at({600, 300}), 255);  // ground, just below the line there (row 260)
+  EXPECT_EQ(alpha_at({600, 240}), 0);    // sky, right of the frame
+}
+
+// Towards the horizon the ground is drawn only as far as its scale stays within kMaxScaleSpread
+// of the nearest ground's: a frame whose rows fade into the distance keeps its nearer part.
+TEST(Pyramid, GroundFarBeyondTheNearestIsLeftOut) {
+  const cv::Mat a = TestCard(kWidth, kHeight, 0);
+  Eigen::Matrix3d oblique = Eigen::Matrix3d::Identity();
+  oblique(2, 1) = 1.0 / 400;  // w = 1 + y / 400: 1 at the top row, 2.2 at the bottom
+  const std::vector<Eigen::Vector2d> part = DrawnPart(View(a, 1.0, oblique), kWidth, kHeight);
+  ASSERT_EQ(part.size(), 4u);
+  // w >= 2.2 * 8^(-2/3) = 0.55 everywhere: nothing cut.
+  for (const Eigen::Vector2d& p : part) EXPECT_TRUE(p.y() == 0 || p.y() == kHeight - 1);
+  oblique(2, 2) = 0.05;  // w = 0.05 + y / 400: the top row 25 times farther than the bottom one
+  const std::vector<Eigen::Vector2d> near = DrawnPart(View(a, 1.0, oblique), kWidth, kHeight);
+  ASSERT_EQ(near.size(), 4u);
+  // The nearest ground has w = 1.2475 (the bottom row); kept: w >= 1.2475 / 4, y >= 104.75.
+  double top = kHeight;
+  for (const Eigen::Vector2d& p : near) top = std::min(top, p.y());
+  EXPECT_NEAR(top, 400 * (1.2475 / 4 - 0.05), 1e-6);
+  // A frame that reaches beyond the map's horizon (the top rows behind its plane) is not drawn,
+  // unless its sky line cuts that part away.
+  Eigen::Matrix3d beyond = oblique;
+  beyond(2, 2) = -0.3;  // behind the plane above row 120
+  EXPECT_TRUE(DrawnPart(View(a, 1.0, beyond), kWidth, kHeight).empty());
+  EXPECT_EQ(
+      DrawnPart(View(a, 1.0, beyond, nullptr, mission::SkyLine{150, 0}), kWidth, kHeight).size(),
+      4u);
+  PyramidOptions options;
+  EXPECT_TRUE(PlanPyramid({View(a, 1.0, oblique)}, kWidth, kHeight, false, options).ok());
 }
 
 }  // namespace
