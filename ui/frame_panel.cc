@@ -124,6 +124,11 @@ class FrameCanvas : public QWidget {
     update();
   }
   bool hasOverlay() const { return !overlay_.isNull(); }
+  // The sky mask's edge to draw over the frame (the part above it tinted); nullopt draws none.
+  void setSkyLine(std::optional<mission::SkyLine> line) {
+    sky_ = line;
+    update();
+  }
   const QString& hint() const { return hint_; }
   void setPlaceholder(const QString& text) {
     placeholder_ = text;
@@ -152,6 +157,7 @@ class FrameCanvas : public QWidget {
       painter.setRenderHint(QPainter::SmoothPixmapTransform);
       painter.drawImage(target, image_);
 
+      if (sky_) paintSky(painter, target);
       if (!overlay_.isNull()) paintOverlay(painter, target);
       if (mark_) paintMark(painter, target);
     }
@@ -177,6 +183,29 @@ class FrameCanvas : public QWidget {
     painter.setClipRect(target);
     painter.setRenderHint(QPainter::SmoothPixmapTransform, false);
     painter.drawImage(cells, overlay_);
+    painter.restore();
+  }
+
+  // The sky mask over the image drawn in `target`: the part above the line, tinted amber, and the
+  // line itself.
+  void paintSky(QPainter& painter, const QRectF& target) const {
+    const double scale = target.width() / image_.width();
+    const double right = image_.width() - 0.5;
+    // Frame pixel p (centres at integers) is drawn at (p + 0.5) * scale.
+    const auto at = [&](double x) {
+      return target.topLeft() +
+             QPointF((x + 0.5) * scale, (sky_->y0 + sky_->slope * x + 0.5) * scale);
+    };
+    QPolygonF sky;
+    sky << target.topLeft() << target.topRight() << at(right) << at(-0.5);
+    painter.save();
+    painter.setClipRect(target);
+    painter.setRenderHint(QPainter::Antialiasing);
+    painter.setPen(Qt::NoPen);
+    painter.setBrush(QColor(255, 170, 0, 70));
+    painter.drawPolygon(sky);
+    painter.setPen(QPen(QColor(255, 170, 0, 200), 1.5, Qt::DashLine));
+    painter.drawLine(at(-0.5), at(right));
     painter.restore();
   }
 
@@ -216,6 +245,7 @@ class FrameCanvas : public QWidget {
 
   QImage overlay_;  // ARGB, a pixel a cell
   int overlay_cell_px_ = 8;
+  std::optional<mission::SkyLine> sky_;
   QImage image_;
   std::optional<QPointF> mark_;
   QRectF box_;
@@ -401,6 +431,8 @@ void FramePanel::setMission(std::shared_ptr<const mission::Mission> mission,
   canvas_->setMark(std::nullopt, {});
   drawn_overlay_ = nullptr;
   canvas_->setOverlay(QImage(), 1);
+  drawn_sky_.reset();
+  canvas_->setSkyLine(std::nullopt);
   pending_ticket_ = 0;
   pending_from_click_ = false;
   hint_timer_->stop();
@@ -728,6 +760,19 @@ void FramePanel::setOverlayMaskVisible(bool visible) {
 }
 
 void FramePanel::updateOverlay() {
+  // The displayed frame's sky line (low oblique views), with the overlay mask.
+  std::optional<mission::SkyLine> sky;
+  if (overlay_visible_ && mission_ && displayed_frame_ >= 0 && !image_.isNull()) {
+    const auto frame = std::lower_bound(
+        mission_->frames.begin(), mission_->frames.end(), displayed_frame_,
+        [](const mission::FrameRecord& f, int64_t index) { return f.index < index; });
+    if (frame != mission_->frames.end() && frame->index == displayed_frame_) sky = frame->sky_line;
+  }
+  if (sky.has_value() != drawn_sky_.has_value() ||
+      (sky && (sky->y0 != drawn_sky_->y0 || sky->slope != drawn_sky_->slope))) {
+    drawn_sky_ = sky;
+    canvas_->setSkyLine(sky);
+  }
   const mission::OverlayRecord* record =
       overlay_visible_ && mission_ && displayed_frame_ >= 0 && !image_.isNull()
           ? mission::OverlayAt(mission_->overlays, displayed_frame_)

@@ -6,8 +6,9 @@
 // It steps through the track's observations (Left and Right anywhere in the window once one is
 // shown, Shift for ten at a time) and plays the video forward from the frame.
 //
-// The screen-fixed overlay mask the front end found (burned-in text, logos) can be drawn over the
-// frame as a faint layer (setOverlayMaskVisible; off by default).
+// The screen-fixed overlay mask the front end found (burned-in text, logos) and, in low oblique
+// views, its sky mask can be drawn over the frame as faint layers (setOverlayMaskVisible; off by
+// default).
 //
 // Decoding runs on a FrameRecall worker; while a decode is pending the previous frame stays on
 // screen. When the mission's video is missing the panel says where it looked and offers to locate
@@ -73,12 +74,14 @@ class FramePanel : public QWidget {
   double lastRecallMs() const;  // showObservation call to frame painted; NaN before the first
   double lastDecodeMs() const;  // the worker's part of it (seek, decode, colour conversion)
   bool isPlaying() const;
-  // Draws the mission's overlay mask of the displayed frame over it (mission::OverlayAt); off by
-  // default.
+  // Draws the mission's overlay mask of the displayed frame over it (mission::OverlayAt), and
+  // its sky mask (the part above its mission::SkyLine, in low oblique views); off by default.
   void setOverlayMaskVisible(bool visible);
   bool overlayMaskVisible() const { return overlay_visible_; }
   // The mask drawn over the frame on screen: null when none is (hidden, or none for the frame).
   const mission::OverlayRecord* drawnOverlayMask() const { return drawn_overlay_; }
+  // The sky line drawn over the frame on screen: nullopt when none is.
+  const std::optional<mission::SkyLine>& drawnSkyLine() const { return drawn_sky_; }
   QString errorText() const;       // the decode error shown in the panel, empty when none
   bool decodingHintShown() const;  // "decoding…" is on screen (a decode pending > 100 ms)
 
@@ -161,6 +164,7 @@ class FramePanel : public QWidget {
   QImage image_;
   bool overlay_visible_ = false;
   const mission::OverlayRecord* drawn_overlay_ = nullptr;  // in mission_->overlays
+  std::optional<mission::SkyLine> drawn_sky_;
 
   // The request in flight (latest wins: answers to any other ticket are dropped).
   quint64 next_ticket_ = 0;

@@ -41,6 +41,7 @@
 #include <QTextBrowser>
 #include <QToolBar>
 #include <QVBoxLayout>
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <functional>
@@ -315,7 +316,7 @@ void MainWindow::createActions() {
                                  &MosaicView::setShowKeyFrameOutlines);
   show_ellipses_action_ = toggle(tr("Show &Uncertainty Ellipses"), tr("Ctrl+U"), false,
                                  &MosaicView::setShowUncertainty);
-  show_overlay_mask_action_ = view->addAction(tr("Show &Overlay Mask in Frames"));
+  show_overlay_mask_action_ = view->addAction(tr("Show &Overlay and Sky Masks in Frames"));
   show_overlay_mask_action_->setObjectName(QStringLiteral("showOverlayMask"));
   show_overlay_mask_action_->setCheckable(true);
   show_overlay_mask_action_->setChecked(false);
@@ -528,12 +529,15 @@ void MainWindow::missionLoaded(const Loaded& loaded) {
   }
   view_->setMission(mission_, mission_path_);
   frame_panel_->setMission(mission_, video_path_);
+  const bool sky =
+      std::any_of(mission_->frames.begin(), mission_->frames.end(),
+                  [](const mission::FrameRecord& f) { return f.sky_line.has_value(); });
   show_overlay_mask_action_->setStatusTip(
-      mission_->overlays.empty()
-          ? tr("This mission has no overlay mask: none was found, or it was processed before "
-               "Saker kept them")
-          : tr("Tint the burned-in text and logos that processing left out, in the recalled "
-               "frame"));
+      mission_->overlays.empty() && !sky
+          ? tr("This mission has no overlay or sky mask: none was found, or it was processed "
+               "before Saker kept them")
+          : tr("Tint what processing left out in the recalled frame: burned-in text and logos, "
+               "and the sky of low oblique views"));
   if (!same) {
     resetFilter();
     addRecent(mission_path_);

@@ -154,6 +154,22 @@ StatusOr<ActivitySummary> MapActivity(const mission::Mission& mission,
   frame_at.reserve(mission.frames.size());
   for (size_t i = 0; i < mission.frames.size(); ++i) frame_at[mission.frames[i].index] = i;
 
+  // Per frame, the least w of the ground it maps (mission::FarthestMappedW; NaN: none), so that
+  // an observation in the sky or the distant ground of a low oblique view, where the map is
+  // smeared, is not placed: the mosaic's tiles leave those parts out too.
+  std::unordered_map<size_t, double> farthest_w;
+  const auto mapped = [&](size_t f, const Eigen::Vector2d& p, const Eigen::Vector3d& m) {
+    const mission::FrameRecord& frame = mission.frames[f];
+    if (frame.sky_line && frame.sky_line->Masks(p)) return false;
+    auto [it, added] = farthest_w.try_emplace(f, std::numeric_limits<double>::quiet_NaN());
+    if (added) {
+      const std::optional<double> w = mission::FarthestMappedW(
+          *frame.map_from_frame,
+          mission::BelowSkyLine(frame.sky_line, mission.source.width, mission.source.height));
+      if (w) it->second = *w;
+    }
+    return m.z() >= it->second;  // false for NaN
+  };
   std::vector<ActivityTrack> placed;
   placed.reserve(tracks->size());
   for (ActivityTrack& track : *tracks) {
@@ -172,7 +188,7 @@ StatusOr<ActivitySummary> MapActivity(const mission::Mission& mission,
         continue;
       }
       const Eigen::Vector3d m = *frame.map_from_frame * point.image.homogeneous();
-      if (!(m.z() > 0) || !m.allFinite()) {
+      if (!(m.z() > 0) || !m.allFinite() || !mapped(it->second, point.image, m)) {
         ++summary.observations_dropped;
         continue;
       }

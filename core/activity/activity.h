@@ -40,8 +40,9 @@ struct ActivityOptions {
 struct ActivitySummary {
   int64_t tracks_in = 0;
   int64_t tracks_out = 0;  // tracks with at least one placed observation
-  // On frames without a map_from_frame, or mapped beyond the horizon of the map's ground plane
-  // (the sky of an oblique view).
+  // On frames without a map_from_frame, mapped beyond the horizon of the map's ground plane, or
+  // in the part of their frame that is not mapped (above its sky line, or in ground seen more
+  // than mission::kMaxScaleSpread times coarser than the frame's nearest: a low oblique view).
   int64_t observations_dropped = 0;
   int64_t tracks_implausible = 0;     // removed: average ground speed above max_speed_mps
   int64_t tracks_low_confidence = 0;  // removed: confidence below min_confidence
@@ -49,8 +50,8 @@ struct ActivitySummary {
   double time_s = 0;
 };
 
-// Fills the map position of every point of `tracks` (points on frames without a map_from_frame
-// are dropped; tracks left empty are removed) and each track's start and end time, length,
+// Fills the map position of every point of `tracks` (points on frames without a map_from_frame,
+// or in the sky or distant ground of their frame, are dropped; tracks left empty are removed) and each track's start and end time, length,
 // speed, speed_mps (geo-referenced missions), heading and visit, from the mission's frames (its
 // `frames`, `map` and `source` width and height). Point frame indices must be those of
 // `mission.frames`. Tracks whose average ground speed is impossible (geo-referenced missions,

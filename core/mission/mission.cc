@@ -1,5 +1,7 @@
 #include "core/mission/mission.h"
 
+#include <Eigen/Geometry>
+
 #include <algorithm>
 #include <cmath>
 
@@ -38,6 +40,45 @@ double OverlayRecord::Coverage() const {
   if (cells.empty()) return 0;
   const auto on = std::count_if(cells.begin(), cells.end(), [](uint8_t c) { return c != 0; });
   return static_cast<double>(on) / static_cast<double>(cells.size());
+}
+
+std::vector<Eigen::Vector2d> ClipToHalfPlane(const std::vector<Eigen::Vector2d>& polygon,
+                                             const Eigen::Vector2d& normal, double offset) {
+  // Sutherland-Hodgman, one edge.
+  std::vector<Eigen::Vector2d> kept;
+  const size_t n = polygon.size();
+  for (size_t i = 0; i < n; ++i) {
+    const Eigen::Vector2d& a = polygon[i];
+    const Eigen::Vector2d& b = polygon[(i + 1) % n];
+    const double da = normal.dot(a) + offset, db = normal.dot(b) + offset;
+    if (da >= 0) kept.push_back(a);
+    if ((da >= 0) != (db >= 0)) kept.push_back(a + (b - a) * (da / (da - db)));
+  }
+  return kept;
+}
+
+std::vector<Eigen::Vector2d> BelowSkyLine(const std::optional<SkyLine>& sky_line, int width,
+                                          int height) {
+  std::vector<Eigen::Vector2d> part = {Eigen::Vector2d(0, 0), Eigen::Vector2d(width - 1, 0),
+                                       Eigen::Vector2d(width - 1, height - 1),
+                                       Eigen::Vector2d(0, height - 1)};
+  if (sky_line) {  // keep y >= y0 + slope x
+    part = ClipToHalfPlane(part, Eigen::Vector2d(-sky_line->slope, 1), -sky_line->y0);
+  }
+  if (part.size() < 3) part.clear();
+  return part;
+}
+
+std::optional<double> FarthestMappedW(const Eigen::Matrix3d& map_from_frame,
+                                      const std::vector<Eigen::Vector2d>& part) {
+  const Eigen::Vector3d row = map_from_frame.row(2).transpose();
+  double nearest = 0;
+  for (const Eigen::Vector2d& p : part) {
+    const double w = row.dot(p.homogeneous());
+    if (std::isfinite(w)) nearest = std::max(nearest, w);
+  }
+  if (!(nearest > 0)) return std::nullopt;
+  return nearest * std::pow(kMaxScaleSpread, -2.0 / 3.0);
 }
 
 std::string SkyLine::Problem() const {

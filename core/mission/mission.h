@@ -60,6 +60,27 @@ struct SkyLine {
 };
 inline constexpr double kMaxSkySlope = 10;
 
+// What of a frame is mapped (the mosaic's tiles, the tracks' map positions): the ground below its
+// sky line, and of that only the ground seen at most kMaxScaleSpread times coarser (map units per
+// pixel, the square root of the area scale) than the frame's nearest ground: towards the horizon
+// of a low oblique view a pixel spans ever more ground, and the map would show smears. The map's
+// scale at a pixel p goes as w^(-3/2), w = the third row of map_from_frame . (p, 1) (the area
+// scale is det(H) / w^3), so the limit is a least w, kMaxScaleSpread^(-2/3) times the largest.
+inline constexpr double kMaxScaleSpread = 8;
+
+// The part of convex `polygon` where normal . p + offset >= 0.
+std::vector<Eigen::Vector2d> ClipToHalfPlane(const std::vector<Eigen::Vector2d>& polygon,
+                                             const Eigen::Vector2d& normal, double offset);
+// A frame's rectangle (full-resolution pixel centres at integers, corners clockwise from the top
+// left) below its sky line: a convex polygon, empty when the line passes below the frame.
+std::vector<Eigen::Vector2d> BelowSkyLine(const std::optional<SkyLine>& sky_line, int width,
+                                          int height);
+// The least w (above) of the ground mapped within `part` of a frame: the largest w over its
+// vertices (the nearest ground) times kMaxScaleSpread^(-2/3); nullopt when no vertex lies in
+// front of the map's plane.
+std::optional<double> FarthestMappedW(const Eigen::Matrix3d& map_from_frame,
+                                      const std::vector<Eigen::Vector2d>& part);
+
 struct FrameRecord {
   int64_t index = 0;
   double time_s = 0;

@@ -108,8 +108,8 @@ StatusOr<bool> ActivityStage(const StageOptions& options, JobContext* job, Missi
   if (mapped.observations_dropped > 0) {
     run->warnings.push_back(std::to_string(mapped.observations_dropped) +
                             " target observations lie on frames that could not be placed on "
-                            "the map, or beyond the horizon of its ground plane (the sky of an "
-                            "oblique view), and are left out");
+                            "the map, beyond the horizon of its ground plane, or in the sky or "
+                            "distant ground of a low oblique view, and are left out");
   }
   m.progress.activity = true;
   if (job) job->ReportProgress("Activity", 1);

@@ -37,21 +37,6 @@ struct Box {
   }
 };
 
-// The part of convex `polygon` where normal . p + offset >= 0 (Sutherland-Hodgman, one edge).
-std::vector<Eigen::Vector2d> ClipToHalfPlane(const std::vector<Eigen::Vector2d>& polygon,
-                                             const Eigen::Vector2d& normal, double offset) {
-  std::vector<Eigen::Vector2d> kept;
-  const size_t n = polygon.size();
-  for (size_t i = 0; i < n; ++i) {
-    const Eigen::Vector2d& a = polygon[i];
-    const Eigen::Vector2d& b = polygon[(i + 1) % n];
-    const double da = normal.dot(a) + offset, db = normal.dot(b) + offset;
-    if (da >= 0) kept.push_back(a);
-    if ((da >= 0) != (db >= 0)) kept.push_back(a + (b - a) * (da / (da - db)));
-  }
-  return kept;
-}
-
 // The map box of the drawn part of a frame (DrawnPart); invalid when there is none.
 Box Footprint(const std::vector<Eigen::Vector2d>& part, const Eigen::Matrix3d& map_from_frame) {
   if (part.size() < 3) return Box{};
@@ -348,26 +333,17 @@ class Renderer {
 }  // namespace
 
 std::vector<Eigen::Vector2d> DrawnPart(const KeyFrameView& frame, int width, int height) {
-  const std::array<Eigen::Vector2d, 4> corners = Corners(width, height);
-  std::vector<Eigen::Vector2d> part(corners.begin(), corners.end());
-  if (frame.sky_line) {  // keep y >= y0 + slope x
-    part = ClipToHalfPlane(part, Eigen::Vector2d(-frame.sky_line->slope, 1), -frame.sky_line->y0);
-  }
-  // The map's scale at a pixel goes as w^(-3/2), w = the third row of map_from_frame . (p, 1)
-  // (the area scale is det(H) / w^3): the nearest ground has the largest w.
+  std::vector<Eigen::Vector2d> part = mission::BelowSkyLine(frame.sky_line, width, height);
   // A part that reaches behind the map's plane is not drawn at all: its homography contradicts
   // the horizon the frame shows (or, without a sky line, the frame sees beyond the map's horizon,
   // and the place where its ground would end is unknown).
   const Eigen::Vector3d row = frame.map_from_frame.row(2).transpose();
-  double nearest = 0;
   for (const Eigen::Vector2d& p : part) {
-    const double w = row.dot(p.homogeneous());
-    if (!(w > 0) || !std::isfinite(w)) return {};
-    nearest = std::max(nearest, w);
+    if (!(row.dot(p.homogeneous()) > 0)) return {};
   }
-  if (part.empty()) return {};
-  const double farthest = nearest * std::pow(kMaxScaleSpread, -2.0 / 3.0);
-  part = ClipToHalfPlane(part, row.head<2>(), row.z() - farthest);
+  const std::optional<double> farthest = mission::FarthestMappedW(frame.map_from_frame, part);
+  if (!farthest) return {};
+  part = mission::ClipToHalfPlane(part, row.head<2>(), row.z() - *farthest);
   return part.size() >= 3 ? part : std::vector<Eigen::Vector2d>{};
 }
 

@@ -33,15 +33,10 @@ struct KeyFrameView {
   std::optional<mission::SkyLine> sky_line;
 };
 
-// Of a key frame, only the ground seen at most this many times coarser (map units per pixel, the
-// square root of the area scale) than the frame's nearest ground is drawn: towards the horizon of
-// a low oblique view a pixel spans ever more ground, and the map would show smears.
-inline constexpr double kMaxScaleSpread = 8;
-
 // The part of a key frame's picture (full-resolution pixels, pixel centres at integers) that is
 // drawn: the frame's rectangle below its sky line, where the ground is seen at most
-// kMaxScaleSpread times coarser than the frame's nearest ground; a convex polygon, empty when the
-// rectangle below the sky line reaches behind the map's plane (beyond its horizon).
+// mission::kMaxScaleSpread times coarser than the frame's nearest ground; a convex polygon, empty
+// when the rectangle below the sky line reaches behind the map's plane (beyond its horizon).
 std::vector<Eigen::Vector2d> DrawnPart(const KeyFrameView& frame, int width, int height);
 
 // The largest tile side PyramidOptions admits (a 64 MiB BGRA tile); a stored tile never exceeds it.

@@ -284,6 +284,68 @@ TEST(FramePanelTest, DrawsTheOverlayMaskOfTheDisplayedFrameWhenAsked) {
   EXPECT_EQ(canvas->grab().toImage().pixel(on_canvas(56, 24)), before.pixel(on_canvas(56, 24)));
 }
 
+// The sky mask of a low oblique view, with the overlay layer: the part of the displayed frame
+// above its sky line is tinted, the rest untouched; a frame without a sky line draws none.
+TEST(FramePanelTest, DrawsTheSkyMaskOfTheDisplayedFrameWhenAsked) {
+  const TestMission* test = SmallMission();
+  ASSERT_NE(test, nullptr);
+  auto copy = std::make_shared<mission::Mission>(test->loaded);
+  const size_t track_index = LongestTrack(*copy);
+  const auto& points = copy->tracks[track_index].points;
+  ASSERT_GE(points.size(), 2u);
+  const size_t point_index = points.size() / 2;
+  ASSERT_NE(points[point_index].frame, points[point_index + 1].frame);
+  const auto frame_record = std::find_if(
+      copy->frames.begin(), copy->frames.end(),
+      [&](const mission::FrameRecord& f) { return f.index == points[point_index].frame; });
+  ASSERT_NE(frame_record, copy->frames.end());
+  frame_record->sky_line = mission::SkyLine{100, 0.05};  // row 100 at the left, 116 at x 320
+  const std::shared_ptr<const mission::Mission> mission = copy;
+
+  FramePanel panel;
+  panel.resize(640, 520);
+  panel.show();
+  panel.setMission(mission, VideoOf(*test));
+  ASSERT_TRUE(WaitWarm(panel));
+  ASSERT_TRUE(ShowAndWait(panel, track_index, point_index));
+  EXPECT_FALSE(panel.drawnSkyLine().has_value());
+  QWidget* canvas = panel.findChild<QWidget*>(QStringLiteral("frameCanvas"));
+  ASSERT_NE(canvas, nullptr);
+  const QImage& frame = panel.displayedImage();
+  const double scale = std::min(static_cast<double>(canvas->width()) / frame.width(),
+                                static_cast<double>(canvas->height()) / frame.height());
+  const auto on_canvas = [&](double x, double y) {
+    return QPoint(
+        static_cast<int>((canvas->width() - frame.width() * scale) / 2 + (x + 0.5) * scale),
+        static_cast<int>((canvas->height() - frame.height() * scale) / 2 + (y + 0.5) * scale));
+  };
+  const QImage before = canvas->grab().toImage();
+  panel.setOverlayMaskVisible(true);
+  ASSERT_TRUE(panel.drawnSkyLine().has_value());
+  EXPECT_EQ(panel.drawnSkyLine()->y0, 100);
+  const QImage after = canvas->grab().toImage();
+  for (const QPoint& p : {on_canvas(40, 40), on_canvas(300, 60)}) {
+    const QColor b = before.pixelColor(p), a = after.pixelColor(p);
+    EXPECT_GT(a.red() - a.blue(), b.red() - b.blue() + 20)
+        << "the sky is not tinted at " << p.x() << ", " << p.y() << ": " << b.name().toStdString()
+        << " -> " << a.name().toStdString();
+  }
+  for (const QPoint& p : {on_canvas(40, 140), on_canvas(300, 200)}) {
+    EXPECT_EQ(before.pixel(p), after.pixel(p))
+        << "below the sky line at " << p.x() << ", " << p.y();
+  }
+  MaybeScreenshot(panel, "sky-mask");
+
+  QSignalSpy shown(&panel, &FramePanel::frameShown);
+  panel.nextObservation();
+  ASSERT_TRUE(!shown.isEmpty() || shown.wait(30000));
+  EXPECT_FALSE(panel.drawnSkyLine().has_value());
+  ASSERT_TRUE(ShowAndWait(panel, track_index, point_index));
+  EXPECT_TRUE(panel.drawnSkyLine().has_value());
+  panel.setOverlayMaskVisible(false);
+  EXPECT_FALSE(panel.drawnSkyLine().has_value());
+}
+
 TEST(FramePanelTest, ObservationsOfEveryTrackLieOnTruthTargets) {
   const TestMission* test = SmallMission();
   ASSERT_NE(test, nullptr);

@@ -310,8 +310,8 @@ TEST(MainWindowTest, ClickOnATrackRecallsTheFrameWithTheObjectMarkedWhereTheTrut
   EXPECT_EQ(panel->displayedFrame(), displayed);
 }
 
-// View > Show Overlay Mask in Frames: off by default, it turns the frame panel's layer on and off,
-// and its status tip says whether the mission has masks at all.
+// View > Show Overlay and Sky Masks in Frames: off by default, it turns the frame panel's layer on
+// and off, and its status tip says whether the mission has masks at all.
 TEST(MainWindowTest, TheOverlayMaskLayerIsOffByDefaultAndTheViewMenuTogglesIt) {
   const TestMission* m = SmallMission();
   ASSERT_NE(m, nullptr);
@@ -323,7 +323,7 @@ TEST(MainWindowTest, TheOverlayMaskLayerIsOffByDefaultAndTheViewMenuTogglesIt) {
   EXPECT_TRUE(action->isCheckable());
   EXPECT_FALSE(action->isChecked());
   EXPECT_FALSE(window.framePanel()->overlayMaskVisible());
-  EXPECT_EQ(action->statusTip().contains("no overlay mask"), m->loaded.overlays.empty())
+  EXPECT_EQ(action->statusTip().contains("no overlay or sky mask"), m->loaded.overlays.empty())
       << action->statusTip().toStdString();
   action->trigger();
   EXPECT_TRUE(window.framePanel()->overlayMaskVisible());

@@ -162,6 +162,38 @@ TEST(Activity, ObservationsOnUnplacedFramesAreDropped) {
   EXPECT_NE(bad.status().message().find("999999"), std::string::npos);
 }
 
+// A low oblique view: observations above the frame's sky line, or on ground seen more than
+// kMaxScaleSpread times coarser than its nearest, are not placed (the tiles leave them out too).
+TEST(Activity, ObservationsInTheSkyOrTheDistantGroundAreDropped) {
+  Mission mission = MakeMission(/*geo_referenced=*/false);
+  Eigen::Matrix3d oblique = Eigen::Matrix3d::Identity();
+  oblique(2, 1) = 1.0 / 100;  // w = 0.05 + y / 100 ...
+  oblique(2, 2) = 0.05;       // ... 0.05 on the top row, 0.25 at row 20
+  mission::FrameRecord& frame = mission.frames[10];
+  frame.map_from_frame = oblique;
+  frame.sky_line = mission::SkyLine{5, 0};  // rows above 5 are sky
+  const double nearest = 0.05 + (kHeight - 1) / 100.0;
+  const double farthest_row =
+      (nearest * std::pow(mission::kMaxScaleSpread, -2.0 / 3.0) - 0.05) * 100;
+  ASSERT_GT(farthest_row, 5);
+  ASSERT_LT(farthest_row, kHeight - 10);
+  std::vector<ActivityTrack> tracks(1);
+  tracks[0].id = 1;
+  for (const double row : {2.0, farthest_row - 1, farthest_row + 1, kHeight - 2.0}) {
+    TrackPoint point;
+    point.frame = 10;
+    point.image = {kWidth / 2.0, row};
+    tracks[0].points.push_back(point);
+  }
+  const auto summary = MapActivity(mission, &tracks);
+  ASSERT_TRUE(summary.ok()) << summary.status().ToString();
+  EXPECT_EQ(summary->observations_dropped, 2);  // the sky and the distant ground
+  ASSERT_EQ(tracks.size(), 1u);
+  ASSERT_EQ(tracks[0].points.size(), 2u);
+  EXPECT_EQ(tracks[0].points[0].image.y(), farthest_row + 1);
+  EXPECT_EQ(tracks[0].points[1].image.y(), kHeight - 2.0);
+}
+
 TEST(Activity, HeadingConventions) {
   EXPECT_NEAR(HeadingDegrees({0, 1}, true), 0, 1e-12);
   EXPECT_NEAR(HeadingDegrees({1, 0}, true), 90, 1e-12);
