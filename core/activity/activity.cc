@@ -222,6 +222,30 @@ StatusOr<ActivitySummary> MapActivity(const mission::Mission& mission,
     track.length = length;
     const double duration = track.end_s - track.start_s;
     track.speed = duration > 0 ? length / duration : 0;
+    // The speed over the track's interior, where the smoothing window is whole: towards the ends
+    // it shrinks to the raw points, whose noise lengthens the path (walkers, a pixel or two of
+    // motion a sample, were 6 % fast at the median).
+    const double half = 0.5 * options.smoothing_s;
+    const size_t first = static_cast<size_t>(
+        std::lower_bound(points.begin(), points.end(), track.start_s + half,
+                         [](const TrackPoint& p, double t) { return p.time_s < t; }) -
+        points.begin());
+    const size_t end = static_cast<size_t>(
+        std::upper_bound(points.begin(), points.end(), track.end_s - half,
+                         [](double t, const TrackPoint& p) { return t < p.time_s; }) -
+        points.begin());
+    if (first + 1 < end &&
+        points[end - 1].time_s - points[first].time_s >= options.speed_interval_s) {
+      double interior = 0;
+      size_t from = first;
+      for (size_t i = first + 1; i < end; ++i) {
+        if (points[i].time_s - points[from].time_s >= options.speed_interval_s || i + 1 == end) {
+          interior += (smooth[i] - smooth[from]).norm();
+          from = i;
+        }
+      }
+      track.speed = interior / (points[end - 1].time_s - points[first].time_s);
+    }
     track.speed_mps = geo ? std::optional<double>(track.speed) : std::nullopt;
     track.heading_deg = HeadingDegrees(smooth.back() - smooth.front(), geo);
     // Visit: the pass over the track's middle position during which it was seen.

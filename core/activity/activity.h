@@ -25,7 +25,7 @@ struct ActivityOptions {
   // the direction are measured, and the path is sampled at `speed_interval_s`, so that the
   // detector's frame-to-frame jitter does not inflate the length.
   double smoothing_s = 0.5;
-  double speed_interval_s = 0.5;
+  double speed_interval_s = 1.0;
   // A place seen again after the camera left it for longer than this starts a new visit.
   double visit_gap_s = 10;
   // Frames whose footprint is tested for the coverage behind visits: every frame, or every n-th

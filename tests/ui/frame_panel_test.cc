@@ -211,6 +211,16 @@ TEST(FramePanelTest, ShowsTheObservedFrameWithTheMarkOnTheTarget) {
   MaybeScreenshot(panel, "observation");
 }
 
+// Where frame pixel (x, y) of a frame of `frame` size is drawn on the panel's canvas (the frame
+// fitted and centred, pixel centres at integers).
+QPoint OnCanvas(const QWidget& canvas, const QSize& frame, double x, double y) {
+  const double scale = std::min(static_cast<double>(canvas.width()) / frame.width(),
+                                static_cast<double>(canvas.height()) / frame.height());
+  return QPoint(
+      static_cast<int>((canvas.width() - frame.width() * scale) / 2 + (x + 0.5) * scale),
+      static_cast<int>((canvas.height() - frame.height() * scale) / 2 + (y + 0.5) * scale));
+}
+
 // The overlay mask layer: off by default; when on, the cells of the displayed frame's mask are
 // tinted over the frame and the rest is untouched; a frame that no mask covers draws none.
 TEST(FramePanelTest, DrawsTheOverlayMaskOfTheDisplayedFrameWhenAsked) {
@@ -247,14 +257,8 @@ TEST(FramePanelTest, DrawsTheOverlayMaskOfTheDisplayedFrameWhenAsked) {
 
   QWidget* canvas = panel.findChild<QWidget*>(QStringLiteral("frameCanvas"));
   ASSERT_NE(canvas, nullptr);
-  // Where frame pixel (x, y) is drawn on the canvas (the frame fitted and centred).
-  const QImage& frame = panel.displayedImage();
-  const double scale = std::min(static_cast<double>(canvas->width()) / frame.width(),
-                                static_cast<double>(canvas->height()) / frame.height());
   const auto on_canvas = [&](double x, double y) {
-    return QPoint(
-        static_cast<int>((canvas->width() - frame.width() * scale) / 2 + (x + 0.5) * scale),
-        static_cast<int>((canvas->height() - frame.height() * scale) / 2 + (y + 0.5) * scale));
+    return OnCanvas(*canvas, panel.displayedImage().size(), x, y);
   };
   const QImage before = canvas->grab().toImage();
   panel.setOverlayMaskVisible(true);
@@ -311,13 +315,8 @@ TEST(FramePanelTest, DrawsTheSkyMaskOfTheDisplayedFrameWhenAsked) {
   EXPECT_FALSE(panel.drawnSkyLine().has_value());
   QWidget* canvas = panel.findChild<QWidget*>(QStringLiteral("frameCanvas"));
   ASSERT_NE(canvas, nullptr);
-  const QImage& frame = panel.displayedImage();
-  const double scale = std::min(static_cast<double>(canvas->width()) / frame.width(),
-                                static_cast<double>(canvas->height()) / frame.height());
   const auto on_canvas = [&](double x, double y) {
-    return QPoint(
-        static_cast<int>((canvas->width() - frame.width() * scale) / 2 + (x + 0.5) * scale),
-        static_cast<int>((canvas->height() - frame.height() * scale) / 2 + (y + 0.5) * scale));
+    return OnCanvas(*canvas, panel.displayedImage().size(), x, y);
   };
   const QImage before = canvas->grab().toImage();
   panel.setOverlayMaskVisible(true);
