@@ -160,6 +160,7 @@ std::vector<track::TargetTrack> CombineTargets(std::vector<track::TargetTrack> b
   track::GroundMotion ground;
   for (const FrameResult& f : frames) ground.Add(f.index, f.homography_ok, f.current_from_previous);
   all = track::LinkFragments(std::move(all), options.EffectiveTargets(), rate, &ground, &scenes);
+  all = track::DropShadows(std::move(all), options.EffectiveTargets(), rate);
   all = track::DropChangeEchoes(std::move(all), options.change_echoes, rate);
   for (size_t i = 0; i < all.size(); ++i)
     all[i].id = static_cast<track::TargetTrackId>(static_cast<int64_t>(i) + 1);

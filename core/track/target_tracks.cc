@@ -142,11 +142,12 @@ Status TargetTrackOptions::Validate() const {
   if (!(box_margin_px >= 0)) return InvalidArgumentError("targets: box margin must be >= 0");
   if (!(link_gap_s >= 0 && link_gap_s <= 3600) ||
       !(ground_link_gap_s >= 0 && ground_link_gap_s <= 3600) ||
-      !(duplicate_overlap_s >= 0 && duplicate_overlap_s <= 3600) || !(gate_growth_px_s >= 0) ||
-      !(ground_link_growth_px_s >= 0) || !(ground_link_max_speed_px_s >= 0)) {
+      !(duplicate_overlap_s >= 0 && duplicate_overlap_s <= 3600) || !(shadow_fraction >= 0) ||
+      !(gate_growth_px_s >= 0) || !(ground_link_growth_px_s >= 0) ||
+      !(ground_link_max_speed_px_s >= 0)) {
     return InvalidArgumentError(
-        "targets: link gaps and overlaps must be in [0, 3600] s, the gates' growth and the ground "
-        "link speed >= 0");
+        "targets: link gaps and overlaps must be in [0, 3600] s, the gates' growth, the ground "
+        "link speed and the shadow fraction >= 0");
   }
   return Status::Ok();
 }
@@ -647,6 +648,79 @@ void TargetTracker::SaveState(ByteWriter* out) const {
 bool TargetTracker::RestoreState(ByteReader* in) {
   return RestoreTargetTracks(in, &active_) && RestoreTargetTracks(in, &waiting_) &&
          RestoreTargetTracks(in, &finished_) && in->Get(&change_through_) && in->Get(&next_id_);
+}
+
+std::vector<TargetTrack> DropShadows(std::vector<TargetTrack> tracks,
+                                     const TargetTrackOptions& options, FrameRate rate) {
+  if (!(options.shadow_fraction <= 1)) return tracks;
+  const TargetTrackTiming timing(options, rate);
+  const size_t n = tracks.size();
+  std::vector<double> speed(n);
+  std::vector<bool> slow(n), dropped(n, false);
+  // Each frame's observations of slow tracks: (track, position).
+  std::unordered_map<int64_t, std::vector<std::pair<size_t, Eigen::Vector2d>>> by_frame;
+  for (size_t i = 0; i < n; ++i) {
+    speed[i] = MeanSpeed(tracks[i]);
+    slow[i] = speed[i] <= timing.ground_link_max_speed_px;
+    if (!slow[i]) continue;
+    for (const TargetObservation& o : tracks[i].observations)
+      by_frame[o.frame].emplace_back(i, o.position);
+  }
+  // Calls visit(j) for each track beside track i's observation `o` (a slow track not dropped).
+  const auto for_beside = [&](size_t i, const TargetObservation& o, const auto& visit) {
+    for (const auto& [j, position] : by_frame[o.frame]) {
+      if (j != i && !dropped[j] &&
+          (position - o.position).norm() <= PiecesApart(options, timing, speed[i], speed[j])) {
+        visit(j);
+      }
+    }
+  };
+  // Frames of track i with a track beside it.
+  const auto count_beside = [&](size_t i) {
+    size_t beside = 0;
+    for (const TargetObservation& o : tracks[i].observations) {
+      bool any = false;
+      for_beside(i, o, [&](size_t) { any = true; });
+      beside += any;
+    }
+    return beside;
+  };
+  std::vector<size_t> beside(n, 0);
+  for (size_t i = 0; i < n; ++i) {
+    if (slow[i]) beside[i] = count_beside(i);
+  }
+  // The most shadowed first (the shorter, then the later, on a tie); dropping it frees the
+  // tracks beside it, whose counts are taken again.
+  for (;;) {
+    std::optional<size_t> worst;
+    double worst_fraction = 0;
+    for (size_t i = 0; i < n; ++i) {
+      if (!slow[i] || dropped[i] || tracks[i].observations.empty()) continue;
+      const double fraction =
+          static_cast<double>(beside[i]) / static_cast<double>(tracks[i].observations.size());
+      const bool worse = !worst || fraction > worst_fraction ||
+                         (fraction == worst_fraction &&
+                          (tracks[i].observations.size() < tracks[*worst].observations.size() ||
+                           (tracks[i].observations.size() == tracks[*worst].observations.size() &&
+                            tracks[i].id > tracks[*worst].id)));
+      if (worse) worst = i, worst_fraction = fraction;
+    }
+    if (!worst || worst_fraction < options.shadow_fraction || worst_fraction == 0) break;
+    dropped[*worst] = true;
+    std::vector<size_t> affected;
+    for (const TargetObservation& o : tracks[*worst].observations) {
+      for_beside(*worst, o, [&](size_t j) { affected.push_back(j); });
+    }
+    std::sort(affected.begin(), affected.end());
+    affected.erase(std::unique(affected.begin(), affected.end()), affected.end());
+    for (const size_t j : affected) beside[j] = count_beside(j);
+  }
+  std::vector<TargetTrack> kept;
+  kept.reserve(n);
+  for (size_t i = 0; i < n; ++i) {
+    if (!dropped[i]) kept.push_back(std::move(tracks[i]));
+  }
+  return kept;
 }
 
 }  // namespace saker::track

@@ -50,6 +50,9 @@ struct TargetTrackOptions {
   // [2 frames].
   double link_gap_s = 2.4;
   double duplicate_overlap_s = 0.2;
+  // DropShadows: a slow track (a walker's, mean ground speed up to ground_link_max_speed_px_s)
+  // beside other slow tracks in at least this fraction of its frames is dropped (above 1: never).
+  double shadow_fraction = 0.6;
   // With the ground's motion (GroundMotion), the pieces of slow objects (mean ground speed up to
   // ground_link_max_speed_px_s: people) are joined on the ground across gaps of up to
   // ground_link_gap_s [2 frames], the gate growing by ground_link_growth_px_s for each second of
@@ -218,6 +221,18 @@ class GroundMotion {
 // continues another across a scene cut (SceneContinuity): the pieces are in two scenes. Two tracks
 // that run side by side (within group_distance_px) for at least duplicate_overlap_s are one. Ids of
 // the earlier pieces are kept; the result is ordered by id. `rate` is the video's.
+// Drops the second tracks of slow objects already followed, once the pieces are joined. A slow
+// track (mean ground speed at most ground_link_max_speed_px_s: a walker's) is beside another slow
+// track in a frame when they lie within the distance pieces of one object keep (as for
+// duplicates). The track beside others in the largest fraction of its frames, if that is at least
+// shadow_fraction, is dropped (on a tie the shorter, then the later), and so on with the counts of
+// the tracks left. A walker's features can be followed twice and the copy drift onto a neighbour
+// it passes: it runs beside the walker's track and then the neighbour's, so no pairwise duplicate
+// test (the mean distance over the common frames) joins it, and as a second track on each it
+// takes their pairings and makes both look partial. The order of the rest is kept.
+std::vector<TargetTrack> DropShadows(std::vector<TargetTrack> tracks,
+                                     const TargetTrackOptions& options, FrameRate rate);
+
 std::vector<TargetTrack> LinkFragments(std::vector<TargetTrack> tracks,
                                        const TargetTrackOptions& options, FrameRate rate,
                                        const GroundMotion* ground = nullptr,

@@ -369,6 +369,42 @@ TEST(LinkFragmentsTest, OnTheGroundAStoppedWalkerIsJoinedAcrossALongGap) {
   EXPECT_EQ(LinkFragments(tracks, options, kRate, &broken).size(), 3u);
 }
 
+// A walker's second track that follows it, drifts and then follows the walker it passes is
+// dropped: it runs beside one of them in most of its frames. The two walkers' own tracks, a third
+// walker 20 px away and a car passing stay; of two tracks side by side throughout (one walker
+// tracked twice), the later goes.
+TEST(DropShadowsTest, DropsASecondTrackThatShadowsWalkersButNotTheWalkers) {
+  const TargetTrackOptions options;
+  std::vector<TargetTrack> tracks;
+  tracks.push_back(Track(1, 0, 99, {100, 100}, {0.3, 0}, {0.3, 0}));
+  tracks.push_back(Track(2, 60, 199, {150, 130}, {0.3, 0.1}, {0.3, 0.1}));
+  TargetTrack shadow = Track(3, 20, 150, {0, 0}, {0, 0}, {0.3, 0});
+  for (TargetObservation& o : shadow.observations) {
+    const double f = static_cast<double>(o.frame);
+    if (o.frame < 70) {
+      o.position = Eigen::Vector2d(100 + 0.3 * f, 100) + Eigen::Vector2d(2, 1);
+    } else if (o.frame < 90) {
+      o.position = Eigen::Vector2d(300 + f, 300);  // drifting, beside nobody
+    } else {
+      o.position =
+          Eigen::Vector2d(150 + 0.3 * (f - 60), 130 + 0.1 * (f - 60)) + Eigen::Vector2d(-2, 1);
+    }
+  }
+  tracks.push_back(shadow);
+  tracks.push_back(Track(4, 0, 99, {100, 120}, {0.3, 0}, {0.3, 0}));     // 20 px from walker 1
+  tracks.push_back(Track(5, 200, 299, {400, 400}, {0.3, 0}, {0.3, 0}));  // one walker ...
+  tracks.push_back(Track(6, 200, 299, {402, 401}, {0.3, 0}, {0.3, 0}));  // ... tracked twice
+  tracks.push_back(Track(7, 0, 99, {0, 101}, {2, 0}, {2, 0}));           // a car passing 1
+  const std::vector<TargetTrack> kept = DropShadows(tracks, options, kRate);
+  std::vector<int64_t> ids;
+  for (const TargetTrack& t : kept) ids.push_back(static_cast<int64_t>(t.id));
+  EXPECT_EQ(ids, (std::vector<int64_t>{1, 2, 4, 5, 7}));
+  // Turned off.
+  TargetTrackOptions off;
+  off.shadow_fraction = 2;
+  EXPECT_EQ(DropShadows(tracks, off, kRate).size(), tracks.size());
+}
+
 // An hour of video gives thousands of fragments: each of 1000 cars, ten on screen at a time,
 // broken into three pieces with its rear corners tracked alongside, comes out whole. (Rescanning
 // every pair after every merge had not finished this after 300 s; see docs/front-end.md.)
