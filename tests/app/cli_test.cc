@@ -481,6 +481,29 @@ TEST(CliProcessTest, LowFrameRateModeIsChosenBelowFourFramesASecond) {
   EXPECT_NE(run.out.find("sometimes not in {auto,on,off}"), std::string::npos) << run.out;
 }
 
+// A low oblique view: process says the horizon was masked, and the mission keeps each frame's
+// sky line (info: "sky masked: N of M frames", sky_frames in JSON).
+TEST(CliProcessTest, ALowObliqueViewsSkyIsMaskedAndKeptInTheMission) {
+  const std::filesystem::path dir = saker::testing::MakeTempDir("saker-cli-horizon");
+  const std::string video = (dir / "oblique.ts").string();
+  const CliRun sim = RunCli("simulate --scenario straight -o '" + video +
+                            "' --width 640 --height 360 --altitude 30 --off-nadir 82 --duration 3 "
+                            "--quiet");
+  ASSERT_EQ(sim.exit_code, 0) << sim.out;
+  const std::string mission = (dir / "oblique.saker").string();
+  CliRun run = RunCli("process '" + video + "' -o '" + mission + "'");
+  ASSERT_EQ(run.exit_code, 0) << run.out;
+  EXPECT_NE(run.out.find("horizon: the view reaches the horizon in"), std::string::npos) << run.out;
+  run = RunCli("info --json '" + mission + "'");
+  ASSERT_EQ(run.exit_code, 0) << run.out;
+  const nlohmann::json info = nlohmann::json::parse(run.out);
+  const int64_t sky = info.at("sky_frames").get<int64_t>();
+  EXPECT_GE(sky, info.at("frames").get<int64_t>() * 9 / 10);
+  run = RunCli("info '" + mission + "'");
+  EXPECT_NE(run.out.find("sky masked: " + std::to_string(sky) + " of "), std::string::npos)
+      << run.out;
+}
+
 TEST(CliProcessTest, TheOverlayMaskIsOnByDefaultSaysWhatItMaskedAndCanBeTurnedOff) {
   const std::filesystem::path dir = saker::testing::MakeTempDir("saker-cli-overlay");
   const std::string video = (dir / "hud.ts").string();
@@ -507,6 +530,9 @@ TEST(CliProcessTest, TheOverlayMaskIsOnByDefaultSaysWhatItMaskedAndCanBeTurnedOf
       run.out.find("overlay masks: " + std::to_string(kept.at("masks").get<int64_t>()) + " over "),
       std::string::npos)
       << run.out;
+  // A nadir view reaches no horizon: no frame's sky is masked.
+  EXPECT_EQ(on.at("sky_frames").get<int64_t>(), 0);
+  EXPECT_NE(run.out.find("sky masked: none"), std::string::npos) << run.out;
   run = RunCli("process -q --json --no-tiles --replace --overlay-mask off '" + video + "' -o '" +
                mission + "'");
   ASSERT_EQ(run.exit_code, 0) << run.out;
