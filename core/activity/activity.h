@@ -51,14 +51,14 @@ struct ActivitySummary {
 };
 
 // Fills the map position of every point of `tracks` (points on frames without a map_from_frame,
-// or in the sky or distant ground of their frame, are dropped; tracks left empty are removed) and each track's start and end time, length,
-// speed, speed_mps (geo-referenced missions), heading and visit, from the mission's frames (its
-// `frames`, `map` and `source` width and height). Point frame indices must be those of
-// `mission.frames`. Tracks whose average ground speed is impossible (geo-referenced missions,
-// above options.confidence.max_speed_mps) are removed. With `evidence` (by track id), each track
-// it holds gets its confidence (AssessTrack) and those below options.confidence.min_confidence
-// are removed; the others keep theirs. InvalidArgument for bad options or a point on an unknown
-// frame.
+// or in the sky or distant ground of their frame, are dropped; tracks left empty are removed) and
+// each track's start and end time, length, speed, speed_mps (geo-referenced missions), heading and
+// visit, from the mission's frames (its `frames`, `map` and `source` width and height). Point frame
+// indices must be those of `mission.frames`. Tracks whose average ground speed is impossible
+// (geo-referenced missions, above options.confidence.max_speed_mps) are removed. With `evidence`
+// (by track id), each track it holds gets its confidence (AssessTrack) and those below
+// options.confidence.min_confidence are removed; the others keep theirs. InvalidArgument for bad
+// options or a point on an unknown frame.
 StatusOr<ActivitySummary> MapActivity(
     const mission::Mission& mission, std::vector<mission::ActivityTrack>* tracks,
     const ActivityOptions& options = {},
