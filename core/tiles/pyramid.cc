@@ -19,12 +19,6 @@
 namespace saker::tiles {
 namespace {
 
-// Full-resolution image corners, pixel centres at integers.
-std::array<Eigen::Vector2d, 4> Corners(int width, int height) {
-  return {Eigen::Vector2d(0, 0), Eigen::Vector2d(width - 1, 0),
-          Eigen::Vector2d(width - 1, height - 1), Eigen::Vector2d(0, height - 1)};
-}
-
 struct Box {
   Eigen::Vector2d lo{std::numeric_limits<double>::infinity(),
                      std::numeric_limits<double>::infinity()};
@@ -52,8 +46,7 @@ Box Footprint(const std::vector<Eigen::Vector2d>& part, const Eigen::Matrix3d& m
 
 // Whether `part` is the whole frame (nothing cut away).
 bool WholeFrame(const std::vector<Eigen::Vector2d>& part, int width, int height) {
-  const std::array<Eigen::Vector2d, 4> corners = Corners(width, height);
-  return part.size() == 4 && std::equal(part.begin(), part.end(), corners.begin());
+  return part == mission::BelowSkyLine(std::nullopt, width, height);
 }
 
 class Renderer {
@@ -213,25 +206,28 @@ class Renderer {
     constexpr float kFillWeight = 1e-3f;
     weight.setTo(kFillWeight, excluded);
     weight.setTo(0.0f, outside);
-    // The fill: the mean of the unmasked pixels around, over a window a little wider than a
-    // text line (normalised box filter), repeated where the window held none.
-    cv::Mat valid, sum, count, grey;
-    cv::bitwise_not(excluded, valid);
-    valid.convertTo(valid, CV_32F, 1.0 / 255);
-    frame.grey->convertTo(grey, CV_32F);
-    cv::Mat filled = grey.clone();
-    for (int pass = 0, k = 31; pass < 4; ++pass, k *= 2) {
-      cv::boxFilter(filled.mul(valid), sum, CV_32F, cv::Size(k, k), cv::Point(-1, -1), false);
-      cv::boxFilter(valid, count, CV_32F, cv::Size(k, k), cv::Point(-1, -1), false);
-      cv::Mat mean;
-      cv::divide(sum, cv::max(count, 1e-6), mean);
-      const cv::Mat reached = (count > 0.5) & (valid < 0.5);
-      mean.copyTo(filled, reached);
-      valid.setTo(1.0f, reached);
-      if (cv::countNonZero(valid < 0.5) == 0) break;
+    OverlayLayer layer{i, *frame.grey, weight};  // the picture shared, when nothing is filled
+    if (frame.overlay != nullptr) {
+      // The fill: the mean of the unmasked pixels around, over a window a little wider than a
+      // text line (normalised box filter), repeated where the window held none.
+      cv::Mat valid, sum, count, grey;
+      cv::bitwise_not(excluded, valid);
+      valid.convertTo(valid, CV_32F, 1.0 / 255);
+      frame.grey->convertTo(grey, CV_32F);
+      cv::Mat filled = grey.clone();
+      for (int pass = 0, k = 31; pass < 4; ++pass, k *= 2) {
+        cv::boxFilter(filled.mul(valid), sum, CV_32F, cv::Size(k, k), cv::Point(-1, -1), false);
+        cv::boxFilter(valid, count, CV_32F, cv::Size(k, k), cv::Point(-1, -1), false);
+        cv::Mat mean;
+        cv::divide(sum, cv::max(count, 1e-6), mean);
+        const cv::Mat reached = (count > 0.5) & (valid < 0.5);
+        mean.copyTo(filled, reached);
+        valid.setTo(1.0f, reached);
+        if (cv::countNonZero(valid < 0.5) == 0) break;
+      }
+      layer.grey = cv::Mat();  // a buffer of its own: never written into the key frame's picture
+      filled.convertTo(layer.grey, CV_8U);
     }
-    OverlayLayer layer{i, cv::Mat(), weight};
-    filled.convertTo(layer.grey, CV_8U);
     constexpr size_t kKept = 8;
     if (overlay_layers_.size() >= kKept) overlay_layers_.erase(overlay_layers_.begin());
     overlay_layers_.push_back(std::move(layer));
@@ -321,7 +317,7 @@ class Renderer {
   std::map<std::pair<int, int>, cv::Mat> feathers_;
   struct OverlayLayer {
     size_t frame;  // in frames_
-    cv::Mat grey;  // the picture, filled on the overlay mask
+    cv::Mat grey;  // the picture, filled on the overlay mask (shared when there is none)
     cv::Mat weight;
   };
   std::vector<OverlayLayer> overlay_layers_;
