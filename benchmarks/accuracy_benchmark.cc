@@ -19,6 +19,7 @@
 
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <iostream>
 #include <string>
 
@@ -33,6 +34,7 @@ int main(int argc, char** argv) {
   int jobs = 1;
   bool json = false;
   std::string overlay_mask = "default";
+  std::string details;
   app.add_option("MANIFEST", manifest, "Corpus manifest (docs/accuracy.md)")->capture_default_str();
   app.add_option("--seeds", seeds_name,
                  "Seeds to run: tuning (defaults may be tuned on these), reporting (the figures "
@@ -51,6 +53,9 @@ int main(int argc, char** argv) {
                  "(docs/front-end.md, Overlays)")
       ->capture_default_str()
       ->check(CLI::IsMember({"default", "on", "off"}));
+  app.add_option("--details", details,
+                 "Also write each case's evaluation with its missed sightings and false tracks "
+                 "(saker-cli evaluate --details) to DIR/CONDITION-SEED.txt");
   CLI11_PARSE(app, argc, argv);
 
   bench::SetDefaultTestDataDir(SAKER_DEFAULT_TEST_DATA_DIR);
@@ -85,6 +90,18 @@ int main(int argc, char** argv) {
   const std::vector<bench::CaseResult> results = bench::RunCorpus(cases, options);
   std::fprintf(stderr, "saker-bench-accuracy: done in %.0f s\n", start.ElapsedSeconds());
 
+  if (!details.empty()) {
+    std::error_code error;
+    fs::create_directories(details, error);
+    for (const bench::CaseResult& r : results) {
+      if (r.details.empty()) continue;
+      const fs::path path = fs::path(details) / (r.corpus_case.condition + "-" +
+                                                 std::to_string(r.corpus_case.seed) + ".txt");
+      std::ofstream out(path);
+      out << r.details;
+      if (!out) std::cerr << "saker-bench-accuracy: " << path.string() << ": cannot write\n";
+    }
+  }
   if (json) {
     std::cout << bench::CorpusReportJson(*corpus, seeds, results).dump(2) << "\n";
   } else {

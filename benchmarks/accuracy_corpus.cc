@@ -425,6 +425,7 @@ Status MeasureCase(const fs::path& cache_dir, const frontend::FrontEndOptions& f
   SAKER_ASSIGN_OR_RETURN(const eval::VideoEvaluation evaluation,
                          eval::EvaluateVideo(cached.video.string(), truth, options));
   result->figures = FiguresOf(evaluation, truth);
+  result->details = eval::VideoEvaluationToText(evaluation, /*details=*/true);
   result->figures.process_s = start.ElapsedSeconds();
   result->figures.simulate_s = cached.simulate_s;
   return Status::Ok();

@@ -183,6 +183,9 @@ struct CaseResult {
   std::string cache_key;
   bool simulated = false;
   CorpusFigures figures;
+  // `saker-cli evaluate --details`'s text for the case (missed sightings, false tracks): what
+  // `saker-bench-accuracy --details DIR` writes; empty when the case failed.
+  std::string details;
 };
 
 // Simulates (or takes from the cache) and measures one case with the front end's `front_end`

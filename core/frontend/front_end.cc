@@ -51,8 +51,7 @@ constexpr uint32_t kStateLayoutWithoutOverlays = 1;
 // its answers not yet applied there (kChangeLagFrames of them) and the image history each needs.
 int ChangeReplayFrames(const track::ChangeOptions& change, track::FrameRate rate) {
   if (!change.enabled) return 0;
-  return static_cast<int>(kChangeLagFrames) +
-         2 * track::ChangeDetector::BaselineFrames(change, rate).back();
+  return static_cast<int>(kChangeLagFrames) + 2 * track::ChangeDetector::LagFrames(change, rate);
 }
 
 // Decoding on a thread of its own: ingest::ScanVideo reads every frame and KLV packet of the
@@ -291,7 +290,7 @@ FrontEnd::FrontEnd(std::unique_ptr<video::VideoReader> reader, const FrontEndOpt
       job_(job),
       resume_(resume),
       start_(ResumePointOf(resume, rate_.Frames(options.resume_warmup_s, kMinWarmupFrames),
-                           ChangeReplayFrames(options.change, rate_))),
+                           ChangeReplayFrames(options.EffectiveChange(rate_.fps()), rate_))),
       chain_seam_(resume),
       tracker_(options.EffectiveTracker(), rate_),
       segmenter_(options.segmentation, rate_),
@@ -958,6 +957,7 @@ track::ChangeOptions FrontEndOptions::EffectiveChange(double fps) const {
   track::ChangeOptions effective = change;
   if (LowFrameRateFor(fps)) {
     effective.max_area_px = std::max(effective.max_area_px, low_frame_rate.max_blob_area_px);
+    effective.one_sided_edges = low_frame_rate.one_sided_edges;
   }
   return effective;
 }

@@ -64,6 +64,9 @@ struct LowFrameRateOptions {
   // Change blobs up to this size (processing pixels: the change detector's copy, 960 wide by
   // default) are targets: at 0.2 m a pixel a car is ~110, a lorry ~400.
   int max_blob_area_px = 600;
+  // The edges of the view, which the frames before and after do not both see, are compared with
+  // the two frames before or the two after (ChangeOptions::one_sided_edges).
+  bool one_sided_edges = true;
   track::BlobTrackOptions blobs = LowFrameRateBlobs();
   Status Validate() const;
   // The blob tracker's options in the mode: a car moves tens of pixels between frames and its

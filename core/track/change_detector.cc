@@ -79,6 +79,11 @@ Status ChangeOptions::Validate() const {
         "change detection: noise and threshold must be positive, the registration allowance and "
         "contrast >= 0");
   }
+  if (!(one_sided_min_uncovered >= 0 && one_sided_min_uncovered <= 1)) {
+    return InvalidArgumentError(
+        "change detection: the part of the frame left uncovered for one-sided comparisons must "
+        "be in [0, 1]");
+  }
   if (border_px < 0 || min_area_px < 1 || max_area_px < min_area_px) {
     return InvalidArgumentError("change detection: need border >= 0 and 1 <= min area <= max area");
   }
@@ -88,6 +93,7 @@ Status ChangeOptions::Validate() const {
 ChangeDetector::ChangeDetector(const ChangeOptions& options, FrameRate rate) : options_(options) {
   SAKER_CHECK(options_.Validate().ok()) << options_.Validate().message();
   for (const int b : BaselineFrames(options, rate)) baselines_.push_back(static_cast<size_t>(b));
+  lag_ = static_cast<size_t>(LagFrames(options, rate));
 }
 
 std::vector<int> ChangeDetector::BaselineFrames(const ChangeOptions& options, FrameRate rate) {
@@ -98,6 +104,12 @@ std::vector<int> ChangeDetector::BaselineFrames(const ChangeOptions& options, Fr
     if (long_frames > frames[0]) frames.push_back(long_frames);
   }
   return frames;
+}
+
+int ChangeDetector::LagFrames(const ChangeOptions& options, FrameRate rate) {
+  const std::vector<int> baselines = BaselineFrames(options, rate);
+  return options.one_sided_edges ? std::max(baselines.back(), 2 * baselines.front())
+                                 : baselines.back();
 }
 
 void ChangeDetector::Reset() { history_.clear(); }
@@ -114,27 +126,48 @@ ChangeFrame ChangeDetector::Process(int64_t frame, const cv::Mat& grey,
   if (grey.size() != full_size_) SetFrameSize(grey.size());
   if (!current_from_previous || !current_from_previous->allFinite()) history_.clear();
 
-  // The centre frame is the one `longest` back; each baseline compares it with the frames that
-  // many before and after it.
+  // The centre frame is the one lag_ back; each baseline compares it with the frames that many
+  // before and after it.
   const std::vector<size_t>& baselines = baselines_;
-  const size_t longest = baselines.back();
-  Remember(frame, grey, current_from_previous, 2 * longest + 1);
-  if (history_.size() < 2 * longest + 1) return result;
-  const Entry& centre = history_[longest];
+  const size_t c = lag_;
+  Remember(frame, grey, current_from_previous, 2 * c + 1);
+  if (history_.size() < 2 * c + 1) return result;
+  const Entry& centre = history_[c];
 
-  // Per baseline: the frames before and after, and where both cover the centre frame.
-  pairs_.resize(baselines.size());
-  covers_.resize(baselines.size());
+  // Per pair: the two frames, and where both cover the centre frame.
+  std::vector<std::pair<size_t, size_t>> pairs;
+  for (const size_t baseline : baselines) pairs.emplace_back(c - baseline, c + baseline);
+  const size_t b = baselines.front();
+  if (options_.one_sided_edges) {
+    pairs.emplace_back(c - 2 * b, c - b);
+    pairs.emplace_back(c + b, c + 2 * b);
+  }
+  pairs_.resize(pairs.size());
+  covers_.resize(pairs.size());
   // The answer's masks are its own (allocated here, never reused by the detector).
   cv::Mat valid(small_size_, CV_8U, cv::Scalar(0));
-  for (size_t i = 0; i < baselines.size(); ++i) {
-    if (!Warp(longest - baselines[i], longest, &pairs_[i][0]) ||
-        !Warp(longest + baselines[i], longest, &pairs_[i][1])) {
+  for (size_t i = 0; i < pairs.size(); ++i) {
+    if (!Warp(pairs[i].first, c, &pairs_[i][0]) || !Warp(pairs[i].second, c, &pairs_[i][1])) {
       return result;  // a degenerate motion: no answer for this frame
     }
+    // The frame two baselines away in a one-sided pair: the first before, the second after.
+    pairs_[i][0].allowance = i >= baselines.size() && pairs[i].first < c ? 2.0f : 1.0f;
+    pairs_[i][1].allowance = i >= baselines.size() && pairs[i].second > c + b ? 2.0f : 1.0f;
     cv::bitwise_and(pairs_[i][0].cover, pairs_[i][1].cover, covers_[i]);
-    cv::bitwise_or(valid, covers_[i], valid);
+    if (i < baselines.size()) {
+      cv::bitwise_or(valid, covers_[i], valid);
+    } else {
+      covers_[i].setTo(0, valid);  // one-sided only where the centred pairs cannot look
+    }
   }
+  const double uncovered =
+      1.0 - static_cast<double>(cv::countNonZero(valid)) / static_cast<double>(valid.total());
+  if (uncovered < options_.one_sided_min_uncovered) {
+    pairs_.resize(baselines.size());  // the centred comparisons see nearly all of it
+    covers_.resize(baselines.size());
+  }
+  for (size_t i = baselines.size(); i < pairs_.size(); ++i)
+    cv::bitwise_or(valid, covers_[i], valid);
   cv::Mat changed = MarkChanged(centre.grey);
   result.blobs = FindBlobs(changed);
   result.frame = centre.frame;
@@ -236,9 +269,10 @@ cv::Mat ChangeDetector::MarkChanged(const cv::Mat& image) {
               allowance = static_cast<float>(options_.registration_px);
   const float threshold = static_cast<float>(options_.threshold);
   const float quick = threshold * noise;
-  const auto significant = [&](float d, const cv::Mat& other, int x, int y) {
-    return d * d > threshold * threshold *
-                       (noise * noise + allowance * allowance * GradientSquared(other, x, y));
+  const auto significant = [&](float d, const Other& other, int x, int y) {
+    const float a = allowance * other.allowance;
+    return d * d >
+           threshold * threshold * (noise * noise + a * a * GradientSquared(other.warped, x, y));
   };
   cv::Mat changed(small_size_, CV_8U, cv::Scalar(0));
   strength_.create(small_size_, CV_32F);
@@ -269,7 +303,7 @@ cv::Mat ChangeDetector::MarkChanged(const cv::Mat& image) {
         if (candidate[static_cast<size_t>(x)] == 0) continue;
         const float d0 = static_cast<float>(c[x]) - before.gain * static_cast<float>(w0[x]);
         const float d1 = static_cast<float>(c[x]) - after.gain * static_cast<float>(w1[x]);
-        if (!significant(d0, before.warped, x, y) || !significant(d1, after.warped, x, y)) {
+        if (!significant(d0, before, x, y) || !significant(d1, after, x, y)) {
           continue;
         }
         const float a = std::min(std::abs(d0), std::abs(d1));

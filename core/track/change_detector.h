@@ -44,8 +44,21 @@ struct ChangeOptions {
   // A frame is compared with those this long before and after [1 frame, at most 100 frames]: the
   // default is the 12 frames tuned at 25 frames a second.
   double baseline_s = 0.48;
-  double long_baseline_s = 0;    // ... and also this long (0: no second baseline), for slower or
-                                 // longer movers (a walker and its shadow)
+  double long_baseline_s = 0;  // ... and also this long (0: no second baseline), for slower or
+                               // longer movers (a walker and its shadow)
+  // Where the frames before and after do not both see the centre frame's ground (the edges of a
+  // moving camera's view), also compare it with the two frames a baseline and two baselines
+  // before it, or the two after it. Sound only for movers that leave their own outline within
+  // one baseline (at 1-4 frames a second every car and walker does; a slower one leaves a ghost
+  // where it was): the low-frame-rate mode turns it on, where the ground moves a sixth of the
+  // frame between frames and the edges are a third of the image. The answer then comes two
+  // baselines late. Parallax (a roof seen from three places) differs from the centre frame with
+  // opposite signs before and after it, which the centred test rejects, but often with one sign
+  // on one side: so the one-sided comparisons are made only where they gain much, when the
+  // centred ones leave at least `one_sided_min_uncovered` of the frame unseen (a fast pan, not
+  // the corners an orbit's rotation leaves).
+  bool one_sided_edges = false;
+  double one_sided_min_uncovered = 0.1;
   int processing_width = 960;    // on a copy this wide (never enlarged); 0 = full resolution
   double noise_grey = 2.5;       // grey-level noise of one pixel's difference (sensor, compression)
   double threshold = 4;          // a difference above this many times its noise is significant
@@ -93,6 +106,9 @@ class ChangeDetector {
 
   // The baselines at `rate`, in frames: the short one, then the long one when it is longer.
   static std::vector<int> BaselineFrames(const ChangeOptions& options, FrameRate rate);
+  // How many frames the answer comes late: the longest baseline, or two short ones with
+  // `one_sided_edges`. The detector holds twice this plus one frames.
+  static int LagFrames(const ChangeOptions& options, FrameRate rate);
 
   // One frame (8-bit grey, full resolution; frame indices increase). `current_from_previous` is
   // the ground motion since the previous frame in full-resolution pixels; nullopt when unknown
@@ -114,6 +130,9 @@ class ChangeDetector {
   struct Other {  // a frame before or after the centre, warped onto it
     cv::Mat warped, cover;
     float gain = 1;
+    // The registration allowance's multiple: 2 for the farther frame of a one-sided pair (twice
+    // the time, twice the parallax and drift of the chained motion), else 1.
+    float allowance = 1;
   };
   Eigen::Vector2d ToFull(double x, double y) const;
   // The steps of Process(), in order.
@@ -127,15 +146,18 @@ class ChangeDetector {
 
   ChangeOptions options_;
   std::vector<size_t> baselines_;  // BaselineFrames(), shortest first
+  size_t lag_ = 0;                 // LagFrames(): the centre frame's place in the history
   cv::Size full_size_, small_size_;
   double scale_ = 1;           // full / processing
-  std::deque<Entry> history_;  // the last 2 x the longest baseline + 1 frames of the segment
+  std::deque<Entry> history_;  // the last 2 x lag_ + 1 frames of the segment
   // Buffers reused from frame to frame (the masks handed out are allocated per answer).
-  std::vector<std::array<Other, 2>> pairs_;  // per baseline: before and after
-  std::vector<cv::Mat> covers_;              // per baseline: where both cover the centre frame
-  cv::Mat unvisited_;                        // changed pixels not yet in a component
-  std::vector<cv::Point> seeds_, fill_;      // the changed pixels; those waiting to be filled
-  cv::Mat strength_;                         // CV_32F signed change of the changed pixels
+  // Per baseline: before and after; then, with one_sided_edges, the two frames before and the two
+  // after.
+  std::vector<std::array<Other, 2>> pairs_;
+  std::vector<cv::Mat> covers_;  // per pair: where it is compared (both cover the centre frame)
+  cv::Mat unvisited_;            // changed pixels not yet in a component
+  std::vector<cv::Point> seeds_, fill_;  // the changed pixels; those waiting to be filled
+  cv::Mat strength_;                     // CV_32F signed change of the changed pixels
 };
 
 // Durations in seconds, speeds in pixels a second (FrameRate), floors in frames in brackets; the

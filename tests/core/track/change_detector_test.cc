@@ -178,6 +178,70 @@ TEST(ChangeDetectorTest, NoGhostBehindASlowLongMover) {
   EXPECT_GT(checked, 30);
 }
 
+// A camera that moves a sixth of its frame between frames (one frame a second): the frames before
+// and after both see only the middle two thirds. With one_sided_edges a mover on the ground that
+// only the later frames see (the leading edge) is found by comparing with the two frames after,
+// and static ground there changes nowhere; the answer comes two frames late.
+TEST(ChangeDetectorTest, OneSidedComparisonsReachTheEdgesOfAFastPan) {
+  const FrameRate rate(1);
+  ChangeOptions centred_only = SmallFrameOptions();
+  centred_only.max_area_px = 600;  // a car's blob, as in the low-frame-rate mode
+  ChangeOptions options = centred_only;
+  options.one_sided_edges = true;
+  EXPECT_EQ(ChangeDetector::LagFrames(options, rate), 2);
+  EXPECT_EQ(ChangeDetector::LagFrames(centred_only, rate), 1);
+  // A wide ground and a pan of 50 px a frame to the right.
+  cv::Mat ground(kHeight + 40, kWidth + 400, CV_32F);
+  cv::RNG rng(11);
+  rng.fill(ground, cv::RNG::NORMAL, 128, 120);
+  cv::GaussianBlur(ground, ground, cv::Size(0, 0), 2.0);
+  const Eigen::Vector2d pan(50, 0);
+  Eigen::Matrix3d motion = Eigen::Matrix3d::Identity();
+  motion(0, 2) = -pan.x();
+  // A car-sized mover near the right edge of the centre frame (frame 2), driving down: 30 px a
+  // frame, so it leaves its own outline between frames.
+  const auto car = [&](int n) { return Eigen::Vector2d(2 * pan.x() + kWidth - 20, 60 + 30.0 * n); };
+  const auto frame = [&](int n) {
+    cv::Mat shifted;
+    cv::Mat m = (cv::Mat_<double>(2, 3) << 1, 0, -pan.x() * n, 0, 1, 0);
+    cv::warpAffine(ground, shifted, m, cv::Size(kWidth, kHeight), cv::INTER_LINEAR);
+    const Eigen::Vector2d c = car(n) - pan * n;
+    cv::rectangle(shifted, cv::Point(static_cast<int>(c.x()) - 4, static_cast<int>(c.y()) - 8),
+                  cv::Point(static_cast<int>(c.x()) + 4, static_cast<int>(c.y()) + 8),
+                  cv::Scalar(20), cv::FILLED);
+    cv::Mat out;
+    shifted.convertTo(out, CV_8U);
+    return out;
+  };
+  const auto run = [&](const ChangeOptions& o) {
+    ChangeDetector detector(o, rate);
+    ChangeFrame answer;
+    for (int n = 0; n < 5 && !(answer.answered() && answer.frame == 2); ++n) {
+      answer = detector.Process(n, frame(n), n == 0 ? std::nullopt : std::optional(motion));
+    }
+    return answer;
+  };
+  const ChangeFrame one_sided = run(options);
+  ASSERT_TRUE(one_sided.answered());
+  EXPECT_EQ(one_sided.frame, 2);
+  const Eigen::Vector2d at = car(2) - pan * 2;  // in frame 2's pixels
+  EXPECT_TRUE(one_sided.Compared(at));
+  ASSERT_EQ(one_sided.blobs.size(), 1u);
+  EXPECT_LT((one_sided.blobs[0].position - at).norm(), 2.0);
+  // Centred only, the edge is not compared and nothing is found there; nor when the part the
+  // centred comparisons leave (two bands of 50 px in 320: 31 %) is below the threshold.
+  const ChangeFrame centred = run(centred_only);
+  ASSERT_TRUE(centred.answered());
+  EXPECT_FALSE(centred.Compared(at));
+  EXPECT_TRUE(centred.blobs.empty());
+  ChangeOptions narrow = options;
+  narrow.one_sided_min_uncovered = 0.4;
+  const ChangeFrame below = run(narrow);
+  ASSERT_TRUE(below.answered());
+  EXPECT_FALSE(below.Compared(at));
+  EXPECT_TRUE(below.blobs.empty());
+}
+
 TEST(ChangeDetectorTest, AChainBreakStartsAgain) {
   const cv::Mat ground = Ground();
   std::mt19937 random(4);
@@ -247,6 +311,9 @@ TEST(ChangeDetectorTest, OptionsAreChecked) {
   EXPECT_FALSE(options.Validate().ok());
   options = {};
   options.max_area_px = 0;
+  EXPECT_FALSE(options.Validate().ok());
+  options = {};
+  options.one_sided_min_uncovered = 1.5;
   EXPECT_FALSE(options.Validate().ok());
   BlobTrackOptions tracks;
   EXPECT_TRUE(tracks.Validate().ok());
