@@ -134,40 +134,43 @@ ChangeFrame ChangeDetector::Process(int64_t frame, const cv::Mat& grey,
   if (history_.size() < 2 * c + 1) return result;
   const Entry& centre = history_[c];
 
-  // Per pair: the two frames, and where both cover the centre frame.
-  std::vector<std::pair<size_t, size_t>> pairs;
-  for (const size_t baseline : baselines) pairs.emplace_back(c - baseline, c + baseline);
-  const size_t b = baselines.front();
-  if (options_.one_sided_edges) {
-    pairs.emplace_back(c - 2 * b, c - b);
-    pairs.emplace_back(c + b, c + 2 * b);
-  }
-  pairs_.resize(pairs.size());
-  covers_.resize(pairs.size());
+  // Per pair: the two frames, and where both cover the centre frame. The centred pairs first.
   // The answer's masks are its own (allocated here, never reused by the detector).
   cv::Mat valid(small_size_, CV_8U, cv::Scalar(0));
-  for (size_t i = 0; i < pairs.size(); ++i) {
-    if (!Warp(pairs[i].first, c, &pairs_[i][0]) || !Warp(pairs[i].second, c, &pairs_[i][1])) {
+  const auto compare = [&](size_t i, size_t first, size_t second) {
+    if (!Warp(first, c, &pairs_[i][0]) || !Warp(second, c, &pairs_[i][1])) return false;
+    cv::bitwise_and(pairs_[i][0].cover, pairs_[i][1].cover, covers_[i]);
+    return true;
+  };
+  pairs_.resize(baselines.size());
+  covers_.resize(baselines.size());
+  for (size_t i = 0; i < baselines.size(); ++i) {
+    if (!compare(i, c - baselines[i], c + baselines[i])) {
       return result;  // a degenerate motion: no answer for this frame
     }
-    // The frame two baselines away in a one-sided pair: the first before, the second after.
-    pairs_[i][0].allowance = i >= baselines.size() && pairs[i].first < c ? 2.0f : 1.0f;
-    pairs_[i][1].allowance = i >= baselines.size() && pairs[i].second > c + b ? 2.0f : 1.0f;
-    cv::bitwise_and(pairs_[i][0].cover, pairs_[i][1].cover, covers_[i]);
-    if (i < baselines.size()) {
-      cv::bitwise_or(valid, covers_[i], valid);
-    } else {
-      covers_[i].setTo(0, valid);  // one-sided only where the centred pairs cannot look
-    }
+    pairs_[i][0].allowance = pairs_[i][1].allowance = 1;
+    cv::bitwise_or(valid, covers_[i], valid);
   }
+  // The one-sided pairs, only where the centred ones cannot look and only when that is a good part
+  // of the frame; the frame two baselines away has twice the allowance.
   const double uncovered =
       1.0 - static_cast<double>(cv::countNonZero(valid)) / static_cast<double>(valid.total());
-  if (uncovered < options_.one_sided_min_uncovered) {
-    pairs_.resize(baselines.size());  // the centred comparisons see nearly all of it
-    covers_.resize(baselines.size());
+  if (options_.one_sided_edges && uncovered >= options_.one_sided_min_uncovered) {
+    const size_t b = baselines.front(), before = baselines.size(), after = before + 1;
+    pairs_.resize(before + 2);
+    covers_.resize(before + 2);
+    if (compare(before, c - 2 * b, c - b) && compare(after, c + b, c + 2 * b)) {
+      pairs_[before][0].allowance = pairs_[after][1].allowance = 2;
+      pairs_[before][1].allowance = pairs_[after][0].allowance = 1;
+      covers_[before].setTo(0, valid);
+      covers_[after].setTo(0, valid);
+      cv::bitwise_or(valid, covers_[before], valid);
+      cv::bitwise_or(valid, covers_[after], valid);
+    } else {
+      pairs_.resize(before);  // a degenerate motion that far: the centred answer alone
+      covers_.resize(before);
+    }
   }
-  for (size_t i = baselines.size(); i < pairs_.size(); ++i)
-    cv::bitwise_or(valid, covers_[i], valid);
   cv::Mat changed = MarkChanged(centre.grey);
   result.blobs = FindBlobs(changed);
   result.frame = centre.frame;
@@ -285,21 +288,24 @@ cv::Mat ChangeDetector::MarkChanged(const cv::Mat& image) {
   for (size_t i = 0; i < pairs_.size(); ++i) {
     const Other& before = pairs_[i][0];
     const Other& after = pairs_[i][1];
-    for (int y = 0; y < small_size_.height; ++y) {
+    // Only where the pair compares: the whole frame for a centred pair, a band at an edge for a
+    // one-sided one.
+    const cv::Rect area = cv::boundingRect(covers_[i]);
+    for (int y = area.y; y < area.y + area.height; ++y) {
       const uint8_t* c = image.ptr<uint8_t>(y);
       const uint8_t* w0 = before.warped.ptr<uint8_t>(y);
       const uint8_t* w1 = after.warped.ptr<uint8_t>(y);
       const uint8_t* v = covers_[i].ptr<uint8_t>(y);
       uint8_t* out = changed.ptr<uint8_t>(y);
       float* s = strength_.ptr<float>(y);
-      for (int x = 0; x < small_size_.width; ++x) {
+      for (int x = area.x; x < area.x + area.width; ++x) {
         const float d0 = static_cast<float>(c[x]) - before.gain * static_cast<float>(w0[x]);
         const float d1 = static_cast<float>(c[x]) - after.gain * static_cast<float>(w1[x]);
         const float a = std::min(std::abs(d0), std::abs(d1));
         candidate[static_cast<size_t>(x)] =
             static_cast<uint8_t>((v[x] != 0) & (d0 * d1 > 0) & (a > quick) & (a > std::abs(s[x])));
       }
-      for (int x = 0; x < small_size_.width; ++x) {
+      for (int x = area.x; x < area.x + area.width; ++x) {
         if (candidate[static_cast<size_t>(x)] == 0) continue;
         const float d0 = static_cast<float>(c[x]) - before.gain * static_cast<float>(w0[x]);
         const float d1 = static_cast<float>(c[x]) - after.gain * static_cast<float>(w1[x]);
