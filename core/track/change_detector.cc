@@ -159,9 +159,14 @@ ChangeFrame ChangeDetector::Process(int64_t frame, const cv::Mat& grey,
     const size_t b = baselines.front(), before = baselines.size(), after = before + 1;
     pairs_.resize(before + 2);
     covers_.resize(before + 2);
-    if (compare(before, c - 2 * b, c - b) && compare(after, c + b, c + 2 * b)) {
+    // The frames a baseline away are the short centred pair's, already warped (shared, not
+    // copied: they are warped again into that pair's buffers before they are shared next time).
+    pairs_[before][1] = pairs_[0][0];
+    pairs_[after][0] = pairs_[0][1];
+    if (Warp(c - 2 * b, c, &pairs_[before][0]) && Warp(c + 2 * b, c, &pairs_[after][1])) {
+      cv::bitwise_and(pairs_[before][0].cover, pairs_[before][1].cover, covers_[before]);
+      cv::bitwise_and(pairs_[after][0].cover, pairs_[after][1].cover, covers_[after]);
       pairs_[before][0].allowance = pairs_[after][1].allowance = 2;
-      pairs_[before][1].allowance = pairs_[after][0].allowance = 1;
       covers_[before].setTo(0, valid);
       covers_[after].setTo(0, valid);
       cv::bitwise_or(valid, covers_[before], valid);
