@@ -148,7 +148,6 @@ ChangeFrame ChangeDetector::Process(int64_t frame, const cv::Mat& grey,
     if (!compare(i, c - baselines[i], c + baselines[i])) {
       return result;  // a degenerate motion: no answer for this frame
     }
-    pairs_[i][0].allowance = pairs_[i][1].allowance = 1;
     cv::bitwise_or(valid, covers_[i], valid);
   }
   // The one-sided pairs, only where the centred ones cannot look and only when that is a good part

@@ -113,9 +113,10 @@ class ChangeDetector {
   // One frame (8-bit grey, full resolution; frame indices increase). `current_from_previous` is
   // the ground motion since the previous frame in full-resolution pixels; nullopt when unknown
   // (the first frame of a chain segment): the comparison then starts again. The comparison is
-  // centred: the answer belongs to the frame the longest baseline back (ChangeFrame::frame),
-  // compared with the frames each baseline before and after it; no answer (frame -1) while the
-  // segment is shorter than twice the longest baseline.
+  // centred: the answer belongs to the frame LagFrames() back (ChangeFrame::frame), compared with
+  // the frames each baseline before and after it (and, with `one_sided_edges`, where those do not
+  // both see it, with the two frames on the side that does); no answer (frame -1) while the
+  // segment is shorter than twice LagFrames().
   ChangeFrame Process(int64_t frame, const cv::Mat& grey,
                       const std::optional<Eigen::Matrix3d>& current_from_previous);
   void Reset();
