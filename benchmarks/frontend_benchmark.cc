@@ -2,7 +2,8 @@
 // H.264 video at 1280x720 and 1920x1080, measured in the same run, with time per stage and peak
 // memory.
 //
-//   saker-bench-frontend [--seconds S] [--json]
+//   saker-bench-frontend [--seconds S] [--json] [--compare-overlays] [--compare-low-frame-rate]
+//                        [--compare-colour]
 //   saker-bench-frontend --memory-minutes M [--memory-height H] [--memory-repeat R]
 //
 // --memory-minutes measures memory instead: it simulates M minutes of video once (1280x720, or
@@ -250,6 +251,11 @@ int main(int argc, char** argv) {
                "Also simulate the flight at 2 frames a second and run the front end on it with "
                "the low-frame-rate mode off and on (FrontEndOptions::low_frame_rate), for its "
                "cost per frame against feature targets on the same frames");
+  bool compare_colour = false;
+  app.add_flag("--compare-colour", compare_colour,
+               "Also run the front end with grey key frames (FrontEndOptions::key_frame_colour "
+               "off: no chroma decoded) and with colour ones on the same video, for the cost of "
+               "the colour mosaic in the same run");
   CLI11_PARSE(app, argc, argv);
   if (memory_minutes > 0) return MeasureMemory(memory_minutes, memory_height, memory_repeat);
 
@@ -273,6 +279,7 @@ int main(int argc, char** argv) {
                      {"height", h},
                      {"video_fps", sim.fps},
                      {"overlays", options.overlays.enabled},
+                     {"key_frame_colour", options.key_frame_colour},
                      {"low_frame_rate", result->low_frame_rate},
                      {"frames", t.frames},
                      {"decode_only_fps", decode_fps},
@@ -323,6 +330,13 @@ int main(int argc, char** argv) {
       saker::frontend::FrontEndOptions options;
       options.overlays.enabled = overlays;
       if (!run(sim, decode_fps, options, overlays ? "overlays on" : "overlays off")) return 1;
+    }
+    for (const bool colour : compare_colour ? std::vector{false, true} : std::vector<bool>{}) {
+      saker::frontend::FrontEndOptions options;
+      options.key_frame_colour = colour;
+      if (!run(sim, decode_fps, options, colour ? "colour key frames" : "grey key frames")) {
+        return 1;
+      }
     }
     if (!compare_low_frame_rate) continue;
     // The whole flight (71 s) at 2 frames a second.

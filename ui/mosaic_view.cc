@@ -4,11 +4,13 @@
 #include "core/mosaic/adjustment.h"
 #include "core/track/homography.h"
 #include "core/track/image_geometry.h"
+#include "core/track/picture.h"
 #include "core/util/statistics.h"
 #include "core/util/timer.h"
 #include "ui/tile_cache.h"
 
 #include <Eigen/LU>
+#include <opencv2/imgproc.hpp>
 
 #include <QFontMetricsF>
 #include <QKeyEvent>
@@ -227,8 +229,16 @@ void MosaicView::addPreviewKeyFrame(const frontend::KeyFramePreview& preview) {
     canvas_bounds_ = wanted;
   }
   {
-    const QImage image(grey.data, grey.cols, grey.rows, static_cast<qsizetype>(grey.step),
-                       QImage::Format_Grayscale8);
+    // Colour key frames drawn in colour (the RGB888 image reads BGR as RGB: swapped first).
+    cv::Mat rgb;
+    if (track::IsColour(preview.image)) {
+      cv::cvtColor(track::KeyFrameBgr(preview.image), rgb, cv::COLOR_BGR2RGB);
+    }
+    const QImage image = rgb.empty()
+                             ? QImage(grey.data, grey.cols, grey.rows,
+                                      static_cast<qsizetype>(grey.step), QImage::Format_Grayscale8)
+                             : QImage(rgb.data, rgb.cols, rgb.rows,
+                                      static_cast<qsizetype>(rgb.step), QImage::Format_RGB888);
     QPainter painter(&preview_canvas_);
     painter.setRenderHint(QPainter::SmoothPixmapTransform);
     painter.setTransform(ToQTransform(preview_from_grey) * canvas_from_preview_);

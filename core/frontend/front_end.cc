@@ -2,6 +2,7 @@
 
 #include "core/frontend/change_thread.h"
 #include "core/frontend/resume.h"
+#include "core/track/picture.h"
 #include "core/util/bounded_queue.h"
 #include "core/util/byte_io.h"
 #include "core/util/check.h"
@@ -78,6 +79,8 @@ class DecodeThread {
                   video::Frame copy = frame;
                   // The reader reuses its buffers; a frame that is only decoded needs no pixels.
                   copy.grey = frame.index >= pixels_from ? frame.grey.clone() : cv::Mat();
+                  // Fresh for every frame (never reused), so shared rather than copied.
+                  if (frame.index < pixels_from) copy.chroma = cv::Mat();
                   decode_ms_ += watch.ElapsedMs();
                   if (!queue_.Push(std::move(copy))) job_.RequestCancel();
                   watch.Restart();
@@ -211,7 +214,7 @@ class FrontEnd {
   void CloseOverlayMask(int64_t last_frame);
   bool AddToChain(const video::Frame& frame,
                   const std::optional<track::HomographyEstimate>& estimate);
-  void AddKeyFrameImage(const track::KeyFrame& key, const cv::Mat& grey);
+  void AddKeyFrameImage(const track::KeyFrame& key, const video::Frame& frame);
   Status HandOutCheckpoint(int64_t through_frame, bool complete);
   StatusOr<FrontEndResult> Finish(ingest::VideoScan scan, double decode_ms);
   void FinishTargets();
@@ -777,7 +780,7 @@ bool FrontEnd::AddToChain(const video::Frame& frame,
     std::optional<track::KeyFrame> key = chain_seam_.Continue(
         chain_.key_frames()[chain_key_frames_], chain_key_frames_ == 0, &result_.breaks);
     if (!key) continue;
-    if (options_.key_frame_image_width > 0) AddKeyFrameImage(*key, frame.grey);
+    if (options_.key_frame_image_width > 0) AddKeyFrameImage(*key, frame);
     result_.key_frames.push_back(std::move(*key));
     new_key_frame = true;
   }
@@ -791,12 +794,12 @@ bool FrontEnd::AddToChain(const video::Frame& frame,
   return new_key_frame;
 }
 
-void FrontEnd::AddKeyFrameImage(const track::KeyFrame& key, const cv::Mat& grey) {
+void FrontEnd::AddKeyFrameImage(const track::KeyFrame& key, const video::Frame& frame) {
   KeyFrameImage image;
   image.id = key.id;
   image.frame_index = key.frame_index;
-  image.scale = std::max(1.0, static_cast<double>(grey.cols) / options_.key_frame_image_width);
-  cv::resize(grey, image.grey, cv::Size(), 1.0 / image.scale, 1.0 / image.scale, cv::INTER_AREA);
+  track::MakeKeyFramePicture(frame.grey, frame.chroma, frame.coding, options_.key_frame_image_width,
+                             &image);
   if (options_.on_key_frame) options_.on_key_frame({image, preview_from_current_});
   result_.key_frame_images.push_back(std::move(image));
   image_placements_.push_back(preview_from_current_);
@@ -918,6 +921,7 @@ video::ReaderOptions FrontEndOptions::EffectiveReader() const {
   video::ReaderOptions reader;
   reader.want_bgr = false;
   reader.want_grey = true;
+  reader.want_chroma = key_frame_colour && key_frame_image_width > 0;
   reader.decoder_threads = decoder_threads;
   return reader;
 }
@@ -931,7 +935,10 @@ int64_t FrontEndOptions::FramePipelineBytes(int width, int height) const {
   // Queued for the tracker, for change detection, waiting for its answers; current and previous;
   // the latest one SceneContinuity keeps for its segment's last look.
   const int64_t grey_frames = queue_frames + change_queue_frames + kChangeLagFrames + 3;
-  return pixels * 3 / 2 * decoder_pictures + pixels * grey_frames;
+  // The chroma (4:2:0: half the luma's bytes) of the frames queued for the tracker and the
+  // current one, until the key frame decision.
+  const int64_t chroma_frames = EffectiveReader().want_chroma ? queue_frames + 2 : 0;
+  return pixels * 3 / 2 * decoder_pictures + pixels * grey_frames + pixels / 2 * chroma_frames;
 }
 
 track::TrackerOptions FrontEndOptions::EffectiveTracker() const {

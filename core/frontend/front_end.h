@@ -103,8 +103,12 @@ struct FrontEndOptions {
   int queue_frames = 6;          // decoded frames waiting for the tracker, at most
   int change_queue_frames = 8;   // frames waiting for the change detection thread, at most (its
                                  // answers are taken 8 frames late: more than 8 changes nothing)
-  int key_frame_image_width = 640;  // width of the grey copy kept per key frame (0: none)
-  int decoder_threads = 0;          // 0 = automatic
+  int key_frame_image_width = 640;  // width of the picture kept per key frame (0: none)
+  // Keep the key frames' chroma when the video is colour (8-bit YUV), for a colour mosaic: the
+  // chroma planes are copied from the decoder (half the luma's bytes for 4:2:0) and a key frame's
+  // picture costs half a grey one more. Off, or on grey video: grey pictures.
+  bool key_frame_colour = true;
+  int decoder_threads = 0;  // 0 = automatic
   // How frames are tied to their KLV metadata: the tolerances, and whether packets that failed
   // their checksum may be used (not by default).
   ingest::AlignmentOptions metadata;

@@ -3,6 +3,7 @@
 #include "core/mosaic/adjustment.h"
 #include "core/track/homography.h"
 #include "core/track/image_geometry.h"
+#include "core/track/picture.h"
 #include "core/util/statistics.h"
 
 #include <Eigen/Geometry>
@@ -90,10 +91,21 @@ StatusOr<MosaicImage> PictureFrame(const LinkGraph& graph, const RenderOptions& 
 Status BlendKeyFrames(const LinkGraph& graph, const std::vector<track::KeyFrameImage>& images,
                       cv::Size size, MosaicImage* out) {
   std::map<int, const track::KeyFrameImage*> by_id;
+  bool colour = false;  // any key frame in colour: all drawn in colour, grey ones as grey
   for (const track::KeyFrameImage& image : images) {
-    if (!image.grey.empty()) by_id[static_cast<int>(image.id)] = &image;
+    if (image.grey.empty()) continue;
+    by_id[static_cast<int>(image.id)] = &image;
+    colour = colour || track::IsColour(image);
   }
-  cv::Mat sum(size, CV_32F, cv::Scalar(0)), weight(size, CV_32F, cv::Scalar(0));
+  const int channels = colour ? 3 : 1;
+  const auto replicate = [channels](const cv::Mat& m) {
+    if (channels == 1) return m;
+    cv::Mat copies;
+    cv::merge(std::vector<cv::Mat>(static_cast<size_t>(channels), m), copies);
+    return copies;
+  };
+  cv::Mat sum(size, CV_32FC(channels), cv::Scalar::all(0));
+  cv::Mat weight(size, CV_32F, cv::Scalar(0));
   cv::Mat warped, warped_weight, feather;
   cv::Size feather_size;
   int drawn = 0;
@@ -116,10 +128,10 @@ Status BlendKeyFrames(const LinkGraph& graph, const std::vector<track::KeyFrameI
         out->image_from_map * node.map_from_frame * full_from_grey;
     cv::Mat h;
     cv::eigen2cv(picture_from_grey, h);
-    cv::Mat grey_float;
-    image.grey.convertTo(grey_float, CV_32F);
-    cv::warpPerspective(grey_float.mul(feather), warped, h, sum.size(), cv::INTER_LINEAR,
-                        cv::BORDER_CONSTANT, cv::Scalar(0));
+    cv::Mat picture;
+    (colour ? track::KeyFrameBgr(image) : image.grey).convertTo(picture, CV_32F);
+    cv::warpPerspective(picture.mul(replicate(feather)), warped, h, sum.size(), cv::INTER_LINEAR,
+                        cv::BORDER_CONSTANT, cv::Scalar::all(0));
     cv::warpPerspective(feather, warped_weight, h, sum.size(), cv::INTER_LINEAR,
                         cv::BORDER_CONSTANT, cv::Scalar(0));
     sum += warped;
@@ -127,11 +139,14 @@ Status BlendKeyFrames(const LinkGraph& graph, const std::vector<track::KeyFrameI
     ++drawn;
   }
   if (drawn == 0) return InvalidDataError("mosaic picture: no key frame has an image to draw");
-  cv::Mat grey;
-  cv::divide(sum, weight, grey);
-  grey.setTo(0, weight <= 0);
-  grey.convertTo(grey, CV_8U);
-  cv::cvtColor(grey, out->bgr, cv::COLOR_GRAY2BGR);
+  cv::Mat picture;
+  cv::divide(sum, replicate(weight), picture);
+  picture.convertTo(picture, CV_8U);
+  if (colour) {
+    out->bgr = picture;
+  } else {
+    cv::cvtColor(picture, out->bgr, cv::COLOR_GRAY2BGR);
+  }
   // No-data stays a neutral dark blue-grey, not black, so the footprint reads as such.
   out->bgr.setTo(cv::Scalar(48, 40, 36), weight <= 0);
   return Status::Ok();

@@ -1,6 +1,7 @@
 #include "core/pipeline/checkpoint.h"
 
 #include "core/tiles/image_decode.h"
+#include "core/track/picture.h"
 #include "core/util/byte_io.h"
 #include "core/video/video_reader.h"
 
@@ -114,6 +115,19 @@ StatusOr<std::vector<uint8_t>> EncodeImage(const frontend::KeyFramePreview& p) {
                                 std::to_string(static_cast<int>(p.image.id)));
   }
   w.PutBytes(png.data(), png.size());
+  if (track::IsColour(p.image)) {
+    // The chroma after the grey (a record without it, of an older Saker, is a grey picture): the
+    // coding, then Cb and Cr side by side in one grey PNG twice as wide.
+    std::vector<uint8_t> chroma;
+    if (!cv::imencode(".png", p.image.chroma.reshape(1), chroma,
+                      {cv::IMWRITE_PNG_COMPRESSION, 1})) {
+      return InvalidArgumentError("cannot encode the colour of key frame " +
+                                  std::to_string(static_cast<int>(p.image.id)));
+    }
+    w.Put<uint8_t>(static_cast<uint8_t>(p.image.coding.matrix));
+    w.Put<uint8_t>(p.image.coding.full_range ? 1 : 0);
+    w.PutBytes(chroma.data(), chroma.size());
+  }
   return w.Take();
 }
 
@@ -136,6 +150,27 @@ StatusOr<bool> DecodeImage(ByteReader& r, const std::string& where, frontend::Ke
     if (!grey.ok()) return Status(grey.status().code(), where + ": " + grey.status().message());
     p->image.grey = std::move(grey).value();
   }
+  if (r.AtEnd()) return true;  // a grey picture
+  uint8_t matrix = 0, full_range = 0;
+  std::vector<uint8_t> chroma_png;
+  if (!r.Get(&matrix) || !r.Get(&full_range) || !r.GetBytes(&chroma_png) ||
+      matrix > static_cast<uint8_t>(YuvMatrix::kBt2020) || full_range > 1 ||
+      p->image.grey.empty()) {
+    return false;
+  }
+  // Cb and Cr side by side: exactly twice half the grey's width, half its height (rounded up).
+  const int width = (p->image.grey.cols + 1) / 2;
+  const int height = (p->image.grey.rows + 1) / 2;
+  const tiles::ImageLimits limits{2 * width, height, int64_t{2} * width * height};
+  StatusOr<cv::Mat> chroma = tiles::DecodePng(chroma_png, cv::IMREAD_GRAYSCALE, limits);
+  if (!chroma.ok()) return Status(chroma.status().code(), where + ": " + chroma.status().message());
+  if (chroma->cols != 2 * width || chroma->rows != height) {
+    return InvalidDataError(where + ": the key frame's colour is " + std::to_string(chroma->cols) +
+                            " x " + std::to_string(chroma->rows) + " pixels, not " +
+                            std::to_string(2 * width) + " x " + std::to_string(height));
+  }
+  p->image.chroma = chroma->reshape(2);
+  p->image.coding = {static_cast<YuvMatrix>(matrix), full_range == 1};
   return true;
 }
 

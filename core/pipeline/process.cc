@@ -31,6 +31,7 @@ std::string OptionsJson(const ProcessOptions& options) {
         {"place_in_between", options.mosaic.place_in_between}}},
       {"front_end",
        {{"key_frame_image_width", options.front_end.key_frame_image_width},
+        {"key_frame_colour", options.front_end.key_frame_colour},
         {"change_detection", options.front_end.change.enabled},
         {"accept_bad_checksums", options.front_end.metadata.accept_bad_checksums}}},
       {"activity",

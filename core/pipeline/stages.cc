@@ -167,8 +167,8 @@ StatusOr<bool> TilesStage(const StageOptions& options, const StageHooks& hooks, 
         m.frames.begin(), m.frames.end(), node.frame_index,
         [](const mission::FrameRecord& f, int64_t index) { return f.index < index; });
     if (frame != m.frames.end() && frame->index == node.frame_index) sky = frame->sky_line;
-    views.push_back(
-        {&it->second->grey, it->second->scale, node.map_from_frame, overlay_of(node), sky});
+    views.push_back({&it->second->grey, it->second->scale, node.map_from_frame, overlay_of(node),
+                     sky, &it->second->chroma, it->second->coding});
   }
   StatusOr<mission::PyramidInfo> info = tiles::PlanPyramid(views, m.source.width, m.source.height,
                                                            m.map.geo_referenced, options.pyramid);

@@ -1,6 +1,7 @@
 #include "core/tiles/pyramid.h"
 
 #include "core/tiles/image_decode.h"
+#include "core/track/picture.h"
 #include "core/util/statistics.h"
 #include "core/util/timer.h"
 
@@ -58,6 +59,7 @@ class Renderer {
     boxes_.reserve(frames.size());
     parts_.reserve(frames.size());
     for (const KeyFrameView& frame : frames) {
+      colour_ = colour_ || (frame.chroma != nullptr && !frame.chroma->empty());
       parts_.push_back(DrawnPart(frame, width, height));
       cut_.push_back(!WholeFrame(parts_.back(), width, height));
       boxes_.push_back(frame.grey && !frame.grey->empty()
@@ -103,8 +105,14 @@ class Renderer {
       return cv::Mat();
     }
     std::vector<uint8_t> bytes;
-    if (!cv::imencode(".png", tile, bytes,
-                      {cv::IMWRITE_PNG_COMPRESSION, options_.png_compression})) {
+    if (colour_ && options_.jpeg_quality > 0 && cv::countNonZero(ExtractAlpha(tile) != 255) == 0) {
+      cv::Mat bgr;
+      cv::cvtColor(tile, bgr, cv::COLOR_BGRA2BGR);
+      if (!cv::imencode(".jpg", bgr, bytes, {cv::IMWRITE_JPEG_QUALITY, options_.jpeg_quality})) {
+        return IoError("mosaic tiles: JPEG encoding failed");
+      }
+    } else if (!cv::imencode(".png", tile, bytes,
+                             {cv::IMWRITE_PNG_COMPRESSION, options_.png_compression})) {
       return IoError("mosaic tiles: PNG encoding failed");
     }
     batch_.push_back({level, x, y, std::move(bytes)});
@@ -161,19 +169,43 @@ class Renderer {
   // picture is filled from the pixels around it, so that another key frame's ground wins there
   // and where none covers the place the map shows a smooth fill rather than text or a hole.
   // Outside its drawn part (the sky, the distant ground) the weight is zero and the feather is
-  // the distance to that part's edge. Kept for the last few key frames (the tiles of a region
-  // need the same ones), not all.
+  // the distance to that part's edge. The picture is the grey as it is, or in colour tiles BGR.
+  // Made for the last few key frames (the tiles of a region need the same ones), not all.
   struct Layer {
-    const cv::Mat* grey;
+    const cv::Mat* picture;
     const cv::Mat* weight;
   };
   Layer LayerOf(size_t i) {
     const KeyFrameView& frame = frames_[i];
     const cv::Size size = frame.grey->size();
-    if (frame.overlay == nullptr && !cut_[i]) return {frame.grey, &Feather(size)};
-    for (const OverlayLayer& layer : overlay_layers_) {
-      if (layer.frame == i) return {&layer.grey, &layer.weight};
+    const bool masked = frame.overlay != nullptr || cut_[i];
+    if (!masked && !colour_) return {frame.grey, &Feather(size)};
+    for (const OwnLayer& layer : layers_) {
+      if (layer.frame == i) return {&layer.picture, &layer.weight};
     }
+    OwnLayer layer{i, *frame.grey, Feather(size)};  // shared, never written into
+    if (colour_) {
+      layer.picture = track::YuvToBgr(
+          *frame.grey, frame.chroma != nullptr ? *frame.chroma : cv::Mat(), frame.coding);
+    }
+    if (masked) Mask(i, &layer);
+    constexpr size_t kKept = 8;
+    if (layers_.size() >= kKept) layers_.erase(layers_.begin());
+    layers_.push_back(std::move(layer));
+    return {&layers_.back().picture, &layers_.back().weight};
+  }
+
+  struct OwnLayer {
+    size_t frame;     // in frames_
+    cv::Mat picture;  // filled on the overlay mask; the key frame's grey itself when unchanged
+    cv::Mat weight;
+  };
+
+  // The weight of a key frame with an overlay mask or a part cut away, and its picture filled on
+  // the mask.
+  void Mask(size_t i, OwnLayer* layer) {
+    const KeyFrameView& frame = frames_[i];
+    const cv::Size size = frame.grey->size();
     cv::Mat excluded(size, CV_8U, cv::Scalar(0));
     if (frame.overlay != nullptr) {
       for (int v = 0; v < size.height; ++v) {
@@ -206,32 +238,37 @@ class Renderer {
     constexpr float kFillWeight = 1e-3f;
     weight.setTo(kFillWeight, excluded);
     weight.setTo(0.0f, outside);
-    OverlayLayer layer{i, *frame.grey, weight};  // the picture shared, when nothing is filled
-    if (frame.overlay != nullptr) {
-      // The fill: the mean of the unmasked pixels around, over a window a little wider than a
-      // text line (normalised box filter), repeated where the window held none.
-      cv::Mat valid, sum, count, grey;
-      cv::bitwise_not(excluded, valid);
-      valid.convertTo(valid, CV_32F, 1.0 / 255);
-      frame.grey->convertTo(grey, CV_32F);
-      cv::Mat filled = grey.clone();
-      for (int pass = 0, k = 31; pass < 4; ++pass, k *= 2) {
-        cv::boxFilter(filled.mul(valid), sum, CV_32F, cv::Size(k, k), cv::Point(-1, -1), false);
-        cv::boxFilter(valid, count, CV_32F, cv::Size(k, k), cv::Point(-1, -1), false);
-        cv::Mat mean;
-        cv::divide(sum, cv::max(count, 1e-6), mean);
-        const cv::Mat reached = (count > 0.5) & (valid < 0.5);
-        mean.copyTo(filled, reached);
-        valid.setTo(1.0f, reached);
-        if (cv::countNonZero(valid < 0.5) == 0) break;
-      }
-      layer.grey = cv::Mat();  // a buffer of its own: never written into the key frame's picture
-      filled.convertTo(layer.grey, CV_8U);
+    layer->weight = weight;
+    if (frame.overlay == nullptr) return;
+    // The fill: the mean of the unmasked pixels around, over a window a little wider than a
+    // text line (normalised box filter), repeated where the window held none.
+    const int channels = layer->picture.channels();
+    cv::Mat valid, sum, count, filled;
+    cv::bitwise_not(excluded, valid);
+    valid.convertTo(valid, CV_32F, 1.0 / 255);
+    layer->picture.convertTo(filled, CV_32F);
+    for (int pass = 0, k = 31; pass < 4; ++pass, k *= 2) {
+      cv::boxFilter(filled.mul(Replicate(valid, channels)), sum, CV_32F, cv::Size(k, k),
+                    cv::Point(-1, -1), false);
+      cv::boxFilter(valid, count, CV_32F, cv::Size(k, k), cv::Point(-1, -1), false);
+      cv::Mat mean;
+      cv::divide(sum, Replicate(cv::max(count, 1e-6), channels), mean);
+      const cv::Mat reached = (count > 0.5) & (valid < 0.5);
+      mean.copyTo(filled, reached);
+      valid.setTo(1.0f, reached);
+      if (cv::countNonZero(valid < 0.5) == 0) break;
     }
-    constexpr size_t kKept = 8;
-    if (overlay_layers_.size() >= kKept) overlay_layers_.erase(overlay_layers_.begin());
-    overlay_layers_.push_back(std::move(layer));
-    return {&overlay_layers_.back().grey, &overlay_layers_.back().weight};
+    cv::Mat picture;  // a buffer of its own: never written into the key frame's picture
+    filled.convertTo(picture, CV_8U);
+    layer->picture = picture;
+  }
+
+  // A single-channel matrix as `channels` identical channels (itself for one).
+  static cv::Mat Replicate(const cv::Mat& m, int channels) {
+    if (channels == 1) return m;
+    cv::Mat out;
+    cv::merge(std::vector<cv::Mat>(static_cast<size_t>(channels), m), out);
+    return out;
   }
 
   cv::Mat RenderLevel0(int x, int y, const std::vector<size_t>& covering) {
@@ -241,7 +278,9 @@ class Renderer {
     tile_from_map << 1 / info_.step_x, 0, -info_.map_origin.x() / info_.step_x - x * t,  //
         0, 1 / info_.step_y, -info_.map_origin.y() / info_.step_y - y * t,               //
         0, 0, 1;
-    cv::Mat sum(t, t, CV_32F, cv::Scalar(0)), weight(t, t, CV_32F, cv::Scalar(0));
+    const int channels = colour_ ? 3 : 1;
+    cv::Mat sum(t, t, CV_32FC(channels), cv::Scalar::all(0));
+    cv::Mat weight(t, t, CV_32F, cv::Scalar(0));
     cv::Mat warped, warped_weight, product;
     for (const size_t i : covering) {
       const KeyFrameView& frame = frames_[i];
@@ -252,22 +291,26 @@ class Renderer {
       cv::Mat h;
       cv::eigen2cv(Eigen::Matrix3d(tile_from_map * frame.map_from_frame * full_from_grey), h);
       const Layer layer = LayerOf(i);
-      cv::warpPerspective(*layer.grey, warped, h, sum.size(), cv::INTER_LINEAR, cv::BORDER_CONSTANT,
-                          cv::Scalar(0));
+      cv::warpPerspective(*layer.picture, warped, h, sum.size(), cv::INTER_LINEAR,
+                          cv::BORDER_CONSTANT, cv::Scalar(0));
       cv::warpPerspective(*layer.weight, warped_weight, h, sum.size(), cv::INTER_LINEAR,
                           cv::BORDER_CONSTANT, cv::Scalar(0));
       warped.convertTo(product, CV_32F);
-      product = product.mul(warped_weight);
+      product = product.mul(Replicate(warped_weight, channels));
       sum += product;
       weight += warped_weight;
     }
-    cv::Mat grey, alpha;
-    cv::divide(sum, weight, grey);
-    grey.setTo(0, weight <= 0);
-    grey.convertTo(grey, CV_8U);
-    alpha = weight > 0;  // 255 where covered
+    cv::Mat picture;
+    cv::divide(sum, Replicate(weight, channels), picture);
+    const cv::Mat alpha = weight > 0;  // 255 where covered
+    picture.setTo(cv::Scalar::all(0), ~alpha);
+    picture.convertTo(picture, CV_8U);
+    std::vector<cv::Mat> planes;
+    cv::split(picture, planes);
+    if (channels == 1) planes.assign(3, planes[0]);
+    planes.push_back(alpha);
     cv::Mat bgra;
-    cv::merge(std::vector<cv::Mat>{grey, grey, grey, alpha}, bgra);
+    cv::merge(planes, bgra);
     return bgra;
   }
 
@@ -314,13 +357,9 @@ class Renderer {
   std::vector<Box> boxes_;
   std::vector<std::vector<Eigen::Vector2d>> parts_;  // DrawnPart of each frame
   std::vector<bool> cut_;                            // ... when it is not the whole frame
+  bool colour_ = false;                              // any frame has chroma
   std::map<std::pair<int, int>, cv::Mat> feathers_;
-  struct OverlayLayer {
-    size_t frame;  // in frames_
-    cv::Mat grey;  // the picture, filled on the overlay mask (shared when there is none)
-    cv::Mat weight;
-  };
-  std::vector<OverlayLayer> overlay_layers_;
+  std::vector<OwnLayer> layers_;
   std::vector<mission::EncodedTile> batch_;
   RenderSummary summary_;
   int64_t level0_done_ = 0;
@@ -356,6 +395,9 @@ Status PyramidOptions::Validate() const {
   }
   if (png_compression < 0 || png_compression > 9) {
     return InvalidArgumentError("mosaic tiles: png_compression must be 0..9");
+  }
+  if (jpeg_quality < 0 || jpeg_quality > 100) {
+    return InvalidArgumentError("mosaic tiles: jpeg_quality must be 0..100 (0: PNG always)");
   }
   return {};
 }
@@ -442,11 +484,15 @@ StatusOr<cv::Mat> DecodeTile(const std::vector<uint8_t>& bytes, int tile_size) {
                             " is outside 1.." + std::to_string(kMaxTileSize));
   }
   const ImageLimits limits{tile_size, tile_size, static_cast<int64_t>(tile_size) * tile_size};
-  StatusOr<cv::Mat> tile = DecodePng(bytes, cv::IMREAD_UNCHANGED, limits);
+  const bool jpeg = IsJpeg(bytes);
+  StatusOr<cv::Mat> tile = jpeg ? DecodeJpeg(bytes, cv::IMREAD_COLOR, limits)
+                                : DecodePng(bytes, cv::IMREAD_UNCHANGED, limits);
   if (!tile.ok()) return Status(tile.status().code(), "mosaic tile: " + tile.status().message());
+  if (jpeg && tile->type() == CV_8UC3) cv::cvtColor(*tile, *tile, cv::COLOR_BGR2BGRA);
   if (tile->type() != CV_8UC4 || tile->cols != tile_size || tile->rows != tile_size) {
     return InvalidDataError("mosaic tile: not a " + std::to_string(tile_size) + "x" +
-                            std::to_string(tile_size) + " BGRA PNG image");
+                            std::to_string(tile_size) +
+                            (jpeg ? " colour JPEG image" : " BGRA PNG image"));
   }
   return tile;
 }

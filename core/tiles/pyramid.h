@@ -3,13 +3,15 @@
 // The mosaic as a tiled, multi-resolution pyramid (for the GUI's view and the GeoTIFF export):
 // key frame images warped into the map and blended, rendered one full-resolution tile at a time
 // so a long flight never needs the whole mosaic in memory, the coarser levels built from the
-// finer ones. Tiles are BGRA PNGs (alpha 0 where no key frame covers the map); their placement
-// is a mission::PyramidInfo. docs/missions.md ("Tile pyramid").
+// finer ones. Tiles are BGRA (alpha 0 where no key frame covers the map), stored as PNG, or as
+// JPEG where a colour tile is covered throughout; their placement is a mission::PyramidInfo.
+// docs/missions.md ("Tile pyramid").
 
 #include "core/mission/mission.h"
 #include "core/mission/mission_store.h"
 #include "core/util/job_context.h"
 #include "core/util/status.h"
+#include "core/util/yuv_coding.h"
 
 #include <Eigen/Core>
 #include <opencv2/core/mat.hpp>
@@ -20,9 +22,10 @@
 
 namespace saker::tiles {
 
-// A key frame to draw: its grey image (a downscaled copy of the video frame) and where it lies.
+// A key frame to draw: its picture (a downscaled copy of the video frame, as
+// track::KeyFrameImage keeps it) and where it lies.
 struct KeyFrameView {
-  const cv::Mat* grey = nullptr;  // CV_8UC1, not owned
+  const cv::Mat* grey = nullptr;  // CV_8UC1, the luma as coded, not owned
   double scale = 1;               // full-resolution video pixels per pixel of `grey`
   Eigen::Matrix3d map_from_frame = Eigen::Matrix3d::Identity();  // full-resolution pixels
   // The overlay mask of its frame (burned-in text, logos; not owned, may be null): not ground, so
@@ -31,6 +34,11 @@ struct KeyFrameView {
   const mission::OverlayRecord* overlay = nullptr;
   // A low oblique view's sky mask (mission::SkyLine): the picture above the line is not drawn.
   std::optional<mission::SkyLine> sky_line;
+  // Its chroma (CV_8UC2 at half the size of `grey`, not owned; null or empty: a grey picture) and
+  // how the two code colour. When any frame has chroma the tiles are in colour, grey pictures
+  // drawn as grey in them; otherwise grey, the luma as coded.
+  const cv::Mat* chroma = nullptr;
+  YuvCoding coding;
 };
 
 // The part of a key frame's picture (full-resolution pixels, pixel centres at integers) that is
@@ -47,6 +55,8 @@ struct PyramidOptions {
   double map_units_per_px = 0;  // level 0 resolution; 0: the key frames' median resolution
   int max_side_px = 32768;      // level 0's longer side at most (coarsens the resolution)
   int png_compression = 1;      // 0-9: fast by default (tiles are written often)
+  // Colour tiles covered throughout are stored as JPEG of this quality (1-100; 0: PNG always).
+  int jpeg_quality = 90;
   Status Validate() const;
 };
 
@@ -76,9 +86,10 @@ StatusOr<RenderSummary> RenderPyramid(const std::vector<KeyFrameView>& frames, i
                                       JobContext* job = nullptr);
 
 // Decodes a tile written by RenderPyramid for a pyramid of `tile_size` (PyramidInfo::tile_size):
-// CV_8UC4 BGRA, tile_size x tile_size. InvalidData when the bytes are not an image of that kind,
-// before anything is decoded when the PNG header declares another size or the tile size is
-// beyond kMaxTileSize (a decompression bomb); ResourceExhausted when memory runs out.
+// CV_8UC4 BGRA, tile_size x tile_size (a JPEG tile opaque throughout). InvalidData when the bytes
+// are not an image of that kind, before anything is decoded when the header declares another size
+// or the tile size is beyond kMaxTileSize (a decompression bomb); ResourceExhausted when memory
+// runs out.
 StatusOr<cv::Mat> DecodeTile(const std::vector<uint8_t>& bytes, int tile_size);
 
 }  // namespace saker::tiles

@@ -8,6 +8,7 @@
 #include "core/track/homography.h"
 #include "core/track/types.h"
 #include "core/util/status.h"
+#include "core/util/yuv_coding.h"
 
 #include <Eigen/Core>
 #include <opencv2/core/mat.hpp>
@@ -37,13 +38,17 @@ struct KeyFrameOptions {
 
 using StationaryPoint = std::pair<FeatureTrackId, Eigen::Vector2d>;
 
-// A downscaled grey copy of a key frame's picture, for describing it (loop closure) and drawing
-// the mosaic. Its pixels are shared, never modified once made.
+// A downscaled copy of a key frame's picture, for describing it (loop closure) and drawing the
+// mosaic: its luma, and its chroma when the video is colour (core/track/picture.h makes them and
+// the colour picture). Its pixels are shared, never modified once made.
 struct KeyFrameImage {
   KeyFrameId id{};
   int64_t frame_index = 0;
-  cv::Mat grey;      // downscaled copy
+  cv::Mat grey;      // downscaled luma as coded (CV_8UC1)
   double scale = 1;  // full-resolution pixels per pixel of `grey`
+  // Cb and Cr (CV_8UC2) at half the size of `grey` (rounded up); empty for a grey picture.
+  cv::Mat chroma;
+  YuvCoding coding;  // how `grey` and `chroma` code colour
 };
 
 struct KeyFrame {

@@ -6,6 +6,8 @@ extern "C" {
 
 #include "core/video/mpegts_pmt.h"
 
+#include <opencv2/core.hpp>
+
 #include <algorithm>
 #include <atomic>
 #include <cmath>
@@ -180,6 +182,56 @@ bool HasPlainLumaPlane(const AVPixFmtDescriptor& desc, const AVFrame& frame) {
   const AVComponentDescriptor& luma = desc.comp[0];
   return luma.plane == 0 && luma.depth == 8 && luma.step == 1 && luma.shift == 0 &&
          luma.offset == 0 && frame.data[0] != nullptr && frame.linesize[0] >= frame.width;
+}
+
+// The chroma planes of an 8-bit YUV picture (planar, or semi-planar as NV12 / NV21), Cb and Cr
+// interleaved; empty for any other layout.
+cv::Mat CopyChroma(const AVPixFmtDescriptor& desc, const AVFrame& frame) {
+  constexpr uint64_t kNotYuv =
+      AV_PIX_FMT_FLAG_RGB | AV_PIX_FMT_FLAG_PAL | AV_PIX_FMT_FLAG_BAYER | AV_PIX_FMT_FLAG_HWACCEL;
+  if ((desc.flags & kNotYuv) != 0 || desc.nb_components < 3) return {};
+  const AVComponentDescriptor& cb = desc.comp[1];
+  const AVComponentDescriptor& cr = desc.comp[2];
+  if (cb.depth != 8 || cr.depth != 8 || cb.shift != 0 || cr.shift != 0) return {};
+  const int width = AV_CEIL_RSHIFT(frame.width, desc.log2_chroma_w);
+  const int height = AV_CEIL_RSHIFT(frame.height, desc.log2_chroma_h);
+  const auto plane = [&](int index, int type) {
+    const uint8_t* data = frame.data[index];
+    const int stride = frame.linesize[index];
+    const int bytes_per_pixel = CV_ELEM_SIZE(type);
+    if (data == nullptr || stride < width * bytes_per_pixel) return cv::Mat();
+    return cv::Mat(height, width, type, const_cast<uint8_t*>(data), static_cast<size_t>(stride));
+  };
+  cv::Mat out;
+  if (cb.plane != cr.plane && cb.step == 1 && cr.step == 1 && cb.offset == 0 && cr.offset == 0) {
+    const cv::Mat u = plane(cb.plane, CV_8UC1);
+    const cv::Mat v = plane(cr.plane, CV_8UC1);
+    if (u.empty() || v.empty()) return {};
+    cv::merge(std::vector<cv::Mat>{u, v}, out);
+  } else if (cb.plane == cr.plane && cb.step == 2 && cr.step == 2 &&
+             ((cb.offset == 0 && cr.offset == 1) || (cb.offset == 1 && cr.offset == 0))) {
+    const cv::Mat uv = plane(cb.plane, CV_8UC2);
+    if (uv.empty()) return {};
+    if (cb.offset == 0) {
+      out = uv.clone();
+    } else {
+      const int swap[] = {0, 1, 1, 0};
+      out.create(uv.size(), CV_8UC2);
+      cv::mixChannels(&uv, 1, &out, 1, swap, 2);
+    }
+  }
+  return out;
+}
+
+YuvMatrix MatrixOf(int sws_colorspace) {
+  switch (sws_colorspace) {
+    case SWS_CS_ITU709:
+      return YuvMatrix::kBt709;
+    case SWS_CS_BT2020:
+      return YuvMatrix::kBt2020;
+    default:
+      return YuvMatrix::kBt601;
+  }
 }
 
 }  // namespace
@@ -646,7 +698,8 @@ SwsContext* FrameConverter::Context(const Key& key, SwsContext** context, Key* c
   return *context;
 }
 
-Status FrameConverter::Convert(const AVFrame& frame, cv::Mat* bgr, cv::Mat* grey) {
+Status FrameConverter::Convert(const AVFrame& frame, cv::Mat* bgr, cv::Mat* grey, cv::Mat* chroma,
+                               YuvCoding* coding) {
   const int width = frame.width;
   const int height = frame.height;
   bool full_range = frame.color_range == AVCOL_RANGE_JPEG;
@@ -695,6 +748,11 @@ Status FrameConverter::Convert(const AVFrame& frame, cv::Mat* bgr, cv::Mat* grey
       SAKER_RETURN_IF_ERROR(scale(context, CV_8UC1, grey));
     }
   }
+  if (chroma != nullptr) {
+    // Only with the luma plane as coded: the two must code colour together.
+    *chroma = HasPlainLumaPlane(*desc, frame) ? CopyChroma(*desc, frame) : cv::Mat();
+  }
+  if (coding != nullptr) *coding = {MatrixOf(base.colorspace), full_range};
   return Status::Ok();
 }
 

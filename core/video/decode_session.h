@@ -162,8 +162,11 @@ class FrameConverter {
   FrameConverter(const FrameConverter&) = delete;
   FrameConverter& operator=(const FrameConverter&) = delete;
 
-  // Fills *bgr / *grey (when non-null) with fresh, continuous matrices.
-  Status Convert(const AVFrame& frame, cv::Mat* bgr, cv::Mat* grey);
+  // Fills *bgr / *grey (when non-null) with fresh, continuous matrices, and *chroma (when
+  // non-null) with the chroma planes of 8-bit YUV pictures as Frame::chroma says (released for
+  // other formats) and *coding with how they code colour.
+  Status Convert(const AVFrame& frame, cv::Mat* bgr, cv::Mat* grey, cv::Mat* chroma = nullptr,
+                 YuvCoding* coding = nullptr);
 
  private:
   struct Key {

@@ -146,8 +146,10 @@ struct VideoReader::Impl {
   }
 
   Status Convert(FrameConverter* converter, const DecodeSession& session, Frame* frame) {
+    const bool chroma = options.want_grey && options.want_chroma;
     return converter->Convert(session.frame(), options.want_bgr ? &frame->bgr : nullptr,
-                              options.want_grey ? &frame->grey : nullptr);
+                              options.want_grey ? &frame->grey : nullptr,
+                              chroma ? &frame->chroma : nullptr, &frame->coding);
   }
 
   StatusOr<bool> ReadNext(Frame* frame, std::vector<DataPacket>* data) {
@@ -170,6 +172,7 @@ struct VideoReader::Impl {
     frame->byte_pos = av_frame.pkt_pos;
     frame->bgr.release();
     frame->grey.release();
+    frame->chroma.release();
     SAKER_RETURN_IF_ERROR(Convert(&sequential_converter, *sequential, frame));
     if (!index_complete) {
       index.push_back({frame->index, frame->pts, frame->time_s, frame->key_frame});

@@ -9,6 +9,7 @@
 // threads concurrently; use OpenWithIndex() to give a second thread its own reader cheaply.
 
 #include "core/util/status.h"
+#include "core/util/yuv_coding.h"
 
 #include <opencv2/core/mat.hpp>
 
@@ -68,6 +69,12 @@ struct Frame {
   cv::Mat bgr;            // CV_8UC3, continuous, empty when not requested
   cv::Mat grey;  // CV_8UC1, continuous, empty when not requested. For 8-bit YUV video this is the
                  // luma plane as coded (usually limited range 16-235), not a BGR->grey conversion
+  // With ReaderOptions::want_chroma, for 8-bit YUV video: its two chroma planes as coded, Cb and
+  // Cr interleaved (CV_8UC2, continuous) at the chroma's own resolution (half the width and
+  // height for 4:2:0), and how they code colour with `grey`. Empty for other pixel formats (RGB,
+  // palette, more than 8 bits) and when not requested.
+  cv::Mat chroma;
+  YuvCoding coding;
 };
 
 // A demuxed packet of a KLV (data) stream, bytes exactly as the demuxer gives them.
@@ -81,10 +88,12 @@ struct DataPacket {
 };
 
 struct ReaderOptions {
-  bool want_bgr = true;     // convert decoded frames to BGR (Frame::bgr)
-  bool want_grey = false;   // also (or only) give an 8-bit grey image (Frame::grey); with neither,
-                            // frames carry only index and time (fast scans)
-  int decoder_threads = 0;  // 0 = FFmpeg chooses (one per core); at most 64
+  bool want_bgr = true;      // convert decoded frames to BGR (Frame::bgr)
+  bool want_grey = false;    // also (or only) give an 8-bit grey image (Frame::grey); with neither,
+                             // frames carry only index and time (fast scans)
+  bool want_chroma = false;  // with want_grey: also the chroma planes (Frame::chroma), a copy of
+                             // half the luma's bytes for 4:2:0 video, no conversion
+  int decoder_threads = 0;   // 0 = FFmpeg chooses (one per core); at most 64
   // Largest picture (width x height) accepted, declared or decoded: a larger one is refused
   // with an error naming the file before any picture of that size is allocated (FFmpeg's
   // decoder checks it too). 8192 x 8192 admits 8K video; a hostile header can otherwise make

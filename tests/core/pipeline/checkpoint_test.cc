@@ -4,11 +4,13 @@
 
 #include "core/pipeline/checkpoint.h"
 
+#include "core/track/picture.h"
 #include "tests/testing/png_bomb.h"
 #include "tests/testing/test_data.h"
 
 #include <gtest/gtest.h>
 #include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
 #include <sqlite3.h>
 
 #include <cstring>
@@ -82,6 +84,11 @@ frontend::FrontEndCheckpoint MakeCheckpoint() {
     preview.image.grey = cv::Mat(18, 32, CV_8UC1);
     cv::RNG rng(static_cast<uint64_t>(k + 1));  // the same pixels every time
     rng.fill(preview.image.grey, cv::RNG::UNIFORM, 0, 256);
+    if (k == 1) {  // a colour picture among grey ones
+      preview.image.chroma = cv::Mat(9, 16, CV_8UC2);
+      rng.fill(preview.image.chroma, cv::RNG::UNIFORM, 0, 256);
+      preview.image.coding = {YuvMatrix::kBt709, true};
+    }
     preview.preview_from_frame(0, 2) = 7.5 * k;
     c.key_frame_images.push_back(preview);
   }
@@ -214,6 +221,12 @@ TEST_F(CheckpointTest, EveryFieldRoundTrips) {
     EXPECT_EQ(a.preview_from_frame, b.preview_from_frame);
     ASSERT_EQ(a.image.grey.size(), b.image.grey.size());
     EXPECT_EQ(cv::norm(a.image.grey, b.image.grey, cv::NORM_INF), 0);
+    ASSERT_EQ(a.image.chroma.size(), b.image.chroma.size()) << "key frame " << k;
+    ASSERT_EQ(a.image.chroma.type(), b.image.chroma.type()) << "key frame " << k;
+    if (!b.image.chroma.empty()) {
+      EXPECT_EQ(cv::norm(a.image.chroma, b.image.chroma, cv::NORM_INF), 0);
+      EXPECT_EQ(a.image.coding, b.image.coding);
+    }
   }
   ASSERT_EQ(r.links.size(), c.links.size());
   for (size_t l = 0; l < c.links.size(); ++l) {
@@ -322,6 +335,48 @@ TEST_F(CheckpointTest, DecompressionBombKeyFrameImageIsRefusedNamingTheRecord) {
       << read.status().message();
   EXPECT_NE(read.status().message().find("40000x40000"), std::string::npos)
       << read.status().message();
+}
+
+// A colour key frame's chroma must be half its grey's size: another size is refused naming the
+// record, and so is an unknown colour matrix; a record without chroma (an older Saker's) is grey.
+TEST_F(CheckpointTest, ColourOfAKeyFrameImageIsChecked) {
+  const std::vector<uint8_t> colour = GetRecord("key_frame_image", 1);
+  const size_t png_at = 4 + 8 + 8 + 9 * 8;  // id, frame, scale, placement, then the PNG's size
+  uint64_t png_size = 0;
+  ASSERT_GT(colour.size(), png_at + sizeof(png_size));
+  std::memcpy(&png_size, colour.data() + png_at, sizeof(png_size));
+  const size_t chroma_at = png_at + sizeof(png_size) + png_size;  // matrix, range, PNG
+  ASSERT_GT(colour.size(), chroma_at + 2);
+
+  std::vector<uint8_t> wrong_size(colour.begin(),
+                                  colour.begin() + static_cast<std::ptrdiff_t>(chroma_at + 2));
+  std::vector<uint8_t> png;
+  ASSERT_TRUE(cv::imencode(".png", cv::Mat(9, 30, CV_8UC1, cv::Scalar(128)), png));
+  const uint64_t size = png.size();
+  wrong_size.resize(wrong_size.size() + sizeof(size));
+  std::memcpy(wrong_size.data() + chroma_at + 2, &size, sizeof(size));
+  wrong_size.insert(wrong_size.end(), png.begin(), png.end());
+  SetRecord("key_frame_image", 1, wrong_size);
+  auto read = Read();
+  ASSERT_FALSE(read.ok());
+  EXPECT_EQ(read.status().code(), StatusCode::kInvalidData);
+  EXPECT_NE(read.status().message().find("checkpoint record key_frame_image 1"), std::string::npos)
+      << read.status().message();
+
+  std::vector<uint8_t> bad_matrix = colour;
+  bad_matrix[chroma_at] = 7;
+  SetRecord("key_frame_image", 1, bad_matrix);
+  EXPECT_EQ(Read().status().code(), StatusCode::kInvalidData);
+
+  SetRecord("key_frame_image", 1,
+            std::vector<uint8_t>(colour.begin(),
+                                 colour.begin() + static_cast<std::ptrdiff_t>(chroma_at)));
+  read = Read();
+  ASSERT_TRUE(read.ok()) << read.status().ToString();
+  ASSERT_TRUE(read->has_value());
+  ASSERT_GT((*read)->key_frame_images.size(), 1u);
+  EXPECT_FALSE(track::IsColour((*read)->key_frame_images[1].image));
+  EXPECT_FALSE((*read)->key_frame_images[1].image.grey.empty());
 }
 
 TEST_F(CheckpointTest, RecordsThatDoNotFitTogetherAreRefused) {

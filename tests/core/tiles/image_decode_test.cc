@@ -6,6 +6,8 @@
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
 
+#include <algorithm>
+#include <array>
 #include <string>
 #include <vector>
 
@@ -65,6 +67,69 @@ TEST(ImageDecodeTest, DecodesWithinTheLimits) {
   EXPECT_EQ(grey->type(), CV_8UC1);
   EXPECT_EQ(DecodePng(EncodeBgra(40, 30), cv::IMREAD_GRAYSCALE, {40, 30, 1199}).status().code(),
             StatusCode::kInvalidData);
+}
+
+std::vector<uint8_t> EncodeJpeg(int width, int height) {
+  std::vector<uint8_t> jpeg;
+  EXPECT_TRUE(cv::imencode(".jpg", cv::Mat(height, width, CV_8UC3, cv::Scalar(40, 90, 200)), jpeg));
+  return jpeg;
+}
+
+// A JPEG's size comes from its frame header, found by walking its markers; a hostile one is
+// refused from there, before anything is decoded.
+TEST(ImageDecodeTest, ReadsTheSizeFromTheJpegFrameHeader) {
+  const std::vector<uint8_t> jpeg = EncodeJpeg(37, 11);
+  EXPECT_TRUE(IsJpeg(jpeg));
+  EXPECT_FALSE(IsJpeg(EncodeBgra(37, 11)));
+  const auto size = ReadJpegSize(jpeg);
+  ASSERT_TRUE(size.ok()) << size.status().ToString();
+  EXPECT_EQ(size->width, 37);
+  EXPECT_EQ(size->height, 11);
+  EXPECT_EQ(ReadJpegSize(EncodeBgra(8, 8)).status().code(), StatusCode::kInvalidData);
+  // Cut anywhere before the frame header, or with a segment length running past the end: an
+  // error, never a read beyond the bytes.
+  constexpr std::array<uint8_t, 2> kBaselineFrame = {0xFF, 0xC0};
+  const auto sof =
+      std::search(jpeg.begin(), jpeg.end(), kBaselineFrame.begin(), kBaselineFrame.end());
+  ASSERT_NE(sof, jpeg.end());
+  const auto header_end = static_cast<size_t>(sof - jpeg.begin()) + 9;
+  for (size_t n = 0; n < header_end; ++n) {
+    const std::vector<uint8_t> cut(jpeg.begin(), jpeg.begin() + static_cast<std::ptrdiff_t>(n));
+    EXPECT_FALSE(ReadJpegSize(cut).ok()) << n << " bytes";
+  }
+  std::vector<uint8_t> long_segment = jpeg;
+  long_segment[4] = 0xFF;  // the first segment's length: beyond the file
+  EXPECT_FALSE(ReadJpegSize(long_segment).ok());
+  // A header claiming 60000 x 60000 pixels in a few hundred bytes: refused from its header.
+  std::vector<uint8_t> bomb = jpeg;
+  const auto at = static_cast<size_t>(sof - jpeg.begin());
+  bomb[at + 5] = bomb[at + 6] = bomb[at + 7] = bomb[at + 8] = 0xEA;
+  const auto tile = DecodeTile(bomb, 256);
+  ASSERT_FALSE(tile.ok());
+  EXPECT_EQ(tile.status().code(), StatusCode::kInvalidData);
+  EXPECT_NE(tile.status().message().find("60138x60138"), std::string::npos)
+      << tile.status().message();
+}
+
+TEST(ImageDecodeTest, JpegTilesDecodeOpaque) {
+  const auto tile = DecodeTile(EncodeJpeg(256, 256), 256);
+  ASSERT_TRUE(tile.ok()) << tile.status().ToString();
+  EXPECT_EQ(tile->type(), CV_8UC4);
+  const cv::Vec4b p = tile->at<cv::Vec4b>(100, 100);
+  EXPECT_NEAR(p[0], 40, 3);
+  EXPECT_NEAR(p[1], 90, 3);
+  EXPECT_NEAR(p[2], 200, 3);
+  EXPECT_EQ(p[3], 255);
+  EXPECT_EQ(DecodeTile(EncodeJpeg(128, 256), 256).status().code(), StatusCode::kInvalidData);
+  std::vector<uint8_t> truncated = EncodeJpeg(256, 256);
+  truncated.resize(truncated.size() / 3);
+  // libjpeg fills in what is missing or fails: either a whole tile or bad data, never a crash.
+  const auto damaged = DecodeTile(truncated, 256);
+  if (damaged.ok()) {
+    EXPECT_EQ(damaged->size(), cv::Size(256, 256));
+  } else {
+    EXPECT_EQ(damaged.status().code(), StatusCode::kInvalidData);
+  }
 }
 
 }  // namespace

@@ -1,5 +1,7 @@
 #include "core/tiles/pyramid.h"
 
+#include "core/tiles/image_decode.h"
+
 #include <Eigen/Geometry>
 #include <gtest/gtest.h>
 #include <opencv2/imgproc.hpp>
@@ -36,7 +38,7 @@ Eigen::Matrix3d MapFromFrame(double east) {
 KeyFrameView View(const cv::Mat& grey, double scale, const Eigen::Matrix3d& map_from_frame,
                   const mission::OverlayRecord* overlay = nullptr,
                   std::optional<mission::SkyLine> sky_line = std::nullopt) {
-  return {&grey, scale, map_from_frame, overlay, sky_line};
+  return {&grey, scale, map_from_frame, overlay, sky_line, nullptr, {}};
 }
 
 using Store = std::map<std::tuple<int, int, int>, std::vector<uint8_t>>;
@@ -54,6 +56,20 @@ std::array<int, 4> Locate(const mission::PyramidInfo& info, const Eigen::Vector2
   const int u = static_cast<int>(std::lround((map.x() - info.map_origin.x()) / info.step_x));
   const int v = static_cast<int>(std::lround((map.y() - info.map_origin.y()) / info.step_y));
   return {u / info.tile_size, v / info.tile_size, u % info.tile_size, v % info.tile_size};
+}
+
+// The overlay mask of a line of text across the frame: full-resolution rows 40-79 (8 px cells).
+mission::OverlayRecord TextLineMask() {
+  mission::OverlayRecord mask;
+  mask.first_frame = mask.last_frame = 0;
+  mask.cell_px = 8;
+  mask.cols = kWidth / 8;
+  mask.rows = kHeight / 8;
+  mask.cells.assign(static_cast<size_t>(mask.cols * mask.rows), 0);
+  for (int y = 5; y < 10; ++y) {
+    for (int x = 0; x < mask.cols; ++x) mask.cells[static_cast<size_t>(y * mask.cols + x)] = 1;
+  }
+  return mask;
 }
 
 TEST(Pyramid, PlacesAndBlendsKeyFramesAcrossLevels) {
@@ -118,15 +134,7 @@ TEST(Pyramid, OverlayMasksAreNotDrawn) {
   cv::Mat a(kHeight / 2, kWidth / 2, CV_8U, cv::Scalar(40));
   a.rowRange(20, 40).setTo(250);
   const cv::Mat b(kHeight / 2, kWidth / 2, CV_8U, cv::Scalar(200));
-  mission::OverlayRecord mask;
-  mask.first_frame = mask.last_frame = 0;
-  mask.cell_px = 8;
-  mask.cols = kWidth / 8;
-  mask.rows = kHeight / 8;
-  mask.cells.assign(static_cast<size_t>(mask.cols * mask.rows), 0);
-  for (int y = 5; y < 10; ++y) {
-    for (int x = 0; x < mask.cols; ++x) mask.cells[static_cast<size_t>(y * mask.cols + x)] = 1;
-  }
+  const mission::OverlayRecord mask = TextLineMask();
   const std::vector<KeyFrameView> frames = {View(a, 2.0, MapFromFrame(0), &mask),
                                             View(b, 2.0, MapFromFrame(100))};
   PyramidOptions options;
@@ -152,6 +160,71 @@ TEST(Pyramid, OverlayMasksAreNotDrawn) {
   const cv::Vec4b blend = pixel({200.5, -100.5});
   EXPECT_GT(blend[0], 45);
   EXPECT_LT(blend[0], 195);
+}
+
+// Colour key frames give colour tiles: JPEG where a tile is covered throughout, PNG (with its
+// alpha) at the edges; a grey key frame among them is drawn grey; an overlay mask is filled with
+// the colour around it. A grey mission's tiles stay PNG.
+TEST(Pyramid, ColourKeyFramesGiveColourTiles) {
+  // Frame a: BT.709 limited-range red (Y 63, Cb 102, Cr 240), a line of green "text" on
+  // full-resolution rows 40-79 under its overlay mask. Frame b: mid grey luma, no chroma.
+  const cv::Mat luma(kHeight / 2, kWidth / 2, CV_8U, cv::Scalar(63));
+  const cv::Mat mid_grey(kHeight / 2, kWidth / 2, CV_8U, cv::Scalar(126));
+  cv::Mat red((kHeight / 2 + 1) / 2, (kWidth / 2 + 1) / 2, CV_8UC2, cv::Scalar(102, 240));
+  red.rowRange(10, 20).setTo(cv::Scalar(42, 26));  // green text (chroma rows 10-19)
+  const mission::OverlayRecord mask = TextLineMask();
+  const YuvCoding coding{YuvMatrix::kBt709, false};
+  KeyFrameView a = View(luma, 2.0, MapFromFrame(0), &mask);
+  a.chroma = &red;
+  a.coding = coding;
+  KeyFrameView b = View(mid_grey, 2.0, MapFromFrame(400));
+  b.coding = coding;
+  const std::vector<KeyFrameView> frames = {a, b};
+  PyramidOptions options;
+  options.tile_size = 64;
+  const auto info = PlanPyramid(frames, kWidth, kHeight, /*geo_referenced=*/true, options);
+  ASSERT_TRUE(info.ok()) << info.status().ToString();
+  Store store;
+  ASSERT_TRUE(RenderPyramid(frames, kWidth, kHeight, *info, options, Into(&store)).ok());
+  int jpeg = 0, png = 0;
+  for (const auto& [key, bytes] : store) {
+    const auto tile = DecodeTile(bytes, info->tile_size);
+    ASSERT_TRUE(tile.ok()) << tile.status().ToString();
+    if (!IsJpeg(bytes)) {
+      ++png;
+      continue;
+    }
+    ++jpeg;
+    cv::Mat alpha;
+    cv::extractChannel(*tile, alpha, 3);
+    EXPECT_EQ(cv::countNonZero(alpha != 255), 0) << "a JPEG tile is covered throughout";
+  }
+  EXPECT_GT(jpeg, 0);
+  EXPECT_GT(png, 0);  // the footprints' edges
+  const auto pixel = [&](const Eigen::Vector2d& map) {
+    const auto [tx, ty, col, row] = Locate(*info, map);
+    const auto tile = DecodeTile(store.at({0, tx, ty}), info->tile_size);
+    EXPECT_TRUE(tile.ok());
+    return tile->at<cv::Vec4b>(row, col);
+  };
+  const cv::Vec4b on_a = pixel({100.5, -150.5});
+  EXPECT_NEAR(on_a[2], 255, 6);  // 709 red from its coded values
+  EXPECT_NEAR(on_a[1], 0, 6);
+  EXPECT_NEAR(on_a[0], 0, 6);
+  const cv::Vec4b on_b = pixel({600.5, -150.5});
+  EXPECT_NEAR(on_b[0], 128, 3);  // luma 126 of 16..235 is 128 of 0..255
+  EXPECT_NEAR(on_b[1], 128, 3);
+  EXPECT_NEAR(on_b[2], 128, 3);
+  // On a's mask (row 60 is y = -30 m): the red around it, not the green text.
+  const cv::Vec4b on_mask = pixel({100.5, -30.5});
+  EXPECT_GT(on_mask[2], on_mask[1] + 150);
+
+  // The same two frames without chroma: every tile PNG.
+  a.chroma = nullptr;
+  Store grey;
+  ASSERT_TRUE(RenderPyramid({a, b}, kWidth, kHeight, *info, options, Into(&grey)).ok());
+  EXPECT_EQ(grey.size(), store.size());
+  for (const auto& [key, bytes] : grey) EXPECT_FALSE(IsJpeg(bytes));
 }
 
 TEST(Pyramid, TilesNoFrameCoversAreNotWritten) {

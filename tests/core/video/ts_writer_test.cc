@@ -4,6 +4,7 @@
 
 #include "core/video/ts_writer.h"
 
+#include "core/track/picture.h"
 #include "core/video/mpegts_pmt.h"
 #include "core/video/video_reader.h"
 #include "tests/core/video/read_all.h"
@@ -181,6 +182,7 @@ TEST(TsWriterTest, H264RoundTripGivesFramesTimesKeyFramesAndPixels) {
     EXPECT_NEAR(frame.time_s, i / 25.0, kTimeTolerance);
     EXPECT_EQ(frame.key_frame, i % 4 == 0);  // exactly every gop_size frames
     ASSERT_EQ(frame.bgr.size(), cv::Size(128, 96));
+    EXPECT_TRUE(frame.grey.empty() && frame.chroma.empty());  // not asked for
     const double psnr = cv::PSNR(frame.bgr, TexturedFrame(i, 128, 96));
     EXPECT_GT(psnr, 33) << "PSNR " << psnr << " dB";  // 38-40 dB measured at crf 23
   }
@@ -238,10 +240,26 @@ TEST(TsWriterTest, SaturatedColoursSurviveInSdAndHd) {
     }
     const Pass pass = ReadBack(path);
     ASSERT_EQ(pass.frames.size(), 2u);
+    // The same colours from the luma and chroma as coded (what the key frames keep), turned into
+    // BGR with the coding the reader reports.
+    ReaderOptions planes;
+    planes.want_bgr = false;
+    planes.want_grey = true;
+    planes.want_chroma = true;
+    const Pass coded = ReadBack(path, planes);
+    ASSERT_EQ(coded.frames.size(), 2u);
+    const Frame& frame = coded.frames[1];
+    ASSERT_EQ(frame.chroma.type(), CV_8UC2);
+    ASSERT_EQ(frame.chroma.size(), cv::Size(96, height / 2));  // 4:2:0
+    EXPECT_EQ(frame.coding.matrix, height >= 720 ? YuvMatrix::kBt709 : YuvMatrix::kBt601);
+    EXPECT_FALSE(frame.coding.full_range);
+    const cv::Mat from_planes = track::YuvToBgr(frame.grey, frame.chroma, frame.coding);
     for (size_t k = 0; k < colours.size(); ++k) {
       const cv::Scalar mean = cv::mean(pass.frames[1].bgr(insides[k]));
+      const cv::Scalar planes_mean = cv::mean(from_planes(insides[k]));
       for (int c = 0; c < 3; ++c) {
         EXPECT_NEAR(mean[c], colours[k][c], 4) << "colour " << k << " channel " << c;
+        EXPECT_NEAR(planes_mean[c], colours[k][c], 4) << "colour " << k << " channel " << c;
       }
     }
   }
@@ -266,10 +284,14 @@ TEST(TsWriterTest, GreyImagesAreTheCodedLuma) {
   }
   ReaderOptions grey;
   grey.want_grey = true;
+  grey.want_chroma = true;
   const Pass pass = ReadBack(path, grey);
   ASSERT_EQ(pass.frames.size(), 3u);
   for (int i = 0; i < 3; ++i) {
     EXPECT_GT(cv::PSNR(pass.frames[i].grey, written[i]), 35) << "frame " << i;
+    // Grey video: the chroma as coded is neutral (a key frame of it keeps no colour).
+    EXPECT_EQ(pass.frames[i].chroma.size(), cv::Size(64, 48)) << "frame " << i;
+    EXPECT_TRUE(track::NeutralChroma(pass.frames[i].chroma)) << "frame " << i;
     // Neutral chroma: the BGR picture is grey.
     std::vector<cv::Mat> channels;
     cv::split(pass.frames[i].bgr, channels);
