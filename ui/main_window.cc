@@ -14,6 +14,7 @@
 #include <QAction>
 #include <QActionGroup>
 #include <QApplication>
+#include <QClipboard>
 #include <QCloseEvent>
 #include <QDialog>
 #include <QDialogButtonBox>
@@ -26,6 +27,7 @@
 #include <QFileDialog>
 #include <QFileInfo>
 #include <QFormLayout>
+#include <QGuiApplication>
 #include <QHBoxLayout>
 #include <QIcon>
 #include <QKeySequence>
@@ -42,6 +44,7 @@
 #include <QToolBar>
 #include <QVBoxLayout>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <filesystem>
 #include <functional>
@@ -141,6 +144,11 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
             if (!pickAt(map_point, tolerance)) view_->setMarker(std::nullopt);
           });
   connect(view_, &MosaicView::cursorMoved, this, &MainWindow::updateCursor);
+  connect(view_, &MosaicView::measureChanged, this, &MainWindow::updateMeasure);
+  connect(view_, &MosaicView::contextMenuAt, this,
+          [this](const Eigen::Vector2d& map_point, double tolerance, const QPoint& global_pos) {
+            contextMenuFor(map_point, tolerance)->popup(global_pos);
+          });
 
   createDocks();
   createActions();
@@ -322,6 +330,23 @@ void MainWindow::createActions() {
   show_overlay_mask_action_->setChecked(false);
   connect(show_overlay_mask_action_, &QAction::toggled, frame_panel_,
           &FramePanel::setOverlayMaskVisible);
+  QMenu* coordinates = view->addMenu(tr("Coo&rdinates"));
+  coordinate_group_ = new QActionGroup(this);
+  const std::array<std::pair<geo::CoordinateFormat, QString>, 4> formats = {{
+      {geo::CoordinateFormat::kDecimalDegrees, tr("&Decimal Degrees")},
+      {geo::CoordinateFormat::kDms, tr("Degrees, Minutes, &Seconds")},
+      {geo::CoordinateFormat::kMgrs, tr("&MGRS")},
+      {geo::CoordinateFormat::kUtm, tr("&UTM")},
+  }};
+  for (const auto& [format, name] : formats) {
+    QAction* action = coordinates->addAction(name);
+    action->setObjectName(QStringLiteral("coordinates-") + geo::CoordinateFormatName(format));
+    action->setCheckable(true);
+    action->setData(static_cast<int>(format));
+    coordinate_group_->addAction(action);
+    connect(action, &QAction::triggered, this, [this, f = format] { setCoordinateFormat(f); });
+  }
+  coordinate_group_->actions().front()->setChecked(true);
   view->addSeparator();
   QAction* zoom_in =
       view->addAction(QIcon::fromTheme("zoom-in"), tr("Zoom &In"), view_, &MosaicView::zoomIn);
@@ -334,6 +359,17 @@ void MainWindow::createActions() {
   fit->setShortcut(QKeySequence(tr("Ctrl+0")));
   view->addSeparator();
   for (QDockWidget* dock : findChildren<QDockWidget*>()) view->addAction(dock->toggleViewAction());
+
+  QMenu* tools_menu = menuBar()->addMenu(tr("&Tools"));
+  measure_action_ = tools_menu->addAction(tr("&Measure Distance and Area"));
+  measure_action_->setObjectName(QStringLiteral("measure"));
+  measure_action_->setIconText(tr("Measure"));
+  measure_action_->setCheckable(true);
+  measure_action_->setShortcut(QKeySequence(tr("Ctrl+M")));
+  measure_action_->setToolTip(
+      tr("Click points on the map to measure the path and the area it encloses; Backspace "
+         "takes the last point off, Escape clears (Ctrl+M)"));
+  connect(measure_action_, &QAction::toggled, view_, &MosaicView::setMeasuring);
 
   QMenu* help = menuBar()->addMenu(tr("&Help"));
   QAction* guide = help->addAction(tr("Saker &User Guide"), this, &MainWindow::showUserGuide);
@@ -352,6 +388,8 @@ void MainWindow::createActions() {
   tools->addAction(zoom_in);
   tools->addAction(zoom_out);
   tools->addAction(fit);
+  tools->addSeparator();
+  tools->addAction(measure_action_);
 }
 
 void MainWindow::createStatusBar() {
@@ -363,7 +401,12 @@ void MainWindow::createStatusBar() {
   cancel_button_->setToolTip(tr("Stop processing; the mission keeps the stages that completed"));
   connect(cancel_button_, &QPushButton::clicked, jobs_, &TaskRunner::cancel);
   cursor_label_ = new QLabel(this);
+  cursor_label_->setObjectName(QStringLiteral("cursorPosition"));
   cursor_label_->setMinimumWidth(260);
+  cursor_label_->setTextInteractionFlags(Qt::TextSelectableByMouse);
+  measure_label_ = new QLabel(this);
+  measure_label_->setObjectName(QStringLiteral("measurement"));
+  statusBar()->addPermanentWidget(measure_label_);
   statusBar()->addWidget(stage_label_);
   statusBar()->addWidget(progress_);
   statusBar()->addWidget(cancel_button_);
@@ -385,6 +428,9 @@ void MainWindow::readSettings() {
   show_outlines_action_->setChecked(settings.value("view/showOutlines", false).toBool());
   show_ellipses_action_->setChecked(settings.value("view/showEllipses", false).toBool());
   show_overlay_mask_action_->setChecked(settings.value("view/showOverlayMask", false).toBool());
+  setCoordinateFormat(geo::ParseCoordinateFormat(
+                          settings.value("view/coordinates", "decimal").toString().toStdString())
+                          .value_or(geo::CoordinateFormat::kDecimalDegrees));
 }
 
 void MainWindow::writeSettings() const {
@@ -397,6 +443,7 @@ void MainWindow::writeSettings() const {
   settings.setValue("view/showOutlines", show_outlines_action_->isChecked());
   settings.setValue("view/showEllipses", show_ellipses_action_->isChecked());
   settings.setValue("view/showOverlayMask", show_overlay_mask_action_->isChecked());
+  settings.setValue("view/coordinates", geo::CoordinateFormatName(coordinate_format_));
 }
 
 // --------------------------------------------------------------------------------------------
@@ -965,17 +1012,92 @@ void MainWindow::applyFilter() {
 }
 
 void MainWindow::updateCursor(const std::optional<Eigen::Vector2d>& map_point) {
-  if (!map_point || !mission_) {
-    cursor_label_->clear();
-    return;
-  }
+  cursor_ = map_point;
+  cursor_label_->setText(map_point ? positionText(*map_point) : QString());
+}
+
+QString MainWindow::positionText(const Eigen::Vector2d& map_point) const {
+  if (!mission_) return {};
   if (plane_) {
-    const geo::Wgs84 p = plane_->LatLonFromMap(*map_point);
-    cursor_label_->setText(LatLonText(p.latitude_deg, p.longitude_deg));
-  } else {
-    cursor_label_->setText(
-        tr("x %1, y %2 px").arg((*map_point).x(), 0, 'f', 0).arg((*map_point).y(), 0, 'f', 0));
+    return FromStd(geo::FormatPosition(plane_->LatLonFromMap(map_point), coordinate_format_));
   }
+  return tr("x %1, y %2 px").arg(map_point.x(), 0, 'f', 0).arg(map_point.y(), 0, 'f', 0);
+}
+
+void MainWindow::setCoordinateFormat(geo::CoordinateFormat format) {
+  coordinate_format_ = format;
+  for (QAction* action : coordinate_group_->actions()) {
+    if (action->data().toInt() == static_cast<int>(format)) action->setChecked(true);
+  }
+  updateCursor(cursor_);
+}
+
+QString MainWindow::measureText() const {
+  const std::vector<Eigen::Vector2d>& path = view_->measurePath();
+  if (path.empty() || !mission_) return {};
+  QString length, area;
+  if (plane_) {
+    std::vector<geo::Wgs84> points;
+    for (const Eigen::Vector2d& p : path) points.push_back(plane_->LatLonFromMap(p));
+    const geo::GeodesicMeasure m = geo::MeasureGeodesic(points);
+    length = FromStd(geo::LengthText(m.length_m));
+    if (path.size() >= 3) area = FromStd(geo::AreaText(m.area_m2));
+  } else {
+    // Not geo-referenced: the map's own units, the first key frame's pixels.
+    double sum = 0, twice_area = 0;
+    for (size_t i = 0; i < path.size(); ++i) {
+      const Eigen::Vector2d& a = path[i];
+      const Eigen::Vector2d& b = path[(i + 1) % path.size()];
+      if (i + 1 < path.size()) sum += (b - a).norm();
+      twice_area += a.x() * b.y() - b.x() * a.y();
+    }
+    length = tr("%1 px").arg(sum, 0, 'f', 0);
+    if (path.size() >= 3) area = tr("%1 px²").arg(std::abs(twice_area) / 2, 0, 'f', 0);
+  }
+  QString text = tr("Length %1").arg(length);
+  if (!area.isEmpty()) text += tr("\nArea %1 (closed)").arg(area);
+  return text;
+}
+
+void MainWindow::updateMeasure() {
+  const QString text = measureText();
+  view_->setMeasureText(text);
+  measure_label_->setText(QString(text).replace('\n', QStringLiteral(" · ")));
+}
+
+QMenu* MainWindow::contextMenuFor(const Eigen::Vector2d& map_point, double tolerance) {
+  if (context_menu_ == nullptr) context_menu_ = new QMenu(this);
+  context_menu_->clear();
+  if (mission_ && track_index_) {
+    const auto pick = track_index_->Nearest(
+        map_point, tolerance, [this](size_t track) { return view_->isTrackVisible(track); });
+    if (pick) {
+      const int64_t id = mission_->tracks[pick->track].id;
+      QAction* show = context_menu_->addAction(tr("Show Frame of Track %1").arg(id));
+      show->setObjectName(QStringLiteral("showTrackFrame"));
+      connect(show, &QAction::triggered, this,
+              [this, map_point, tolerance] { pickAt(map_point, tolerance); });
+    }
+  }
+  const QString position = positionText(map_point);
+  QAction* copy = context_menu_->addAction(tr("Copy Coordinates (%1)").arg(position));
+  copy->setObjectName(QStringLiteral("copyCoordinates"));
+  copy->setEnabled(!position.isEmpty());
+  connect(copy, &QAction::triggered, this,
+          [position] { QGuiApplication::clipboard()->setText(position); });
+  QAction* measure = context_menu_->addAction(tr("Measure From Here"));
+  measure->setObjectName(QStringLiteral("measureFromHere"));
+  measure->setEnabled(mission_ != nullptr);
+  connect(measure, &QAction::triggered, this, [this, map_point] {
+    measure_action_->setChecked(true);
+    view_->setMeasurePath({map_point});
+  });
+  if (!view_->measurePath().empty()) {
+    QAction* clear = context_menu_->addAction(tr("Clear Measurement"));
+    clear->setObjectName(QStringLiteral("clearMeasurement"));
+    connect(clear, &QAction::triggered, this, [this] { view_->setMeasurePath({}); });
+  }
+  return context_menu_;
 }
 
 // --------------------------------------------------------------------------------------------

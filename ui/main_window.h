@@ -8,6 +8,7 @@
 
 #include "core/activity/activity.h"
 #include "core/activity/colours.h"
+#include "core/geo/coordinates.h"
 #include "core/geo/local_tangent_plane.h"
 #include "core/mission/mission.h"
 #include "core/util/job_context.h"
@@ -83,6 +84,18 @@ class MainWindow : public QMainWindow {
   // units), marks it and recalls its frame. False when there is none.
   bool pickAt(const Eigen::Vector2d& map_point, double tolerance);
 
+  // How positions are written (status bar, Copy Coordinates): View > Coordinates.
+  void setCoordinateFormat(geo::CoordinateFormat format);
+  geo::CoordinateFormat coordinateFormat() const { return coordinate_format_; }
+  // A map point as text: in the coordinate format on a geo-referenced map, "x 12, y 34 px" on
+  // another; empty without a mission.
+  QString positionText(const Eigen::Vector2d& map_point) const;
+  // What the measured path measures (Tools > Measure): length, and area from three points; on
+  // the ellipsoid for a geo-referenced map, in map pixels otherwise. Empty without a path.
+  QString measureText() const;
+  // The map's context menu at `map_point` (what a right-click there opens), for the tests.
+  QMenu* contextMenuFor(const Eigen::Vector2d& map_point, double tolerance);
+
  signals:
   void missionOpened(const QString& path);
   void missionFailed(const QString& path, const QString& message);
@@ -128,6 +141,7 @@ class MainWindow : public QMainWindow {
   void updateMissionFacts();
   void updateActions();
   void updateCursor(const std::optional<Eigen::Vector2d>& map_point);
+  void updateMeasure();
   void addRecent(const QString& path);
   void rebuildRecentMenu();
   void showError(const QString& title, const QString& message);
@@ -165,6 +179,12 @@ class MainWindow : public QMainWindow {
   QProgressBar* progress_ = nullptr;
   QPushButton* cancel_button_ = nullptr;
   QLabel* cursor_label_ = nullptr;
+  QLabel* measure_label_ = nullptr;
+  std::optional<Eigen::Vector2d> cursor_;  // the map point under the cursor
+  geo::CoordinateFormat coordinate_format_ = geo::CoordinateFormat::kDecimalDegrees;
+  QActionGroup* coordinate_group_ = nullptr;
+  QAction* measure_action_ = nullptr;
+  QMenu* context_menu_ = nullptr;
 
   QMenu* recent_menu_ = nullptr;
   QActionGroup* colour_group_ = nullptr;

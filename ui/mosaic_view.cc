@@ -12,6 +12,7 @@
 #include <Eigen/LU>
 #include <opencv2/imgproc.hpp>
 
+#include <QContextMenuEvent>
 #include <QFontMetricsF>
 #include <QKeyEvent>
 #include <QLinearGradient>
@@ -173,7 +174,10 @@ void MosaicView::setMission(std::shared_ptr<const mission::Mission> mission,
   } else {
     tiles_->setMission(QString(), std::nullopt);
   }
-  if (!reload) marker_.reset();
+  if (!reload) {
+    marker_.reset();
+    if (!measure_path_.empty()) setMeasurePath({});  // another map
+  }
   rebuildMissionGeometry();
   rebuildColouring();
   rebuildVisibility();
@@ -273,6 +277,8 @@ void MosaicView::frameChanged(bool refit) {
   const Frame frame = currentFrame();
   const bool changed = frame != frame_;
   frame_ = frame;
+  // A path measured in the preview's pixels means nothing on the map.
+  if (changed && !measure_path_.empty()) setMeasurePath({});
   y_up_ = frame_ == Frame::kMap && mission_->map.geo_referenced;
   if (frame_ == Frame::kPreview) {
     map_units_per_pixel_ = preview_units_per_pixel_;
@@ -678,6 +684,7 @@ void MosaicView::paintEvent(QPaintEvent*) {
       break;
   }
   paintMarker(painter);
+  paintMeasure(painter);
   paintLegend(painter);
   paintScaleBar(painter);
   paintPreviewLabel(painter);
@@ -1103,6 +1110,10 @@ void MosaicView::mousePressEvent(QMouseEvent* event) {
 void MosaicView::mouseMoveEvent(QMouseEvent* event) {
   const QPointF pos = event->position();
   if (frame_ != Frame::kNone) emit cursorMoved(mapFromWidget(pos));
+  if (measuring_ && !measure_path_.empty()) {
+    hover_ = pos;
+    update();
+  }
   if (!pressed_) return;
   if (!dragging_) {
     const QPointF moved = pos - press_pos_;
@@ -1121,10 +1132,14 @@ void MosaicView::mouseReleaseEvent(QMouseEvent* event) {
     return;
   }
   if (!dragging_ && !suppress_click_ && frame_ != Frame::kNone) {
-    emit mapClicked(mapFromWidget(event->position()), kClickTolerancePx / ppu_);
+    if (measuring_) {
+      addMeasurePoint(event->position());
+    } else {
+      emit mapClicked(mapFromWidget(event->position()), kClickTolerancePx / ppu_);
+    }
   }
   pressed_ = dragging_ = suppress_click_ = false;
-  setCursor(Qt::OpenHandCursor);
+  setCursor(measuring_ ? Qt::CrossCursor : Qt::OpenHandCursor);
   event->accept();
 }
 
@@ -1133,9 +1148,13 @@ void MosaicView::mouseDoubleClickEvent(QMouseEvent* event) {
     QWidget::mouseDoubleClickEvent(event);
     return;
   }
-  // The press of a double-click: zoom in, and let its release be no click (the first click of
-  // the pair was one already).
-  zoomAt(2, event->position());
+  // The press of a double-click: zoom in (measuring: a point, as a click), and let its release
+  // be no click (the first click of the pair was one already).
+  if (measuring_) {
+    if (frame_ != Frame::kNone) addMeasurePoint(event->position());
+  } else {
+    zoomAt(2, event->position());
+  }
   pressed_ = true;
   dragging_ = false;
   suppress_click_ = true;
@@ -1168,6 +1187,23 @@ void MosaicView::keyPressEvent(QKeyEvent* event) {
     case Qt::Key_Down:
       panBy(QPointF(0, -step_y));
       break;
+    case Qt::Key_Backspace:
+    case Qt::Key_Delete:
+      if (!measuring_ || measure_path_.empty()) {
+        QWidget::keyPressEvent(event);
+        return;
+      }
+      measure_path_.pop_back();
+      emit measureChanged(measure_path_);
+      update();
+      break;
+    case Qt::Key_Escape:
+      if (!measuring_ || measure_path_.empty()) {
+        QWidget::keyPressEvent(event);
+        return;
+      }
+      setMeasurePath({});
+      break;
     default:
       QWidget::keyPressEvent(event);
       return;
@@ -1178,6 +1214,91 @@ void MosaicView::keyPressEvent(QKeyEvent* event) {
 void MosaicView::leaveEvent(QEvent* event) {
   QWidget::leaveEvent(event);
   emit cursorMoved(std::nullopt);
+  if (hover_) {
+    hover_.reset();
+    update();
+  }
+}
+
+void MosaicView::contextMenuEvent(QContextMenuEvent* event) {
+  if (frame_ == Frame::kNone) {
+    QWidget::contextMenuEvent(event);
+    return;
+  }
+  emit contextMenuAt(mapFromWidget(event->pos()), kClickTolerancePx / ppu_, event->globalPos());
+  event->accept();
+}
+
+void MosaicView::setMeasuring(bool on) {
+  if (measuring_ == on) return;
+  measuring_ = on;
+  hover_.reset();
+  setCursor(on ? Qt::CrossCursor : Qt::OpenHandCursor);
+  if (!on && !measure_path_.empty()) {
+    setMeasurePath({});
+    return;
+  }
+  update();
+}
+
+void MosaicView::setMeasurePath(std::vector<Eigen::Vector2d> path) {
+  measure_path_ = std::move(path);
+  if (measure_path_.empty()) measure_text_.clear();
+  emit measureChanged(measure_path_);
+  update();
+}
+
+void MosaicView::setMeasureText(const QString& text) {
+  measure_text_ = text;
+  update();
+}
+
+void MosaicView::addMeasurePoint(const QPointF& widget) {
+  measure_path_.push_back(mapFromWidget(widget));
+  hover_ = widget;
+  emit measureChanged(measure_path_);
+  update();
+}
+
+void MosaicView::paintMeasure(QPainter& painter) {
+  if (measure_path_.empty()) return;
+  QPolygonF line;
+  for (const Eigen::Vector2d& p : measure_path_) line << widgetFromMap(p);
+  painter.save();
+  painter.setRenderHint(QPainter::Antialiasing);
+  const QColor ink(255, 214, 0);  // amber: no track colour mode uses it alone
+  // The closing side (area) dashed, the rubber band to the cursor dotted; all over a dark
+  // outline so that they read on any ground.
+  const auto stroke = [&](const QPolygonF& path, Qt::PenStyle style) {
+    painter.setPen(QPen(QColor(0, 0, 0, 170), 4.5, Qt::SolidLine, Qt::RoundCap, Qt::RoundJoin));
+    painter.drawPolyline(path);
+    painter.setPen(QPen(ink, 2.0, style, Qt::RoundCap, Qt::RoundJoin));
+    painter.drawPolyline(path);
+  };
+  if (line.size() >= 3) stroke(QPolygonF({line.back(), line.front()}), Qt::DashLine);
+  if (measuring_ && hover_) stroke(QPolygonF({line.back(), *hover_}), Qt::DotLine);
+  stroke(line, Qt::SolidLine);
+  painter.setPen(QPen(QColor(0, 0, 0, 200), 1.5));
+  painter.setBrush(ink);
+  for (const QPointF& p : line) painter.drawEllipse(p, 3.5, 3.5);
+  if (!measure_text_.isEmpty()) {
+    QFont font = painter.font();
+    font.setBold(true);
+    painter.setFont(font);
+    const QFontMetricsF metrics(font);
+    QRectF box = metrics.boundingRect(QRectF(0, 0, 400, 200), Qt::AlignLeft, measure_text_);
+    box.adjust(-6, -4, 6, 4);
+    box.moveTopLeft(line.back() + QPointF(12, 12));
+    // Kept inside the widget.
+    box.moveLeft(std::clamp(box.left(), 4.0, std::max(4.0, width() - box.width() - 4)));
+    box.moveTop(std::clamp(box.top(), 4.0, std::max(4.0, height() - box.height() - 4)));
+    painter.setPen(Qt::NoPen);
+    painter.setBrush(QColor(20, 20, 24, 215));
+    painter.drawRoundedRect(box, 4, 4);
+    painter.setPen(ink);
+    painter.drawText(box.adjusted(6, 4, -6, -4), Qt::AlignLeft, measure_text_);
+  }
+  painter.restore();
 }
 
 }  // namespace saker::ui

@@ -32,6 +32,7 @@
 Q_DECLARE_METATYPE(Eigen::Vector2d)
 Q_DECLARE_METATYPE(std::optional<Eigen::Vector2d>)
 
+class QContextMenuEvent;
 class QNativeGestureEvent;
 class QTimer;
 
@@ -107,6 +108,16 @@ class MosaicView : public QWidget {
   void setMarker(std::optional<Eigen::Vector2d> map_point);
   const std::optional<Eigen::Vector2d>& marker() const { return marker_; }
 
+  // Measuring: while on, a click adds a point to the measured path instead of picking (a
+  // double-click too, without zooming), Backspace takes the last point off and Escape clears the
+  // path; the path is drawn with a rubber band to the cursor, closed (dashed) from three points,
+  // and `measureText` in a box beside its last point. Turning it off clears the path.
+  void setMeasuring(bool on);
+  bool measuring() const { return measuring_; }
+  const std::vector<Eigen::Vector2d>& measurePath() const { return measure_path_; }
+  void setMeasurePath(std::vector<Eigen::Vector2d> path);  // map points; emits measureChanged
+  void setMeasureText(const QString& text);  // what the path measures, drawn beside it
+
   // The pyramid level drawn at the current zoom (0 without a pyramid).
   int tileLevel() const;
   // Every tile the current view needs at tileLevel() has been read (or found empty): nothing is
@@ -123,6 +134,11 @@ class MosaicView : public QWidget {
   void mapClicked(const Eigen::Vector2d& map_point, double tolerance_map_units);
   // The map point under the cursor; nullopt when the cursor leaves the view.
   void cursorMoved(std::optional<Eigen::Vector2d> map_point);
+  // The measured path changed (a point added or taken off, cleared).
+  void measureChanged(const std::vector<Eigen::Vector2d>& path);
+  // A right-click (or the context-menu key) at `map_point`, at `global_pos` on the screen.
+  void contextMenuAt(const Eigen::Vector2d& map_point, double tolerance_map_units,
+                     const QPoint& global_pos);
   // The visible part of the map changed (zoom, pan, resize, new mission).
   void viewChanged();
   // The mission's tiles cannot be read (forwarded from the TileCache; names the file).
@@ -139,6 +155,7 @@ class MosaicView : public QWidget {
   void mouseDoubleClickEvent(QMouseEvent* event) override;
   void keyPressEvent(QKeyEvent* event) override;
   void leaveEvent(QEvent* event) override;
+  void contextMenuEvent(QContextMenuEvent* event) override;
 
  private:
   // The coordinate frame drawn: the mission's map or the preview's (first video frame pixels).
@@ -182,6 +199,8 @@ class MosaicView : public QWidget {
   void drawTracks(QPainter& painter) const;  // every visible track, in widget coordinates
   void tracksChanged();                      // what the tracks look like changed: redraw them
   void paintMarker(QPainter& painter);
+  void paintMeasure(QPainter& painter);
+  void addMeasurePoint(const QPointF& widget);
   void paintLegend(QPainter& painter);
   void paintScaleBar(QPainter& painter);
   void paintHint(QPainter& painter);
@@ -229,6 +248,12 @@ class MosaicView : public QWidget {
   QTimer* settle_timer_ = nullptr;
 
   std::optional<Eigen::Vector2d> marker_;
+
+  // Measuring.
+  bool measuring_ = false;
+  std::vector<Eigen::Vector2d> measure_path_;
+  QString measure_text_;
+  std::optional<QPointF> hover_;  // the cursor in the widget, for the rubber band
 
   // The preview: key frames composited as they arrive into one canvas (bounded in size), so a
   // paint draws one image whatever the number of key frames.

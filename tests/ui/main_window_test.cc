@@ -16,6 +16,7 @@
 
 #include <QAction>
 #include <QApplication>
+#include <QClipboard>
 #include <QDockWidget>
 #include <QDoubleSpinBox>
 #include <QDragEnterEvent>
@@ -23,9 +24,11 @@
 #include <QElapsedTimer>
 #include <QFile>
 #include <QFileDialog>
+#include <QGuiApplication>
 #include <QImage>
 #include <QLabel>
 #include <QLineEdit>
+#include <QMenu>
 #include <QMessageBox>
 #include <QMimeData>
 #include <QProgressBar>
@@ -43,6 +46,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <memory>
 #include <set>
 
 namespace saker::ui {
@@ -360,6 +364,110 @@ TEST(MainWindowTest, DropOpensAMissionAndTheStatusBarShowsWhereTheCursorIs) {
       },
       3000))
       << "no coordinates in the status bar";
+}
+
+// View > Coordinates changes how the status bar writes the cursor's position (and is
+// remembered); Tools > Measure turns clicks into a measured path, on the ellipsoid, that
+// Backspace shortens and Escape clears; the map's context menu recalls a track, copies the
+// position and starts a measurement.
+TEST(MainWindowTest, CoordinateFormatsMeasuringAndTheContextMenu) {
+  const TestMission* m = SmallMission();
+  ASSERT_NE(m, nullptr);
+  auto window = std::make_unique<MainWindow>();
+  window->resize(1200, 800);
+  window->show();
+  ASSERT_TRUE(OpenAndWait(*window, *m));
+  MosaicView* view = window->mosaicView();
+  auto* cursor = window->findChild<QLabel*>("cursorPosition");
+  ASSERT_NE(cursor, nullptr);
+  const QPoint centre = view->rect().center();
+  const Eigen::Vector2d at = view->mapFromWidget(centre);
+  QTest::mouseMove(view, centre);
+  ASSERT_TRUE(WaitUntil([&] { return !cursor->text().isEmpty(); }, 3000));
+  EXPECT_TRUE(QRegularExpression(R"(^\d+\.\d{5}° [NS], \d+\.\d{5}° [EW]$)")
+                  .match(cursor->text())
+                  .hasMatch())
+      << cursor->text().toStdString();
+  auto* mgrs = window->findChild<QAction*>("coordinates-mgrs");
+  ASSERT_NE(mgrs, nullptr);
+  mgrs->trigger();
+  EXPECT_EQ(window->coordinateFormat(), geo::CoordinateFormat::kMgrs);
+  EXPECT_EQ(cursor->text(), window->positionText(at));
+  EXPECT_TRUE(
+      QRegularExpression(R"(^\d{1,2}[C-X] [A-Z]{2} \d{5} \d{5}$)").match(cursor->text()).hasMatch())
+      << cursor->text().toStdString();
+  window->findChild<QAction*>("coordinates-dms")->trigger();
+  EXPECT_TRUE(cursor->text().contains("′")) << cursor->text().toStdString();
+  window->findChild<QAction*>("coordinates-utm")->trigger();
+
+  // Measuring: three clicks make a closed path; the figures are those of the map's metres (a
+  // local tangent plane, within 0.5 % of the ellipsoid over a few hundred metres).
+  auto* measure = window->findChild<QAction*>("measure");
+  ASSERT_NE(measure, nullptr);
+  measure->trigger();
+  ASSERT_TRUE(view->measuring());
+  const std::vector<QPoint> clicks = {centre + QPoint(-150, -100), centre + QPoint(150, -100),
+                                      centre + QPoint(150, 100)};
+  for (const QPoint& p : clicks) QTest::mouseClick(view, Qt::LeftButton, Qt::NoModifier, p);
+  ASSERT_EQ(view->measurePath().size(), 3u);
+  EXPECT_FALSE(view->marker().has_value()) << "a click while measuring picks nothing";
+  const double side_a = (view->measurePath()[1] - view->measurePath()[0]).norm();
+  const double side_b = (view->measurePath()[2] - view->measurePath()[1]).norm();
+  const QString text = window->measureText();
+  const QRegularExpressionMatch length = QRegularExpression(R"(Length ([\d.]+) (k?m))").match(text);
+  ASSERT_TRUE(length.hasMatch()) << text.toStdString();
+  const double metres = length.captured(1).toDouble() * (length.captured(2) == "km" ? 1000 : 1);
+  EXPECT_NEAR(metres, side_a + side_b, 0.005 * (side_a + side_b) + 1) << text.toStdString();
+  const QRegularExpressionMatch area =
+      QRegularExpression(R"(Area ([\d.]+) (m²|ha|km²))").match(text);
+  ASSERT_TRUE(area.hasMatch()) << text.toStdString();
+  const double unit = area.captured(2) == "ha" ? 1e4 : area.captured(2) == "km²" ? 1e6 : 1;
+  EXPECT_NEAR(area.captured(1).toDouble() * unit, side_a * side_b / 2,
+              0.01 * side_a * side_b / 2 + 1)
+      << text.toStdString();
+  auto* status = window->findChild<QLabel*>("measurement");
+  ASSERT_NE(status, nullptr);
+  EXPECT_TRUE(status->text().startsWith("Length")) << status->text().toStdString();
+  QTest::keyClick(view, Qt::Key_Backspace);
+  EXPECT_EQ(view->measurePath().size(), 2u);
+  EXPECT_FALSE(window->measureText().contains("Area"));
+  QTest::keyClick(view, Qt::Key_Escape);
+  EXPECT_TRUE(view->measurePath().empty());
+  EXPECT_TRUE(status->text().isEmpty());
+  measure->trigger();
+  EXPECT_FALSE(view->measuring());
+
+  // The context menu: on a track, its frame; anywhere, the position and a measurement.
+  const mission::ActivityTrack& track = window->mission()->tracks.front();
+  const Eigen::Vector2d on_track = track.points[track.points.size() / 2].map;
+  QMenu* menu = window->contextMenuFor(on_track, 1.0);
+  auto* show = menu->findChild<QAction*>("showTrackFrame");
+  ASSERT_NE(show, nullptr);
+  QSignalSpy shown(window->framePanel(), &FramePanel::frameShown);
+  show->trigger();
+  EXPECT_TRUE(view->marker().has_value());
+  EXPECT_TRUE(shown.count() > 0 || shown.wait(10000));
+  const Eigen::Vector2d far_away = on_track + Eigen::Vector2d(1e6, 1e6);
+  menu = window->contextMenuFor(far_away, 1.0);
+  EXPECT_EQ(menu->findChild<QAction*>("showTrackFrame"), nullptr);
+  menu->findChild<QAction*>("copyCoordinates")->trigger();
+  EXPECT_EQ(QGuiApplication::clipboard()->text(), window->positionText(far_away));
+  EXPECT_TRUE(window->positionText(far_away).contains(" E ")) << "UTM";
+  menu = window->contextMenuFor(on_track, 1.0);
+  menu->findChild<QAction*>("measureFromHere")->trigger();
+  EXPECT_TRUE(view->measuring());
+  ASSERT_EQ(view->measurePath().size(), 1u);
+  EXPECT_EQ(
+      window->contextMenuFor(on_track, 1.0)->findChild<QAction*>("clearMeasurement") != nullptr,
+      true);
+
+  // The coordinate format is remembered.
+  window->close();
+  window.reset();
+  MainWindow again;
+  EXPECT_EQ(again.coordinateFormat(), geo::CoordinateFormat::kUtm);
+  again.setCoordinateFormat(geo::CoordinateFormat::kDecimalDegrees);
+  again.close();
 }
 
 TEST(MainWindowTest, HelpShowsTheUserGuideWithItsPictures) {
