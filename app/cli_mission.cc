@@ -181,9 +181,12 @@ ExportCommand::ExportCommand(CLI::App& app) : state_(std::make_unique<State>()) 
   s.command->add_option("--geojson", s.geojson, "Tracks as GeoJSON");
   s.command->add_option("--kml", s.kml, "Tracks as KML (geo-referenced missions)");
   s.command->add_option("--csv", s.csv, "Track observations as CSV");
-  s.command->add_option("--color-by,--colour-by", s.colour_by, "Track colours on the activity map")
+  s.command
+      ->add_option("--color-by,--colour-by", s.colour_by,
+                   "Track colours on the activity map; density: a heat map of the tracks' "
+                   "observations per cell instead of the tracks")
       ->capture_default_str()
-      ->check(CLI::IsMember({"speed", "direction", "visit", "time"}));
+      ->check(CLI::IsMember({"speed", "direction", "visit", "time", "density"}));
   s.command
       ->add_option("--level", s.level,
                    "GeoTIFF resolution: pyramid level (0 = full, each level halves it)")

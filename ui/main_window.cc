@@ -293,7 +293,8 @@ void MainWindow::createActions() {
       {activity::ColourMode::kSpeed, tr("&Speed")},
       {activity::ColourMode::kDirection, tr("&Direction")},
       {activity::ColourMode::kVisit, tr("&Visit")},
-      {activity::ColourMode::kTime, tr("&Time")}};
+      {activity::ColourMode::kTime, tr("&Time")},
+      {activity::ColourMode::kDensity, tr("D&ensity (Heat Map)")}};
   int key = 1;
   for (const auto& [mode, label] : modes) {
     QAction* action = colour->addAction(label);

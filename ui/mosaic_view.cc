@@ -1,6 +1,7 @@
 #include "ui/mosaic_view.h"
 
 #include "core/activity/confidence.h"
+#include "core/activity/density.h"
 #include "core/mosaic/adjustment.h"
 #include "core/track/homography.h"
 #include "core/track/image_geometry.h"
@@ -181,6 +182,7 @@ void MosaicView::setMission(std::shared_ptr<const mission::Mission> mission,
   rebuildMissionGeometry();
   rebuildColouring();
   rebuildVisibility();
+  rebuildDensity();
   tracksChanged();
   frameChanged(/*refit=*/!reload);
   update();
@@ -394,12 +396,49 @@ void MosaicView::setColourMode(activity::ColourMode mode) {
   if (mode == colour_mode_) return;
   colour_mode_ = mode;
   rebuildColouring();
+  rebuildDensity();
   tracksChanged();
 }
 
 const activity::Legend& MosaicView::legend() const {
   static const activity::Legend kNoLegend;
+  if (colour_mode_ == activity::ColourMode::kDensity && colouring_) return density_legend_;
   return colouring_ ? colouring_->legend() : kNoLegend;
+}
+
+void MosaicView::rebuildDensity() {
+  density_image_ = QImage();
+  density_legend_ = activity::Legend();
+  if (colour_mode_ != activity::ColourMode::kDensity || !mission_) return;
+  std::vector<const mission::ActivityTrack*> shown;
+  for (size_t i = 0; i < mission_->tracks.size(); ++i) {
+    if (isTrackVisible(i)) shown.push_back(&mission_->tracks[i]);
+  }
+  const activity::DensityGrid grid =
+      activity::CountObservations(shown, mission_->map.geo_referenced);
+  density_legend_ = activity::DensityLegend(grid, mission_->map.geo_referenced);
+  if (grid.cols == 0) return;
+  QImage image(grid.cols, grid.rows, QImage::Format_ARGB32_Premultiplied);
+  for (int r = 0; r < grid.rows; ++r) {
+    auto* line = reinterpret_cast<QRgb*>(image.scanLine(r));
+    for (int c = 0; c < grid.cols; ++c) {
+      const double p = activity::DensityPosition(grid.At(c, r), grid.max);
+      const activity::Rgb rgb = activity::DensityRamp(p);
+      line[c] = qPremultiply(qRgba(rgb.r, rgb.g, rgb.b, activity::DensityAlpha(p)));
+    }
+  }
+  density_image_ = std::move(image);
+  // Image pixel (c, r) covers map x in [origin.x + c cell, + cell), y likewise.
+  map_from_density_ = QTransform(grid.cell, 0, 0, grid.cell, grid.origin.x(), grid.origin.y());
+}
+
+void MosaicView::paintDensity(QPainter& painter) {
+  if (density_image_.isNull() || !show_tracks_) return;
+  painter.save();
+  painter.setRenderHint(QPainter::SmoothPixmapTransform);
+  painter.setTransform(map_from_density_ * widgetFromMapTransform());
+  painter.drawImage(QPointF(0, 0), density_image_);
+  painter.restore();
 }
 
 std::optional<activity::Rgb> MosaicView::trackColour(size_t track_index) const {
@@ -412,6 +451,7 @@ std::optional<activity::Rgb> MosaicView::trackColour(size_t track_index) const {
 void MosaicView::setTrackFilter(const TrackFilter& filter) {
   filter_ = filter;
   rebuildVisibility();
+  rebuildDensity();
   tracksChanged();
 }
 
@@ -680,6 +720,7 @@ void MosaicView::paintEvent(QPaintEvent*) {
       requestTiles();
       paintTiles(painter);
       paintKeyFrames(painter);
+      paintDensity(painter);
       paintTracks(painter);
       break;
   }
@@ -813,6 +854,8 @@ void MosaicView::paintTracks(QPainter& painter) {
 }
 
 void MosaicView::drawTracks(QPainter& painter) const {
+  // The density mode shows the heat map (paintDensity), not the tracks.
+  if (colour_mode_ == activity::ColourMode::kDensity) return;
   const double margin = (kArrowLengthPx + 4) / ppu_;
   const QRectF view = visibleMapRect().adjusted(-margin, -margin, margin, margin);
   const QTransform transform = widgetFromMapTransform();

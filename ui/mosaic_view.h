@@ -196,6 +196,8 @@ class MosaicView : public QWidget {
   void paintPreview(QPainter& painter);
   void paintKeyFrames(QPainter& painter);
   void paintTracks(QPainter& painter);
+  void paintDensity(QPainter& painter);
+  void rebuildDensity();  // the heat map of the visible tracks (density mode only)
   void drawTracks(QPainter& painter) const;  // every visible track, in widget coordinates
   void tracksChanged();                      // what the tracks look like changed: redraw them
   void paintMarker(QPainter& painter);
@@ -231,6 +233,10 @@ class MosaicView : public QWidget {
   bool show_tracks_ = true;
   bool show_outlines_ = false;
   bool show_uncertainty_ = false;
+  // The density mode's heat map: one premultiplied pixel per cell, its placement, its legend.
+  QImage density_image_;
+  QTransform map_from_density_;
+  activity::Legend density_legend_;
 
   // Key frames, on the map.
   std::vector<std::array<QPointF, 4>> key_frame_outlines_;

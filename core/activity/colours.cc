@@ -1,5 +1,6 @@
 #include "core/activity/colours.h"
 
+#include "core/activity/density.h"
 #include "core/util/statistics.h"
 
 #include <algorithm>
@@ -9,6 +10,8 @@
 
 namespace saker::activity {
 namespace {
+
+constexpr Rgb kNeutralTrack{235, 235, 235};  // a track in the density mode
 
 // Hue in degrees, saturation and value in [0, 1].
 Rgb FromHsv(double hue, double saturation, double value) {
@@ -93,13 +96,15 @@ const char* ColourModeName(ColourMode mode) {
       return "visit";
     case ColourMode::kTime:
       return "time";
+    case ColourMode::kDensity:
+      return "density";
   }
   return "speed";
 }
 
 std::optional<ColourMode> ParseColourMode(std::string_view name) {
-  for (const ColourMode mode :
-       {ColourMode::kSpeed, ColourMode::kDirection, ColourMode::kVisit, ColourMode::kTime}) {
+  for (const ColourMode mode : {ColourMode::kSpeed, ColourMode::kDirection, ColourMode::kVisit,
+                                ColourMode::kTime, ColourMode::kDensity}) {
     if (name == ColourModeName(mode)) return mode;
   }
   return std::nullopt;
@@ -162,6 +167,12 @@ TrackColouring::TrackColouring(ColourMode mode, const std::vector<mission::Activ
       }
       break;
     }
+    case ColourMode::kDensity: {
+      std::vector<const mission::ActivityTrack*> all;
+      for (const mission::ActivityTrack& t : tracks) all.push_back(&t);
+      legend_ = DensityLegend(CountObservations(all, geo_referenced), geo_referenced);
+      break;
+    }
   }
 }
 
@@ -176,6 +187,8 @@ Rgb TrackColouring::RampColour(double position) const {
       return VisitColour(1 + static_cast<int>(position * 5));
     case ColourMode::kTime:
       return Sequential(position);
+    case ColourMode::kDensity:
+      return DensityRamp(position);
   }
   return {};
 }
@@ -190,6 +203,8 @@ Rgb TrackColouring::ColourOf(const mission::ActivityTrack& track) const {
       return VisitColour(track.visit);
     case ColourMode::kTime:
       return RampColour((0.5 * (track.start_s + track.end_s) - low_) / (high_ - low_));
+    case ColourMode::kDensity:
+      return kNeutralTrack;
   }
   return {};
 }

@@ -7,7 +7,9 @@
 // - direction: a colour wheel on the heading (north red, east yellow-green, south cyan, west
 //   violet);
 // - visit: first visit red, second blue, then green, orange, purple, brown (then repeating);
-// - time: a sequential colour map (dark blue early to yellow late) over the mission's time span.
+// - time: a sequential colour map (dark blue early to yellow late) over the mission's time span;
+// - density: not the tracks but a heat map of their observations per cell (core/activity/
+//   density.h); the tracks themselves are drawn neutral, or not at all.
 
 #include "core/mission/mission.h"
 
@@ -19,9 +21,10 @@
 
 namespace saker::activity {
 
-enum class ColourMode { kSpeed, kDirection, kVisit, kTime };
+enum class ColourMode { kSpeed, kDirection, kVisit, kTime, kDensity };
 
-const char* ColourModeName(ColourMode mode);  // "speed", "direction", "visit", "time"
+// "speed", "direction", "visit", "time", "density"
+const char* ColourModeName(ColourMode mode);
 std::optional<ColourMode> ParseColourMode(std::string_view name);
 
 struct Rgb {

@@ -1,5 +1,6 @@
 #include "core/render/activity_map.h"
 
+#include "core/activity/density.h"
 #include "core/util/durable_file.h"
 
 #include <Eigen/Geometry>
@@ -119,6 +120,49 @@ void DrawLegend(const activity::Legend& legend, double ui, cv::Mat* image) {
   }
 }
 
+// The density of the tracks' observations (the heat map) blended over the picture: each cell's
+// colour, bilinearly interpolated from the cell centres, with its opacity.
+void DrawDensity(const std::vector<mission::ActivityTrack>& tracks, bool geo_referenced,
+                 const Eigen::Matrix3d& image_from_map, cv::Mat* image) {
+  std::vector<const mission::ActivityTrack*> all;
+  for (const mission::ActivityTrack& t : tracks) all.push_back(&t);
+  const activity::DensityGrid grid = activity::CountObservations(all, geo_referenced);
+  if (grid.cols == 0) return;
+  // Premultiplied BGRA of the cells, so that interpolation does not darken the edges.
+  cv::Mat cells(grid.rows, grid.cols, CV_32FC4, cv::Scalar::all(0));
+  for (int r = 0; r < grid.rows; ++r) {
+    for (int c = 0; c < grid.cols; ++c) {
+      const double p = activity::DensityPosition(grid.At(c, r), grid.max);
+      const float a = activity::DensityAlpha(p) / 255.0f;
+      const activity::Rgb rgb = activity::DensityRamp(p);
+      cells.at<cv::Vec4f>(r, c) = cv::Vec4f(rgb.b * a, rgb.g * a, rgb.r * a, a);
+    }
+  }
+  // Picture from cell (centres at integers): map = origin + (cell index + 0.5) * cell.
+  Eigen::Matrix3d map_from_cell;
+  map_from_cell << grid.cell, 0, grid.origin.x() + 0.5 * grid.cell, 0, grid.cell,
+      grid.origin.y() + 0.5 * grid.cell, 0, 0, 1;
+  const Eigen::Matrix3d image_from_cell = image_from_map * map_from_cell;
+  cv::Mat affine(2, 3, CV_64F);
+  for (int i = 0; i < 2; ++i) {
+    for (int j = 0; j < 3; ++j) affine.at<double>(i, j) = image_from_cell(i, j);
+  }
+  cv::Mat warped;
+  cv::warpAffine(cells, warped, affine, image->size(), cv::INTER_LINEAR, cv::BORDER_CONSTANT,
+                 cv::Scalar::all(0));
+  for (int v = 0; v < image->rows; ++v) {
+    cv::Vec3b* row = image->ptr<cv::Vec3b>(v);
+    const cv::Vec4f* heat = warped.ptr<cv::Vec4f>(v);
+    for (int u = 0; u < image->cols; ++u) {
+      const float a = heat[u][3];
+      if (a <= 0) continue;
+      for (int k = 0; k < 3; ++k) {
+        row[u][k] = cv::saturate_cast<uint8_t>(heat[u][k] + (1 - a) * row[u][k]);
+      }
+    }
+  }
+}
+
 void DrawScaleBar(double metres_per_px, double ui, cv::Mat* image) {
   const double metres = NiceLength(0.2 * image->cols * metres_per_px);
   const int length = static_cast<int>(std::lround(metres / metres_per_px));
@@ -233,9 +277,15 @@ StatusOr<ActivityMap> RenderActivityMap(const mission::Mission& mission, const T
 
   const activity::TrackColouring colouring(options.colour_by, shown_copy,
                                            mission.map.geo_referenced);
+  const bool density = options.colour_by == activity::ColourMode::kDensity;
+  if (density) DrawDensity(shown_copy, mission.map.geo_referenced, out.image_from_map, &out.bgr);
   const int width_px = std::max(1, static_cast<int>(std::lround(options.line_width * ui)));
   for (const mission::ActivityTrack& track : shown_copy) {
     if (track.points.empty()) continue;  // a mission may hold a track without points: no line
+    if (density) {  // the heat map is the picture; the tracks are counted, not drawn
+      ++out.tracks;
+      continue;
+    }
     std::vector<cv::Point> line;
     for (const mission::TrackPoint& p : track.points) {
       line.push_back(Fixed((out.image_from_map * p.map.homogeneous()).hnormalized()));

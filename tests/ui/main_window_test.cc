@@ -1005,7 +1005,7 @@ TEST(MainWindowScreenshots, DemoMission) {
   ASSERT_TRUE(opened.wait(30000));
   MosaicView* view = window.mosaicView();
   ASSERT_TRUE(WaitUntil([&] { return view->tilesComplete(); }));
-  for (const char* mode : {"speed", "direction", "visit", "time"}) {
+  for (const char* mode : {"speed", "direction", "visit", "time", "density"}) {
     ColourAction(window, mode)->trigger();
     QTest::qWait(200);
     window.grab().save(folder + QString("/main-window-%1.png").arg(mode));

@@ -9,6 +9,7 @@
 #include "ui/mosaic_view.h"
 
 #include "core/activity/colours.h"
+#include "core/activity/density.h"
 #include "core/mission/mission_store.h"
 #include "core/mosaic/adjustment.h"
 #include "core/track/homography.h"
@@ -425,6 +426,55 @@ TEST(MosaicViewTest, FilterHidesTracks) {
   filter.end_s = tracks[0].start_s;
   view.setTrackFilter(filter);
   EXPECT_TRUE(view.isTrackVisible(0));
+}
+
+// The density mode draws a heat map of the shown tracks' observations, not the tracks, with its
+// own legend; the filter applies to it as to the tracks.
+TEST(MosaicViewTest, DensityModeDrawsAHeatMapOfTheShownTracks) {
+  const testing::TestMission* m = SmallMission();
+  ASSERT_NE(m, nullptr);
+  const std::vector<mission::ActivityTrack>& tracks = m->loaded.tracks;
+  ASSERT_FALSE(tracks.empty());
+  LoadedView loaded(*m);
+  MosaicView& view = loaded.view;
+  ASSERT_TRUE(loaded.WaitForTiles());
+  view.setColourMode(activity::ColourMode::kDensity);
+  std::vector<const mission::ActivityTrack*> all;
+  for (const mission::ActivityTrack& t : tracks) all.push_back(&t);
+  const activity::DensityGrid grid = activity::CountObservations(all, m->loaded.map.geo_referenced);
+  ASSERT_GT(grid.max, 0u);
+  EXPECT_EQ(view.legend().title.rfind("Observations per ", 0), 0u) << view.legend().title;
+  ASSERT_FALSE(view.legend().entries.empty());
+  EXPECT_EQ(view.legend().entries.back().label, std::to_string(grid.max));
+  // The densest cell, on screen: warm (heat colours are red over green or grey ground).
+  int best = 0;
+  for (int i = 1; i < grid.cols * grid.rows; ++i) {
+    if (grid.counts[static_cast<size_t>(i)] > grid.counts[static_cast<size_t>(best)]) best = i;
+  }
+  const Eigen::Vector2d hottest =
+      grid.origin + grid.cell * Eigen::Vector2d(best % grid.cols + 0.5, best / grid.cols + 0.5);
+  view.zoomAt(4, view.widgetFromMap(hottest));
+  ASSERT_TRUE(loaded.WaitForTiles());
+  const QPoint at = view.widgetFromMap(hottest).toPoint();
+  ASSERT_TRUE(view.rect().contains(at));
+  const QColor heat = view.grab().toImage().pixelColor(at);
+  view.setShowTracks(false);
+  const QColor ground = view.grab().toImage().pixelColor(at);
+  view.setShowTracks(true);
+  EXPECT_GT(heat.red() - heat.blue(), ground.red() - ground.blue() + 30)
+      << "heat " << heat.name().toStdString() << " over " << ground.name().toStdString();
+  // Filtered out, the heat map goes; its legend counts nothing.
+  MosaicView::TrackFilter filter;
+  double first_start = tracks.front().start_s;
+  for (const auto& t : tracks) first_start = std::min(first_start, t.start_s);
+  filter.end_s = first_start - 1;
+  view.setTrackFilter(filter);
+  EXPECT_EQ(view.grab().toImage().pixelColor(at), ground);
+  view.setTrackFilter({});
+  EXPECT_EQ(view.grab().toImage().pixelColor(at), heat);
+  // Back to speed: the tracks again, with the speed legend.
+  view.setColourMode(activity::ColourMode::kSpeed);
+  EXPECT_EQ(view.legend().title.find("Observations"), std::string::npos);
 }
 
 TEST(MosaicViewTest, OverlaysAreDrawn) {

@@ -1,5 +1,7 @@
 #include "core/render/activity_map.h"
 
+#include "core/activity/density.h"
+
 #include <Eigen/Geometry>
 #include <gtest/gtest.h>
 #include <opencv2/core.hpp>
@@ -99,6 +101,46 @@ TEST(ActivityMap, TracksTakeTheirModesColourOverTheMosaic) {
   ASSERT_TRUE(later.ok());
   EXPECT_EQ(later->tracks, 1);
   EXPECT_EQ(At(*later, {120, 100}), cv::Vec3b(128, 128, 128));
+}
+
+// The density mode: the heat of the observations blended over the mosaic, where the tracks ran
+// and nowhere else, the tracks themselves not drawn; the time window applies.
+TEST(ActivityMap, DensityIsAHeatMapOfTheObservations) {
+  mission::Mission m = MakeMission();
+  // Track 1 waits: five times as many observations along the same line.
+  mission::ActivityTrack& slow = m.tracks[0];
+  const std::vector<mission::TrackPoint> once = slow.points;
+  for (int k = 0; k < 4; ++k) slow.points.insert(slow.points.end(), once.begin(), once.end());
+  ActivityMapOptions options;
+  options.legend = false;
+  options.colour_by = ColourMode::kDensity;
+  const auto heat = RenderActivityMap(m, GreyTile, options);
+  ASSERT_TRUE(heat.ok()) << heat.status().ToString();
+  EXPECT_EQ(heat->tracks, 2);
+  EXPECT_EQ(At(*heat, {120, 64}), cv::Vec3b(128, 128, 128));  // no observation there
+  // Sampled at the centres of the cells the tracks run through (between cells the picture is
+  // interpolated).
+  std::vector<const mission::ActivityTrack*> all;
+  for (const mission::ActivityTrack& t : m.tracks) all.push_back(&t);
+  const activity::DensityGrid grid = activity::CountObservations(all, true);
+  const auto centre = [&](const Eigen::Vector2d& p) -> Eigen::Vector2d {
+    const Eigen::Vector2d cell = ((p - grid.origin) / grid.cell).array().floor();
+    return grid.origin + grid.cell * (cell.array() + 0.5).matrix();
+  };
+  const cv::Vec3b busy = At(*heat, centre({120, 100})), quiet = At(*heat, centre({120, 30}));
+  for (const cv::Vec3b& pixel : {busy, quiet}) {
+    EXPECT_GT(pixel[2], pixel[0] + 40) << "warm " << pixel;  // red over blue, on grey ground
+  }
+  EXPECT_LT(busy[1], quiet[1]) << "denser is darker red, less yellow";
+  // No speed colours: the fast track is not drawn blue.
+  EXPECT_LT(quiet[0], 128);
+  options.start_s = 15;
+  const auto later = RenderActivityMap(m, GreyTile, options);
+  ASSERT_TRUE(later.ok());
+  EXPECT_EQ(At(*later, {120, 100}), cv::Vec3b(128, 128, 128));
+  const cv::Vec3b alone = At(*later, centre({120, 30}));  // the densest now: dark red
+  EXPECT_GT(alone[2], alone[0] + 40);
+  EXPECT_GT(alone[2], alone[1] + 40);
 }
 
 TEST(ActivityMap, OverlaysAndFallbacks) {
