@@ -162,6 +162,7 @@ struct ExportCommand::State {
   render::ActivityMapOptions map;
   double start_s = -1, end_s = -1;
   double min_confidence = 0;
+  bool include_false = false;
 };
 
 ExportCommand::ExportCommand(CLI::App& app) : state_(std::make_unique<State>()) {
@@ -200,6 +201,9 @@ ExportCommand::ExportCommand(CLI::App& app) : state_(std::make_unique<State>()) 
   s.command->add_option("--to", s.end_s, "Activity map: only tracks seen before this second");
   AddMinConfidenceOption(s.command, &s.min_confidence,
                          "are left out of every output (the activity map included)");
+  s.command->add_flag("--include-false", s.include_false,
+                      "Also export the tracks the analyst marked false (left out by default; the "
+                      "exports carry each track's verdict, label and note)");
 }
 
 ExportCommand::~ExportCommand() = default;
@@ -218,7 +222,8 @@ int ExportCommand::Run() const {
   StatusOr<mission::Mission> m = (*store)->Load();
   if (!m.ok()) return Fail(m.status());
   std::erase_if(m->tracks, [&](const mission::ActivityTrack& t) {
-    return !activity::PassesConfidence(t, s.min_confidence);
+    return !activity::PassesConfidence(t, s.min_confidence) ||
+           (!s.include_false && mission::IsMarkedFalse(*m, t.id));
   });
   pipeline::ExportRequest request;
   request.png = s.png;
@@ -370,6 +375,16 @@ int InfoCommand::Run() const {
   const int64_t sky_frames =
       std::count_if(m->frames.begin(), m->frames.end(),
                     [](const mission::FrameRecord& f) { return f.sky_line.has_value(); });
+  // The analyst's reviews.
+  struct {
+    int64_t confirmed = 0, marked_false = 0, labelled = 0, noted = 0;
+  } reviews;
+  for (const mission::TrackReview& r : m->reviews) {
+    reviews.confirmed += r.verdict == mission::Verdict::kConfirmed ? 1 : 0;
+    reviews.marked_false += r.verdict == mission::Verdict::kFalse ? 1 : 0;
+    reviews.labelled += r.label != mission::TargetLabel::kNone ? 1 : 0;
+    reviews.noted += r.note.empty() ? 0 : 1;
+  }
   if (s.json) {
     nlohmann::json visit_json = nlohmann::json::object();
     for (const auto& [v, n] : visits) visit_json[std::to_string(v)] = n;
@@ -404,6 +419,11 @@ int InfoCommand::Run() const {
                           {"tiles", p.tiles}}},
                         {"cancelled", p.cancelled}};
     if (sky_kept) j["sky_frames"] = sky_frames;
+    j["reviews"] = {{"confirmed", reviews.confirmed},
+                    {"false", reviews.marked_false},
+                    {"labelled", reviews.labelled},
+                    {"with_notes", reviews.noted},
+                    {"bookmarks", m->bookmarks.size()}};
     if (overlays_kept) {
       j["overlay_masks"] = {{"masks", m->overlays.size()},
                             {"frames", overlay_frames},
@@ -481,6 +501,12 @@ int InfoCommand::Run() const {
     if (confidence.unknown > 0) {
       std::cout << ", " << confidence.unknown << " unknown (written before Saker kept it)";
     }
+  }
+  if (!m->reviews.empty() || !m->bookmarks.empty()) {
+    std::cout << "\n  analyst: " << reviews.confirmed << " tracks confirmed, "
+              << reviews.marked_false << " marked false (left out of exports unless "
+              << "--include-false), " << reviews.labelled << " labelled, " << reviews.noted
+              << " with notes; " << m->bookmarks.size() << " bookmarks";
   }
   std::cout << "\n  mosaic tiles: " << *tiles;
   if (m->pyramid) {

@@ -193,8 +193,22 @@ std::vector<Eigen::Vector2d> TrackPositions(const mission::ActivityTrack& track,
   return out;
 }
 
+// The analyst's review of a track as text fields: verdict, label, note (each empty when unset).
+struct ReviewFields {
+  std::string verdict, label, note;
+};
+ReviewFields ReviewFieldsOf(const mission::Mission& mission, int64_t track_id) {
+  const mission::TrackReview* review = mission::ReviewOf(mission, track_id);
+  if (review == nullptr) return {};
+  return {mission::VerdictName(review->verdict), mission::TargetLabelName(review->label),
+          review->note};
+}
+
 // ---------------------------------------------------------------------------------------------
 // GeoJSON
+
+// Text, or null when empty.
+Json TextOrNull(const std::string& text) { return text.empty() ? Json(nullptr) : Json(text); }
 
 Json GeoJsonGeometry(const std::vector<Eigen::Vector2d>& positions) {
   if (positions.empty()) return nullptr;
@@ -207,7 +221,8 @@ Json GeoJsonGeometry(const std::vector<Eigen::Vector2d>& positions) {
   return {{"type", "LineString"}, {"coordinates", std::move(coordinates)}};
 }
 
-Json GeoJsonFeature(const mission::ActivityTrack& track, const Positions& positions) {
+Json GeoJsonFeature(const mission::ActivityTrack& track, const ReviewFields& review,
+                    const Positions& positions) {
   Json points = Json::array();
   for (const auto& p : track.points) {
     points.push_back({
@@ -232,6 +247,9 @@ Json GeoJsonFeature(const mission::ActivityTrack& track, const Positions& positi
       {"heading_deg", JsonNumber(track.heading_deg)},
       {"point_count", track.points.size()},
       {"confidence", JsonNumber(track.confidence)},
+      {"verdict", TextOrNull(review.verdict)},
+      {"label", TextOrNull(review.label)},
+      {"note", TextOrNull(review.note)},
       {"points", std::move(points)},
   };
   return {{"type", "Feature"},
@@ -279,8 +297,8 @@ std::string KmlList(const mission::ActivityTrack& track, Get get) {
   return out;
 }
 
-std::string KmlPlacemark(const mission::ActivityTrack& track, const Positions& positions,
-                         const std::string& video) {
+std::string KmlPlacemark(const mission::ActivityTrack& track, const ReviewFields& review,
+                         const Positions& positions, const std::string& video) {
   using Point = mission::TrackPoint;
   std::string out = "<Placemark id=\"track-" + std::to_string(track.id) + "\">";
   out += "<name>Track " + std::to_string(track.id) + "</name>";
@@ -291,6 +309,9 @@ std::string KmlPlacemark(const mission::ActivityTrack& track, const Positions& p
   }
   description << track.points.size() << " points";
   if (!video.empty()) description << ", video " << video;
+  if (!review.verdict.empty()) description << "; analyst: " << review.verdict;
+  if (!review.label.empty()) description << "; " << review.label;
+  if (!review.note.empty()) description << "; " << review.note;
   out += "<description>" + XmlText(description.str()) + "</description>";
   out += "<styleUrl>#" + VisitStyleId(track.visit) + "</styleUrl>";
   out += "<ExtendedData>";
@@ -305,6 +326,9 @@ std::string KmlPlacemark(const mission::ActivityTrack& track, const Positions& p
   KmlData("heading_deg", FormatNumber(track.heading_deg), out);
   KmlData("point_count", std::to_string(track.points.size()), out);
   KmlData("confidence", track.confidence ? FormatNumber(*track.confidence) : "", out);
+  KmlData("verdict", review.verdict, out);
+  KmlData("label", review.label, out);
+  KmlData("note", review.note, out);
   KmlData("frames", KmlList(track, [](const Point& p) { return static_cast<double>(p.frame); }),
           out);
   KmlData("times_s", KmlList(track, [](const Point& p) { return p.time_s; }), out);
@@ -660,7 +684,21 @@ Status ExportGeoJson(const mission::Mission& mission, const std::string& path) {
   return Guarded(path, [&]() -> Status {
     SAKER_ASSIGN_OR_RETURN(const Positions positions, Positions::Create(mission.map, path));
     Json features = Json::array();
-    for (const auto& track : mission.tracks) features.push_back(GeoJsonFeature(track, positions));
+    for (const auto& track : mission.tracks) {
+      features.push_back(GeoJsonFeature(track, ReviewFieldsOf(mission, track.id), positions));
+    }
+    // The analyst's bookmarks: points with their time and note.
+    for (const mission::Bookmark& bookmark : mission.bookmarks) {
+      const std::optional<Eigen::Vector2d> at = positions.Of(bookmark.map);
+      features.push_back({{"type", "Feature"},
+                          {"id", "bookmark-" + std::to_string(bookmark.id)},
+                          {"geometry", at ? GeoJsonGeometry({*at}) : Json(nullptr)},
+                          {"properties",
+                           {{"bookmark", bookmark.id},
+                            {"time_s", JsonNumber(bookmark.time_s)},
+                            {"map", {JsonNumber(bookmark.map.x()), JsonNumber(bookmark.map.y())}},
+                            {"note", bookmark.note}}}});
+    }
     // A foreign member (RFC 7946 section 6.1) says what the numbers mean.
     Json about = {
         {"video", VideoName(mission)},
@@ -699,7 +737,22 @@ Status ExportKml(const mission::Mission& mission, const std::string& path) {
     std::set<int> visits;
     for (const auto& track : mission.tracks) visits.insert(track.visit);
     for (int visit : visits) out += KmlStyle(visit);
-    for (const auto& track : mission.tracks) out += KmlPlacemark(track, positions, video);
+    for (const auto& track : mission.tracks) {
+      out += KmlPlacemark(track, ReviewFieldsOf(mission, track.id), positions, video);
+    }
+    for (const mission::Bookmark& bookmark : mission.bookmarks) {
+      const std::optional<Eigen::Vector2d> at = positions.Of(bookmark.map);
+      if (!at) continue;
+      out += "<Placemark id=\"bookmark-" + std::to_string(bookmark.id) + "\"><name>" +
+             XmlText("Bookmark " + std::to_string(bookmark.id) +
+                     (bookmark.note.empty() ? "" : ": " + bookmark.note)) +
+             "</name><description>" + XmlText(FormatNumber(bookmark.time_s) + " s") +
+             "</description><ExtendedData>";
+      KmlData("time_s", FormatNumber(bookmark.time_s), out);
+      KmlData("note", bookmark.note, out);
+      out += "</ExtendedData><Point><coordinates>" + FormatNumber(at->x()) + "," +
+             FormatNumber(at->y()) + "</coordinates></Point></Placemark>\n";
+    }
     out += "</Document>\n</kml>\n";
     return ReplaceFileContents(path, out);
   });
@@ -711,10 +764,13 @@ Status ExportCsv(const mission::Mission& mission, const std::string& path) {
     static constexpr const char* kHeader =
         "video,track_id,visit,start_s,end_s,duration_s,length,speed,speed_mps,heading_deg,"
         "point_count,point_index,frame,time_s,image_x,image_y,box_min_x,box_min_y,box_max_x,"
-        "box_max_y,map_x,map_y,latitude_deg,longitude_deg,confidence\r\n";
+        "box_max_y,map_x,map_y,latitude_deg,longitude_deg,confidence,verdict,label,note\r\n";
     const std::string video = CsvField(VideoName(mission));
     std::string out = kHeader;
     for (const auto& track : mission.tracks) {
+      const ReviewFields review = ReviewFieldsOf(mission, track.id);
+      const std::string review_fields =
+          "," + review.verdict + "," + review.label + "," + CsvField(review.note);
       const std::string track_fields =
           video + "," + std::to_string(track.id) + "," + std::to_string(track.visit) + "," +
           FormatNumber(track.start_s) + "," + FormatNumber(track.end_s) + "," +
@@ -737,6 +793,7 @@ Status ExportCsv(const mission::Mission& mission, const std::string& path) {
         out += "," + (lon_lat ? FormatNumber(lon_lat->y()) : "");
         out += "," + (lon_lat ? FormatNumber(lon_lat->x()) : "");
         out += "," + (track.confidence ? FormatNumber(*track.confidence) : "");
+        out += review_fields;
         out += "\r\n";
       }
     }

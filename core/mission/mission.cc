@@ -26,6 +26,44 @@ std::optional<LinkKind> LinkKindFromName(const std::string& name) {
   return std::nullopt;
 }
 
+const char* VerdictName(Verdict verdict) {
+  switch (verdict) {
+    case Verdict::kNone:
+      return "";
+    case Verdict::kConfirmed:
+      return "confirmed";
+    case Verdict::kFalse:
+      return "false";
+  }
+  return "";
+}
+
+const char* TargetLabelName(TargetLabel label) {
+  switch (label) {
+    case TargetLabel::kNone:
+      return "";
+    case TargetLabel::kVehicle:
+      return "vehicle";
+    case TargetLabel::kPerson:
+      return "person";
+    case TargetLabel::kOther:
+      return "other";
+  }
+  return "";
+}
+
+const TrackReview* ReviewOf(const Mission& mission, int64_t track_id) {
+  const auto it =
+      std::lower_bound(mission.reviews.begin(), mission.reviews.end(), track_id,
+                       [](const TrackReview& r, int64_t id) { return r.track_id < id; });
+  return it != mission.reviews.end() && it->track_id == track_id ? &*it : nullptr;
+}
+
+bool IsMarkedFalse(const Mission& mission, int64_t track_id) {
+  const TrackReview* review = ReviewOf(mission, track_id);
+  return review != nullptr && review->verdict == Verdict::kFalse;
+}
+
 bool OverlayRecord::Contains(const Eigen::Vector2d& p) const {
   if (cell_px <= 0 || !std::isfinite(p.x()) || !std::isfinite(p.y())) return false;
   // Pixel centres are at integer coordinates: pixel i covers [i - 0.5, i + 0.5).

@@ -25,9 +25,9 @@ namespace saker::mission {
 // Version of the mission file's schema. A file with a newer version is refused, never written.
 // Version 2 added the frames' presentation time stamps and key-frame flags, version 3 the table of
 // processing checkpoints, version 4 the tracks' confidence, version 5 the screen-fixed overlay
-// masks, version 6 the frames' sky lines; an older file is read as it is and upgraded in place
-// when it is opened for writing.
-inline constexpr int kSchemaVersion = 6;
+// masks, version 6 the frames' sky lines, version 7 the analyst's track reviews and bookmarks; an
+// older file is read as it is and upgraded in place when it is opened for writing.
+inline constexpr int kSchemaVersion = 7;
 
 using Covariance8 = Eigen::Matrix<double, 8, 8>;
 
@@ -221,6 +221,40 @@ struct Progress {
   bool cancelled = false;  // the job was cancelled: what is here is what had completed
 };
 
+// The analyst's judgement of a track (kept apart from the track, which processing writes).
+enum class Verdict : uint8_t {
+  kNone = 0,       // not judged
+  kConfirmed = 1,  // a real moving target
+  kFalse = 2,      // not one: hidden from the map and the exports unless asked for
+};
+// What the analyst says the target is.
+enum class TargetLabel : uint8_t { kNone = 0, kVehicle = 1, kPerson = 2, kOther = 3 };
+
+const char* VerdictName(Verdict verdict);        // "", "confirmed", "false"
+const char* TargetLabelName(TargetLabel label);  // "", "vehicle", "person", "other"
+
+// The longest note the file keeps (characters of UTF-8; a longer one is refused on saving).
+inline constexpr size_t kMaxNoteBytes = 10000;
+
+// The analyst's review of one track (by ActivityTrack::id). Absent for a track never judged.
+struct TrackReview {
+  int64_t track_id = 0;
+  Verdict verdict = Verdict::kNone;
+  TargetLabel label = TargetLabel::kNone;
+  std::string note;
+  bool empty() const {
+    return verdict == Verdict::kNone && label == TargetLabel::kNone && note.empty();
+  }
+};
+
+// A time and place the analyst marked, with a note.
+struct Bookmark {
+  int64_t id = 0;  // unique in the mission, from 1
+  double time_s = 0;
+  Eigen::Vector2d map{0, 0};
+  std::string note;
+};
+
 struct Mission {
   int schema_version = kSchemaVersion;
   std::string saker_version;
@@ -235,7 +269,16 @@ struct Mission {
   std::optional<PyramidInfo> pyramid;
   std::optional<KlvSummary> klv;  // set by the front end stage
   Progress progress;
+  // The analyst's: reviews sorted by track id (none empty), bookmarks by id. Processing never
+  // writes them (MissionStore::SaveReviews does).
+  std::vector<TrackReview> reviews;
+  std::vector<Bookmark> bookmarks;
 };
+
+// The review of track `track_id`, or null when it has none.
+const TrackReview* ReviewOf(const Mission& mission, int64_t track_id);
+// Whether the analyst marked the track false.
+bool IsMarkedFalse(const Mission& mission, int64_t track_id);
 
 const char* LinkKindName(LinkKind kind);  // "sequential", "geometric", "appearance"; "unknown"
 std::optional<LinkKind> LinkKindFromName(const std::string& name);  // LinkKindName's inverse

@@ -404,7 +404,7 @@ Status MissionStore::Save(const Mission& mission, unsigned parts) {
   if (impl_->mode != OpenMode::kReadWrite) {
     return InvalidArgumentError(impl_->path() + ": cannot save: the mission is open read-only");
   }
-  if ((parts & ~static_cast<unsigned>(kSaveAll)) != 0) {
+  if ((parts & ~static_cast<unsigned>(kSaveAll | kSaveReviews)) != 0) {
     return InvalidArgumentError(impl_->path() + ": cannot save: unknown parts " +
                                 std::to_string(parts));
   }
@@ -413,6 +413,22 @@ Status MissionStore::Save(const Mission& mission, unsigned parts) {
   if (!problem.empty()) return InvalidArgumentError(impl_->path() + ": cannot save: " + problem);
   try {
     return schema::Save(impl_->db, mission, parts);
+  } catch (const std::bad_alloc&) {
+    return IoError(impl_->path() + ": out of memory while saving");
+  }
+}
+
+Status MissionStore::SaveReviews(const Mission& mission) {
+  if (impl_->mode != OpenMode::kReadWrite) {
+    return InvalidArgumentError(impl_->path() +
+                                ": cannot save the reviews: the mission is open read-only");
+  }
+  const std::string problem = schema::ReviewsProblem(mission);
+  if (!problem.empty()) {
+    return InvalidArgumentError(impl_->path() + ": cannot save the reviews: " + problem);
+  }
+  try {
+    return schema::SaveReviews(impl_->db, mission);
   } catch (const std::bad_alloc&) {
     return IoError(impl_->path() + ": out of memory while saving");
   }

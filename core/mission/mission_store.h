@@ -46,7 +46,10 @@ enum SavePart : unsigned {
   kSaveFrames = 1u,  // Mission::frames
   kSaveGraph = 2u,   // Mission::key_frames and Mission::links
   kSaveTracks = 4u,  // Mission::tracks with their points
-  kSaveAll = 7u,
+  kSaveAll = 7u,     // what processing writes
+  // Mission::reviews and Mission::bookmarks, the analyst's: never part of kSaveAll, so that a
+  // job's saves keep them (SaveReviews writes them alone; a copy names them).
+  kSaveReviews = 8u,
 };
 
 // One encoded tile of the mosaic pyramid (PyramidInfo gives the geometry).
@@ -118,6 +121,11 @@ class MissionStore {
   // an unknown link kind); nothing is written then. A crash at any moment leaves the last
   // committed state readable.
   Status Save(const Mission& mission, unsigned parts = kSaveAll);
+  // Replaces the analyst's reviews and bookmarks (Mission::reviews, Mission::bookmarks) and
+  // nothing else, in one transaction: what the workstation writes when the analyst judges a
+  // track. InvalidArgument for reviews out of order or repeated, unknown values, a note longer
+  // than kMaxNoteBytes, a bookmark whose time or place is not finite.
+  Status SaveReviews(const Mission& mission);
   // The whole mission except the tile images, read in one transaction (so never half of a
   // concurrent Save). Frames come back sorted by index, everything else in saved order.
   // InvalidData naming the file and the table when the content is inconsistent (a blob of the

@@ -10,6 +10,7 @@
 #include <array>
 #include <cerrno>
 #include <cinttypes>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <initializer_list>
@@ -141,6 +142,24 @@ CREATE TABLE overlays (
   cols INTEGER NOT NULL,
   rows INTEGER NOT NULL,
   cells BLOB NOT NULL
+);
+)sql";
+
+// The analyst's reviews of tracks and bookmarks (mission.h TrackReview, Bookmark): verdict 0 none,
+// 1 confirmed, 2 false; label 0 none, 1 vehicle, 2 person, 3 other. Added in schema version 7.
+constexpr const char* kReviewsSql = R"sql(
+CREATE TABLE track_reviews (
+  track_id INTEGER PRIMARY KEY,
+  verdict INTEGER NOT NULL CHECK (verdict BETWEEN 0 AND 2),
+  label INTEGER NOT NULL CHECK (label BETWEEN 0 AND 3),
+  note TEXT NOT NULL
+);
+CREATE TABLE bookmarks (
+  id INTEGER PRIMARY KEY CHECK (id >= 1),
+  time_s REAL NOT NULL,
+  map_x REAL NOT NULL,
+  map_y REAL NOT NULL,
+  note TEXT NOT NULL
 );
 )sql";
 
@@ -617,6 +636,37 @@ Status WriteTracks(const sqlite::Database& db, const std::vector<ActivityTrack>&
   return Status::Ok();
 }
 
+Status WriteReviews(const sqlite::Database& db, const Mission& m) {
+  SAKER_RETURN_IF_ERROR(db.Exec("DELETE FROM track_reviews", "saving table track_reviews"));
+  SAKER_RETURN_IF_ERROR(db.Exec("DELETE FROM bookmarks", "saving table bookmarks"));
+  SAKER_ASSIGN_OR_RETURN(sqlite::Statement review,
+                         db.Prepare("INSERT INTO track_reviews (track_id, verdict, label, note) "
+                                    "VALUES (?1, ?2, ?3, ?4)",
+                                    "saving table track_reviews"));
+  for (const TrackReview& r : m.reviews) {
+    sqlite::Binder b(review.get());
+    b.Int64(1, r.track_id);
+    b.Int64(2, static_cast<int64_t>(r.verdict));
+    b.Int64(3, static_cast<int64_t>(r.label));
+    b.Text(4, r.note);
+    SAKER_RETURN_IF_ERROR(db.Run(review.get(), b, "saving table track_reviews"));
+  }
+  SAKER_ASSIGN_OR_RETURN(sqlite::Statement bookmark,
+                         db.Prepare("INSERT INTO bookmarks (id, time_s, map_x, map_y, note) "
+                                    "VALUES (?1, ?2, ?3, ?4, ?5)",
+                                    "saving table bookmarks"));
+  for (const Bookmark& k : m.bookmarks) {
+    sqlite::Binder b(bookmark.get());
+    b.Int64(1, k.id);
+    b.Double(2, k.time_s);
+    b.Double(3, k.map.x());
+    b.Double(4, k.map.y());
+    b.Text(5, k.note);
+    SAKER_RETURN_IF_ERROR(db.Run(bookmark.get(), b, "saving table bookmarks"));
+  }
+  return Status::Ok();
+}
+
 // ---------------------------------------------------------------------------------------------
 // Load. Each table is read in order, every value checked (sqlite::RowReader); a row that breaks a
 // rule of the file stops the load with InvalidData naming the table, the row and the column.
@@ -816,6 +866,39 @@ Status LoadOverlays(const sqlite::Database& db, std::vector<OverlayRecord>* over
       });
 }
 
+// A note: text of at most kMaxNoteBytes.
+std::string ReadNote(sqlite::RowReader& row, int col) {
+  std::string note = row.Text(col);
+  if (row.status().ok() && note.size() > kMaxNoteBytes) {
+    row.Fail(col, "a note of " + std::to_string(note.size()) + " bytes, more than " +
+                      std::to_string(kMaxNoteBytes));
+  }
+  return note;
+}
+
+Status LoadReviews(const sqlite::Database& db, std::vector<TrackReview>* reviews) {
+  return LoadRows(db, "SELECT track_id, verdict, label, note FROM track_reviews ORDER BY track_id",
+                  "track_reviews", reviews, [&](sqlite::RowReader& row, TrackReview* r) {
+                    r->track_id = row.Int64(0);
+                    r->verdict = static_cast<Verdict>(row.Int(1, 0, 2));
+                    r->label = static_cast<TargetLabel>(row.Int(2, 0, 3));
+                    r->note = ReadNote(row, 3);
+                  });
+}
+
+Status LoadBookmarks(const sqlite::Database& db, std::vector<Bookmark>* bookmarks) {
+  return LoadRows(db, "SELECT id, time_s, map_x, map_y, note FROM bookmarks ORDER BY id",
+                  "bookmarks", bookmarks, [&](sqlite::RowReader& row, Bookmark* k) {
+                    k->id = row.Int(0, 1, std::numeric_limits<int64_t>::max());
+                    k->time_s = row.Real(1);
+                    k->map = {row.Real(2), row.Real(3)};
+                    if (row.status().ok() && !(std::isfinite(k->time_s) && k->map.allFinite())) {
+                      row.FailRow("the time or the place is not a finite number");
+                    }
+                    k->note = ReadNote(row, 4);
+                  });
+}
+
 Status LoadKeyFrames(const sqlite::Database& db, std::vector<KeyFrameRecord>* key_frames) {
   return LoadRows(db,
                   "SELECT ordinal, id, frame_index, segment, map_from_frame, covariance, node "
@@ -922,6 +1005,38 @@ Status LoadTracks(const sqlite::Database& db, int schema, std::vector<ActivityTr
 
 }  // namespace
 
+std::string ReviewsProblem(const Mission& mission) {
+  for (size_t i = 0; i < mission.reviews.size(); ++i) {
+    const TrackReview& r = mission.reviews[i];
+    const std::string which = "the review of track " + std::to_string(r.track_id);
+    if (i > 0 && mission.reviews[i - 1].track_id >= r.track_id) {
+      return which + " is out of order or repeated";
+    }
+    if (static_cast<int>(r.verdict) > 2 || static_cast<int>(r.label) > 3) {
+      return which + " has an unknown verdict or label";
+    }
+    if (r.note.size() > kMaxNoteBytes) {
+      return which + " has a note of " + std::to_string(r.note.size()) + " bytes, more than " +
+             std::to_string(kMaxNoteBytes);
+    }
+  }
+  for (size_t i = 0; i < mission.bookmarks.size(); ++i) {
+    const Bookmark& k = mission.bookmarks[i];
+    const std::string which = "bookmark " + std::to_string(k.id);
+    if (k.id < 1 || (i > 0 && mission.bookmarks[i - 1].id >= k.id)) {
+      return which + " is out of order, repeated or not positive";
+    }
+    if (!std::isfinite(k.time_s) || !k.map.allFinite()) {
+      return which + " has a time or a place that is not a finite number";
+    }
+    if (k.note.size() > kMaxNoteBytes) {
+      return which + " has a note of " + std::to_string(k.note.size()) + " bytes, more than " +
+             std::to_string(kMaxNoteBytes);
+    }
+  }
+  return {};
+}
+
 std::string HeaderProblem(const Mission& mission) {
   if (mission.map.geo_referenced != mission.map.origin.has_value()) {
     return mission.map.geo_referenced ? "the map is geo-referenced but has no origin"
@@ -964,6 +1079,10 @@ std::string PartsProblem(const Mission& mission, unsigned parts) {
       if (!problem.empty()) return "frame " + std::to_string(f.index) + ": " + problem;
     }
     const std::string problem = OverlaysProblem(mission.overlays);
+    if (!problem.empty()) return problem;
+  }
+  if (parts & kSaveReviews) {
+    const std::string problem = ReviewsProblem(mission);
     if (!problem.empty()) return problem;
   }
   if (parts & kSaveGraph) {
@@ -1045,6 +1164,11 @@ StatusOr<int> CheckIdentity(const sqlite::Database& db) {
   if (schema >= 5 && tables.count("overlays") == 0) {
     return InvalidDataError(db.path() + ": not a Saker mission (no table overlays)");
   }
+  for (const char* table : {"track_reviews", "bookmarks"}) {
+    if (schema >= 7 && tables.count(table) == 0) {
+      return InvalidDataError(db.path() + ": not a Saker mission (no table " + table + ")");
+    }
+  }
   return schema;
 }
 
@@ -1057,6 +1181,7 @@ Status Create(const sqlite::Database& db) {
   SAKER_RETURN_IF_ERROR(db.Exec(kSchemaSql, "creating the schema"));
   SAKER_RETURN_IF_ERROR(db.Exec(kCheckpointSql, "creating the schema"));
   SAKER_RETURN_IF_ERROR(db.Exec(kOverlaysSql, "creating the schema"));
+  SAKER_RETURN_IF_ERROR(db.Exec(kReviewsSql, "creating the schema"));
   return transaction.Commit();
 }
 
@@ -1066,6 +1191,7 @@ Status Create(const sqlite::Database& db) {
 // (features and change per observation), which older files did not keep.
 // Version 4 -> 5: the overlay masks' table, empty (older files did not keep them).
 // Version 5 -> 6: the frames' sky lines, NULL (no sky masked: older files did not keep them).
+// Version 6 -> 7: the analyst's track reviews and bookmarks, empty.
 Status Upgrade(const sqlite::Database& db, int schema) {
   sqlite::Transaction transaction(db);
   SAKER_RETURN_IF_ERROR(transaction.Begin(/*write=*/true));
@@ -1093,6 +1219,9 @@ Status Upgrade(const sqlite::Database& db, int schema) {
                 "ALTER TABLE frames ADD COLUMN sky_slope REAL",
                 "upgrading the mission to schema 6"));
   }
+  if (schema < 7) {
+    SAKER_RETURN_IF_ERROR(db.Exec(kReviewsSql, "upgrading the mission to schema 7"));
+  }
   const std::string version = std::to_string(kSchemaVersion);
   const std::string sql = "UPDATE meta SET value = " + version + " WHERE key = '" +
                           kKeySchemaVersion + "'; PRAGMA user_version = " + version;
@@ -1110,6 +1239,14 @@ Status Save(const sqlite::Database& db, const Mission& mission, unsigned parts) 
   }
   if (parts & kSaveGraph) SAKER_RETURN_IF_ERROR(WriteGraph(db, mission));
   if (parts & kSaveTracks) SAKER_RETURN_IF_ERROR(WriteTracks(db, mission.tracks));
+  if (parts & kSaveReviews) SAKER_RETURN_IF_ERROR(WriteReviews(db, mission));
+  return transaction.Commit();
+}
+
+Status SaveReviews(const sqlite::Database& db, const Mission& mission) {
+  sqlite::Transaction transaction(db);
+  SAKER_RETURN_IF_ERROR(transaction.Begin(/*write=*/true));
+  SAKER_RETURN_IF_ERROR(WriteReviews(db, mission));
   return transaction.Commit();
 }
 
@@ -1124,6 +1261,10 @@ Status Load(const sqlite::Database& db, int schema, Mission* m) {
   SAKER_RETURN_IF_ERROR(LoadKeyFrames(db, &m->key_frames));
   SAKER_RETURN_IF_ERROR(LoadLinks(db, &m->links));
   SAKER_RETURN_IF_ERROR(LoadTracks(db, schema, &m->tracks));
+  if (schema >= 7) {
+    SAKER_RETURN_IF_ERROR(LoadReviews(db, &m->reviews));
+    SAKER_RETURN_IF_ERROR(LoadBookmarks(db, &m->bookmarks));
+  }
   return transaction.Commit();
 }
 

@@ -33,9 +33,16 @@ std::string HeaderProblem(const Mission& mission);
 // can).
 std::string PartsProblem(const Mission& mission, unsigned parts);
 
+// Why the reviews and bookmarks of `mission` cannot be saved (empty when they can): order,
+// values, note lengths.
+std::string ReviewsProblem(const Mission& mission);
+
 // Writes the header and replaces the parts named by `parts`, in one transaction. The caller has
 // checked HeaderProblem and PartsProblem.
 Status Save(const sqlite::Database& db, const Mission& mission, unsigned parts);
+// Replaces the reviews and bookmarks only, in one transaction (the caller has checked
+// ReviewsProblem).
+Status SaveReviews(const sqlite::Database& db, const Mission& mission);
 // Reads the whole mission except the tile images from a file of schema `schema`, in one read
 // transaction; InvalidData naming the table, row and column at the first broken rule.
 Status Load(const sqlite::Database& db, int schema, Mission* mission);

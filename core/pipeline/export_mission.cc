@@ -193,7 +193,7 @@ Status CopyMission(const std::string& from, const std::string& to, bool replace,
       return Status(created.status().code(), to + ": " + replacement.Reason(created.status()));
     }
     const std::unique_ptr<mission::MissionStore>& target = *created;
-    SAKER_RETURN_IF_ERROR(target->Save(mission));
+    SAKER_RETURN_IF_ERROR(target->Save(mission, mission::kSaveAll | mission::kSaveReviews));
     if (mission.pyramid) {
       const mission::PyramidInfo& p = *mission.pyramid;
       std::vector<mission::EncodedTile> batch;

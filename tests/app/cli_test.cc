@@ -1,6 +1,7 @@
 // saker-cli run as a newcomer runs it: through the shell, reading its output
 // and exit code.
 
+#include "core/mission/mission_store.h"
 #include "tests/testing/test_data.h"
 
 #include <fcntl.h>
@@ -15,6 +16,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -344,7 +346,7 @@ TEST(CliMissionTest, MinConfidenceFiltersProcessAndExportAndRefusesBadValues) {
     }
     return values;
   };
-  std::vector<double> all = confidences("");
+  std::vector<double> all = confidences("");  // before any verdict
   ASSERT_GE(all.size(), 2u) << "the small flight's cars";
   std::sort(all.begin(), all.end());
   // As the command line will read it back.
@@ -362,8 +364,46 @@ TEST(CliMissionTest, MinConfidenceFiltersProcessAndExportAndRefusesBadValues) {
   EXPECT_NE(png.out.find(std::to_string(above) + " track"), std::string::npos) << png.out;
 
   // `info` lists the tracks by confidence.
-  const CliRun info = RunCli("info '" + mission + "'");
+  CliRun info = RunCli("info '" + mission + "'");
   EXPECT_NE(info.out.find("track confidence: "), std::string::npos) << info.out;
+
+  // The analyst marks a track false (as the workstation does): exports leave it out unless
+  // --include-false, and carry the verdicts; `info` counts them.
+  int64_t judged = 0;
+  {
+    auto store = saker::mission::MissionStore::Open(mission, saker::mission::OpenMode::kReadWrite);
+    ASSERT_TRUE(store.ok()) << store.status().ToString();
+    auto loaded = (*store)->Load();
+    ASSERT_TRUE(loaded.ok());
+    ASSERT_FALSE(loaded->tracks.empty());
+    judged = loaded->tracks.front().id;
+    loaded->reviews = {
+        {judged, saker::mission::Verdict::kFalse, saker::mission::TargetLabel::kNone, "a shadow"}};
+    ASSERT_TRUE((*store)->SaveReviews(*loaded).ok());
+  }
+  const auto exported_ids = [&](const std::string& options) {
+    const CliRun run =
+        RunCli("export '" + mission + "' --geojson - " + options + " 2>/dev/null; exit $?");
+    EXPECT_EQ(run.exit_code, 0) << run.out;
+    std::map<int64_t, std::string> ids;  // id -> verdict
+    const nlohmann::json j = nlohmann::json::parse(run.out, nullptr, false);
+    if (j.is_discarded()) return ids;
+    for (const auto& feature : j["features"]) {
+      const auto& verdict = feature["properties"]["verdict"];
+      ids[feature["id"].get<int64_t>()] = verdict.is_string() ? verdict.get<std::string>() : "";
+    }
+    return ids;
+  };
+  const std::map<int64_t, std::string> trusted = exported_ids("");
+  EXPECT_EQ(trusted.size(), all.size() - 1);
+  EXPECT_EQ(trusted.count(judged), 0u);
+  const std::map<int64_t, std::string> every = exported_ids("--include-false");
+  EXPECT_EQ(every.size(), all.size());
+  ASSERT_EQ(every.count(judged), 1u);
+  EXPECT_EQ(every.at(judged), "false");
+  info = RunCli("info '" + mission + "'");
+  EXPECT_NE(info.out.find("analyst: 0 tracks confirmed, 1 marked false"), std::string::npos)
+      << info.out;
 
   // Processing with the threshold stores only the tracks at it and counts the others.
   const std::string strict = (dir / "strict.saker").string();

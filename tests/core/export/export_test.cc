@@ -393,11 +393,11 @@ TEST(CsvExportTest, OneRowPerObservationWithQuotedFields) {
   for (size_t i = 0; i < header.size(); ++i) column[header[i]] = i;
   // The columns in their order (readers may go by position): new ones only ever at the end.
   const std::vector<std::string> columns = {
-      "video",       "track_id",    "visit",        "start_s",       "end_s",
-      "duration_s",  "length",      "speed",        "speed_mps",     "heading_deg",
-      "point_count", "point_index", "frame",        "time_s",        "image_x",
-      "image_y",     "box_min_x",   "box_min_y",    "box_max_x",     "box_max_y",
-      "map_x",       "map_y",       "latitude_deg", "longitude_deg", "confidence"};
+      "video",      "track_id",  "visit",     "start_s",     "end_s",        "duration_s",
+      "length",     "speed",     "speed_mps", "heading_deg", "point_count",  "point_index",
+      "frame",      "time_s",    "image_x",   "image_y",     "box_min_x",    "box_min_y",
+      "box_max_x",  "box_max_y", "map_x",     "map_y",       "latitude_deg", "longitude_deg",
+      "confidence", "verdict",   "label",     "note"};
   EXPECT_EQ(header, columns);
   for (size_t r = 1; r < rows.size(); ++r) {
     ASSERT_EQ(rows[r].size(), header.size()) << "row " << r;
@@ -422,6 +422,56 @@ TEST(CsvExportTest, OneRowPerObservationWithQuotedFields) {
   EXPECT_NEAR(std::stod(row[column["longitude_deg"]]), expected.longitude_deg, 1e-12);
 }
 
+// The analyst's verdict, label and note travel with each track in every format, bookmarks as
+// points in GeoJSON and KML; a track without a review has none.
+TEST(ExportTest, ReviewsAndBookmarksAreExported) {
+  const auto dir = testing::MakeTempDir("saker-export");
+  mission::Mission mission = MakeMission(true);
+  mission.reviews = {{1, mission::Verdict::kConfirmed, mission::TargetLabel::kVehicle,
+                      "red van, \"stops\" twice\nat the gate"},
+                     {3, mission::Verdict::kFalse, mission::TargetLabel::kNone, ""}};
+  mission.bookmarks = {{2, 41.5, {-300, 125}, "gate <north>"}};
+
+  const fs::path geojson = dir / "reviews.geojson";
+  ASSERT_TRUE(ExportGeoJson(mission, geojson.string()).ok());
+  const Json json = Json::parse(ReadText(geojson));
+  ASSERT_EQ(json["features"].size(), 4u);
+  const Json& first = json["features"][0]["properties"];
+  EXPECT_EQ(first["verdict"], "confirmed");
+  EXPECT_EQ(first["label"], "vehicle");
+  EXPECT_EQ(first["note"], "red van, \"stops\" twice\nat the gate");
+  EXPECT_TRUE(json["features"][1]["properties"]["verdict"].is_null());
+  EXPECT_TRUE(json["features"][1]["properties"]["note"].is_null());
+  EXPECT_EQ(json["features"][2]["properties"]["verdict"], "false");
+  const Json& bookmark = json["features"][3];
+  EXPECT_EQ(bookmark["id"], "bookmark-2");
+  EXPECT_EQ(bookmark["geometry"]["type"], "Point");
+  EXPECT_EQ(bookmark["properties"]["note"], "gate <north>");
+  EXPECT_DOUBLE_EQ(bookmark["properties"]["time_s"].get<double>(), 41.5);
+  const geo::Wgs84 at = Plane().LatLonFromMap({-300, 125});
+  EXPECT_NEAR(bookmark["geometry"]["coordinates"][0].get<double>(), at.longitude_deg, 1e-9);
+
+  const fs::path kml = dir / "reviews.kml";
+  ASSERT_TRUE(ExportKml(mission, kml.string()).ok());
+  const std::string text = ReadText(kml);
+  EXPECT_NE(text.find("<Data name=\"verdict\"><value>confirmed</value></Data>"), std::string::npos);
+  EXPECT_NE(text.find("<Data name=\"label\"><value>vehicle</value></Data>"), std::string::npos);
+  EXPECT_NE(text.find("gate &lt;north&gt;"), std::string::npos);  // escaped
+  EXPECT_NE(text.find("id=\"bookmark-2\""), std::string::npos);
+
+  const fs::path csv = dir / "reviews.csv";
+  ASSERT_TRUE(ExportCsv(mission, csv.string()).ok());
+  const auto rows = ParseCsv(ReadText(csv));
+  ASSERT_EQ(rows.size(), static_cast<size_t>(TotalPoints(mission) + 1));
+  std::map<std::string, size_t> column;
+  for (size_t i = 0; i < rows[0].size(); ++i) column[rows[0][i]] = i;
+  EXPECT_EQ(rows[1][column["verdict"]], "confirmed");
+  EXPECT_EQ(rows[1][column["label"]], "vehicle");
+  EXPECT_EQ(rows[1][column["note"]], "red van, \"stops\" twice\nat the gate");  // quoted
+  EXPECT_EQ(rows[5][column["verdict"]], "");  // track 2: no review
+  EXPECT_EQ(rows[6][column["verdict"]], "false");
+}
+
 TEST(CsvExportTest, NotGeoReferencedLeavesLatitudeAndLongitudeEmpty) {
   const auto dir = testing::MakeTempDir("saker-export");
   const fs::path path = dir / "tracks.csv";
@@ -431,15 +481,17 @@ TEST(CsvExportTest, NotGeoReferencedLeavesLatitudeAndLongitudeEmpty) {
   ASSERT_TRUE(ExportCsv(mission, path.string()).ok());
   const auto rows = ParseCsv(ReadText(path));
   ASSERT_EQ(rows.size(), static_cast<size_t>(TotalPoints(mission) + 1));
-  const size_t lat = rows[0].size() - 3, lon = rows[0].size() - 2;
-  ASSERT_EQ(rows[0][lat], "latitude_deg");
+  std::map<std::string, size_t> column;
+  for (size_t i = 0; i < rows[0].size(); ++i) column[rows[0][i]] = i;
+  const size_t lat = column.at("latitude_deg"), lon = column.at("longitude_deg");
+  const size_t confidence = column.at("confidence");
   for (size_t r = 1; r < rows.size(); ++r) {
     EXPECT_EQ(rows[r][lat], "");
     EXPECT_EQ(rows[r][lon], "");
   }
-  EXPECT_EQ(rows[5][8], "");      // track 2's absent speed_mps
-  EXPECT_EQ(rows[5].back(), "");  // ... and unknown confidence
-  EXPECT_EQ(rows[1].back(), "0.25");
+  EXPECT_EQ(rows[5][8], "");           // track 2's absent speed_mps
+  EXPECT_EQ(rows[5][confidence], "");  // ... and unknown confidence
+  EXPECT_EQ(rows[1][confidence], "0.25");
   EXPECT_EQ(rows[5][0 + 1], "2");
 }
 

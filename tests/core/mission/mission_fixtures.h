@@ -170,6 +170,29 @@ inline bool MissionsEqual(const Mission& a, const Mission& b, std::string* why) 
     out.str("");
   }
 
+  if (a.reviews.size() != b.reviews.size()) return differ("review count");
+  for (size_t i = 0; i < a.reviews.size(); ++i) {
+    const TrackReview& ra = a.reviews[i];
+    const TrackReview& rb = b.reviews[i];
+    out << "review " << i << ": ";
+    if (ra.track_id != rb.track_id) return differ("track_id");
+    if (ra.verdict != rb.verdict) return differ("verdict");
+    if (ra.label != rb.label) return differ("label");
+    if (ra.note != rb.note) return differ("note");
+    out.str("");
+  }
+  if (a.bookmarks.size() != b.bookmarks.size()) return differ("bookmark count");
+  for (size_t i = 0; i < a.bookmarks.size(); ++i) {
+    const Bookmark& ka = a.bookmarks[i];
+    const Bookmark& kb = b.bookmarks[i];
+    out << "bookmark " << i << ": ";
+    if (ka.id != kb.id) return differ("id");
+    if (!SameDouble(ka.time_s, kb.time_s)) return differ("time_s");
+    if (!SameMatrix(ka.map, kb.map)) return differ("map");
+    if (ka.note != kb.note) return differ("note");
+    out.str("");
+  }
+
   if (a.pyramid.has_value() != b.pyramid.has_value()) return differ("pyramid presence");
   if (a.pyramid) {
     const PyramidInfo& pa = *a.pyramid;

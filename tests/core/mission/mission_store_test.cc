@@ -132,6 +132,7 @@ TEST_F(MissionStoreTest, SchemaOneFileIsReadAndUpgradedForWriting) {
           "DROP TABLE overlays; DROP TABLE checkpoint; ALTER TABLE tracks DROP COLUMN confidence; "
           "ALTER TABLE frames DROP COLUMN pts; ALTER TABLE frames DROP COLUMN key_frame; "
           "ALTER TABLE frames DROP COLUMN sky_y0; ALTER TABLE frames DROP COLUMN sky_slope; "
+          "DROP TABLE track_reviews; DROP TABLE bookmarks; "
           "UPDATE meta SET value = 1 WHERE key = 'schema_version'; PRAGMA user_version = 1");
   {
     auto store = MissionStore::Open(path.string());
@@ -164,6 +165,7 @@ TEST_F(MissionStoreTest, SchemaTwoFileHasNoCheckpointUntilUpgraded) {
   ExecSql(path,
           "DROP TABLE overlays; DROP TABLE checkpoint; ALTER TABLE tracks DROP COLUMN confidence; "
           "ALTER TABLE frames DROP COLUMN sky_y0; ALTER TABLE frames DROP COLUMN sky_slope; "
+          "DROP TABLE track_reviews; DROP TABLE bookmarks; "
           "UPDATE meta SET value = 2 WHERE key = 'schema_version'; PRAGMA user_version = 2");
   {
     auto store = MissionStore::Open(path.string());
@@ -208,6 +210,7 @@ TEST_F(MissionStoreTest, SchemaThreeFileHasUnknownConfidenceUntilUpgraded) {
   ExecSql(path,
           "DROP TABLE overlays; ALTER TABLE tracks DROP COLUMN confidence; "
           "ALTER TABLE frames DROP COLUMN sky_y0; ALTER TABLE frames DROP COLUMN sky_slope; "
+          "DROP TABLE track_reviews; DROP TABLE bookmarks; "
           "UPDATE meta SET value = 3 WHERE key = 'schema_version'; PRAGMA user_version = 3");
   {
     auto store = MissionStore::Open(path.string());
@@ -243,6 +246,7 @@ TEST_F(MissionStoreTest, SchemaFourFileHasNoOverlayMaskUntilSaved) {
   ExecSql(path,
           "DROP TABLE overlays; "
           "ALTER TABLE frames DROP COLUMN sky_y0; ALTER TABLE frames DROP COLUMN sky_slope; "
+          "DROP TABLE track_reviews; DROP TABLE bookmarks; "
           "UPDATE meta SET value = 4 WHERE key = 'schema_version'; PRAGMA user_version = 4");
   {
     auto m = LoadFile(path);
@@ -275,6 +279,7 @@ TEST_F(MissionStoreTest, SchemaFiveFileHasNoSkyLineUntilSaved) {
   WriteMissionFile(path, full);
   ExecSql(path,
           "ALTER TABLE frames DROP COLUMN sky_y0; ALTER TABLE frames DROP COLUMN sky_slope; "
+          "DROP TABLE track_reviews; DROP TABLE bookmarks; "
           "UPDATE meta SET value = 5 WHERE key = 'schema_version'; PRAGMA user_version = 5");
   const auto no_sky = [](const Mission& m) {
     return std::none_of(m.frames.begin(), m.frames.end(),
@@ -570,6 +575,118 @@ TEST_F(MissionStoreTest, PartialSaveKeepsTheOtherParts) {
   EXPECT_EQ(loaded->frames.size(), second.frames.size());
 }
 
+// The analyst's reviews and bookmarks: saved alone (SaveReviews), kept by the processing job's
+// saves (which never name them), copied by a save that names them, read back exactly.
+TEST_F(MissionStoreTest, ReviewsAndBookmarksRoundTripAndSurviveTheJobsSaves) {
+  const fs::path path = File("reviews.saker");
+  Mission m = MakeFullMission();
+  auto store = CreateOrDie(path);
+  ASSERT_NE(store, nullptr);
+  ASSERT_TRUE(store->Save(m).ok());
+  ASSERT_GE(m.tracks.size(), 1u);
+  m.reviews = {{m.tracks[0].id, Verdict::kFalse, TargetLabel::kNone, ""},
+               {m.tracks[0].id + 5, Verdict::kConfirmed, TargetLabel::kPerson,
+                "walks to the car park — \"blue jacket\"\nsecond line"}};
+  m.bookmarks = {{1, 12.5, {100.25, -40}, "gate"}, {4, 30, {0, 0}, ""}};
+  ASSERT_TRUE(store->SaveReviews(m).ok());
+  auto loaded = store->Load();
+  ASSERT_TRUE(loaded.ok()) << loaded.status().ToString();
+  EXPECT_SAME_MISSION(*loaded, m);
+  EXPECT_TRUE(IsMarkedFalse(*loaded, m.tracks[0].id));
+  ASSERT_NE(ReviewOf(*loaded, m.tracks[0].id + 5), nullptr);
+  EXPECT_EQ(ReviewOf(*loaded, m.tracks[0].id + 5)->label, TargetLabel::kPerson);
+  EXPECT_EQ(ReviewOf(*loaded, m.tracks[0].id + 1), nullptr);
+
+  // A job's save (tracks again, no reviews in its mission) keeps them.
+  Mission job = m;
+  job.reviews.clear();
+  job.bookmarks.clear();
+  ASSERT_TRUE(store->Save(job).ok());
+  loaded = store->Load();
+  ASSERT_TRUE(loaded.ok());
+  EXPECT_EQ(loaded->reviews.size(), 2u);
+  EXPECT_EQ(loaded->bookmarks.size(), 2u);
+  // A save that names them replaces them.
+  ASSERT_TRUE(store->Save(job, kSaveAll | kSaveReviews).ok());
+  loaded = store->Load();
+  ASSERT_TRUE(loaded.ok());
+  EXPECT_TRUE(loaded->reviews.empty());
+  EXPECT_TRUE(loaded->bookmarks.empty());
+}
+
+TEST_F(MissionStoreTest, SaveReviewsRefusesWhatTheFileCannotHold) {
+  const fs::path path = File("bad-reviews.saker");
+  Mission m = MakeFullMission();
+  auto store = CreateOrDie(path);
+  ASSERT_NE(store, nullptr);
+  ASSERT_TRUE(store->Save(m).ok());
+  m.reviews = {{3, Verdict::kConfirmed, TargetLabel::kVehicle, "kept"}};
+  ASSERT_TRUE(store->SaveReviews(m).ok());
+  const auto refused = [&](const Mission& bad, const std::string& words) {
+    const Status status = store->SaveReviews(bad);
+    EXPECT_EQ(status.code(), StatusCode::kInvalidArgument) << words;
+    EXPECT_NE(status.message().find(words), std::string::npos) << status.message();
+    EXPECT_NE(status.message().find(path.string()), std::string::npos) << status.message();
+    auto loaded = store->Load();
+    ASSERT_TRUE(loaded.ok());
+    ASSERT_EQ(loaded->reviews.size(), 1u) << "the file keeps what it had";
+    EXPECT_EQ(loaded->reviews[0].note, "kept");
+  };
+  Mission bad = m;
+  bad.reviews = {{5, Verdict::kFalse, TargetLabel::kNone, ""}, {5, Verdict::kNone, {}, "x"}};
+  refused(bad, "out of order or repeated");
+  bad = m;
+  bad.reviews[0].note = std::string(kMaxNoteBytes + 1, 'a');
+  refused(bad, "more than 10000");
+  bad = m;
+  bad.reviews[0].verdict = static_cast<Verdict>(9);
+  refused(bad, "unknown verdict");
+  bad = m;
+  bad.bookmarks = {{1, std::nan(""), {0, 0}, ""}};
+  refused(bad, "not a finite number");
+  bad = m;
+  bad.bookmarks = {{0, 1, {0, 0}, ""}};
+  refused(bad, "not positive");
+  // A note that long written by another tool is refused on loading, naming the table.
+  ExecSql(path, "UPDATE track_reviews SET note = '" + std::string(kMaxNoteBytes + 1, 'b') + "'");
+  const auto loaded = store->Load();
+  ASSERT_FALSE(loaded.ok());
+  EXPECT_EQ(loaded.status().code(), StatusCode::kInvalidData);
+  EXPECT_NE(loaded.status().message().find("track_reviews"), std::string::npos)
+      << loaded.status().message();
+  // A read-only store does not write them.
+  auto reader = MissionStore::Open(path.string());
+  ASSERT_TRUE(reader.ok());
+  EXPECT_EQ((*reader)->SaveReviews(m).code(), StatusCode::kInvalidArgument);
+}
+
+// A mission of schema 6 (before reviews): read with none, upgraded when opened for writing.
+TEST_F(MissionStoreTest, SchemaSixFileHasNoReviewsUntilUpgraded) {
+  const fs::path path = File("v6.saker");
+  Mission m = MakeFullMission();
+  WriteMissionFile(path, m);
+  ExecSql(path,
+          "DROP TABLE track_reviews; DROP TABLE bookmarks; "
+          "UPDATE meta SET value = 6 WHERE key = 'schema_version'; PRAGMA user_version = 6");
+  {
+    auto store = MissionStore::Open(path.string());
+    ASSERT_TRUE(store.ok()) << store.status().ToString();
+    auto loaded = (*store)->Load();
+    ASSERT_TRUE(loaded.ok()) << loaded.status().ToString();
+    EXPECT_EQ(loaded->schema_version, 6);
+    EXPECT_TRUE(loaded->reviews.empty());
+  }
+  auto store = MissionStore::Open(path.string(), OpenMode::kReadWrite);
+  ASSERT_TRUE(store.ok()) << store.status().ToString();
+  m.reviews = {{1, Verdict::kFalse, TargetLabel::kOther, "a shadow"}};
+  ASSERT_TRUE((*store)->SaveReviews(m).ok());
+  auto loaded = (*store)->Load();
+  ASSERT_TRUE(loaded.ok());
+  EXPECT_EQ(loaded->schema_version, kSchemaVersion);
+  ASSERT_EQ(loaded->reviews.size(), 1u);
+  EXPECT_EQ(loaded->reviews[0].note, "a shadow");
+}
+
 TEST_F(MissionStoreTest, SaveRefusesWhatTheFileCannotHoldAndKeepsTheFile) {
   const fs::path path = File("refuse.saker");
   auto store = CreateOrDie(path);
@@ -593,7 +710,7 @@ TEST_F(MissionStoreTest, SaveRefusesWhatTheFileCannotHoldAndKeepsTheFile) {
     EXPECT_EQ(status.code(), StatusCode::kInvalidArgument) << status.ToString();
     EXPECT_NE(status.message().find(path.string()), std::string::npos) << status.message();
   }
-  EXPECT_EQ(store->Save(good, 8u).code(), StatusCode::kInvalidArgument);
+  EXPECT_EQ(store->Save(good, 16u).code(), StatusCode::kInvalidArgument);
   // A duplicate frame index does not matter when frames are not saved.
   EXPECT_TRUE(store->Save(duplicate, kSaveTracks).ok());
 
