@@ -10,6 +10,7 @@
 #include "ui/frame_panel.h"
 #include "ui/mosaic_view.h"
 #include "ui/task_runner.h"
+#include "ui/track_table.h"
 
 #include <QAction>
 #include <QActionGroup>
@@ -30,6 +31,7 @@
 #include <QGuiApplication>
 #include <QHBoxLayout>
 #include <QIcon>
+#include <QInputDialog>
 #include <QKeySequence>
 #include <QLabel>
 #include <QMenu>
@@ -40,8 +42,11 @@
 #include <QPushButton>
 #include <QSettings>
 #include <QStatusBar>
+#include <QTableView>
 #include <QTextBrowser>
 #include <QToolBar>
+#include <QUndoCommand>
+#include <QUndoStack>
 #include <QVBoxLayout>
 #include <algorithm>
 #include <array>
@@ -83,6 +88,18 @@ QString LatLonText(double latitude, double longitude) {
       .arg(std::abs(longitude), 0, 'f', 5)
       .arg(longitude >= 0 ? "E" : "W");
 }
+
+// An undoable step made of two functions.
+class FunctionCommand : public QUndoCommand {
+ public:
+  FunctionCommand(const QString& text, std::function<void()> redo, std::function<void()> undo)
+      : QUndoCommand(text), redo_(std::move(redo)), undo_(std::move(undo)) {}
+  void redo() override { redo_(); }
+  void undo() override { undo_(); }
+
+ private:
+  std::function<void()> redo_, undo_;
+};
 
 }  // namespace
 
@@ -179,6 +196,7 @@ void MainWindow::createDocks() {
       return;
     selected_ = {track, point};
     view_->setMarker(mission_->tracks[track].points[point].map);
+    selectionChanged();
   });
   connect(frame_panel_, &FramePanel::locateVideoRequested, this, &MainWindow::locateVideo);
 
@@ -249,6 +267,20 @@ void MainWindow::createDocks() {
   mission_dock->setWidget(side);
   addDockWidget(Qt::LeftDockWidgetArea, mission_dock);
   resizeDocks({mission_dock, frame_dock}, {220, 400}, Qt::Horizontal);
+
+  // The track table, under the map.
+  undo_ = new QUndoStack(this);
+  track_table_ = new TrackTable(this);
+  track_table_->setReviews(&reviews_);
+  track_table_->setShown([this](size_t track) { return view_->isTrackVisible(track); });
+  auto* table_dock = new QDockWidget(tr("Tracks"), this);
+  table_dock->setObjectName("trackTableDock");
+  table_dock->setWidget(track_table_);
+  addDockWidget(Qt::BottomDockWidgetArea, table_dock);
+  resizeDocks({table_dock}, {190}, Qt::Vertical);
+  connect(track_table_, &TrackTable::trackSelected, this,
+          [this](size_t track) { selectTrack(track); });
+  connect(track_table_, &TrackTable::trackActivated, this, &MainWindow::showTrack);
 }
 
 void MainWindow::createActions() {
@@ -285,6 +317,16 @@ void MainWindow::createActions() {
       file->addAction(QIcon::fromTheme("application-exit"), tr("&Quit"), this, &QWidget::close);
   quit->setShortcut(QKeySequence::Quit);
   quit->setMenuRole(QAction::QuitRole);
+
+  QMenu* edit = menuBar()->addMenu(tr("&Edit"));
+  QAction* undo = undo_->createUndoAction(this, tr("&Undo"));
+  undo->setShortcut(QKeySequence::Undo);
+  undo->setObjectName(QStringLiteral("undo"));
+  QAction* redo = undo_->createRedoAction(this, tr("&Redo"));
+  redo->setShortcut(QKeySequence::Redo);
+  redo->setObjectName(QStringLiteral("redo"));
+  edit->addAction(undo);
+  edit->addAction(redo);
 
   QMenu* view = menuBar()->addMenu(tr("&View"));
   QMenu* colour = view->addMenu(tr("&Colour Tracks By"));
@@ -360,6 +402,49 @@ void MainWindow::createActions() {
   fit->setShortcut(QKeySequence(tr("Ctrl+0")));
   view->addSeparator();
   for (QDockWidget* dock : findChildren<QDockWidget*>()) view->addAction(dock->toggleViewAction());
+
+  QMenu* track = menuBar()->addMenu(tr("T&rack"));
+  const auto review_action = [&](QMenu* menu, const QString& name, const QString& text,
+                                 const QString& shortcut, std::function<void(size_t)> act) {
+    QAction* action = menu->addAction(text);
+    action->setObjectName(name);
+    if (!shortcut.isEmpty()) action->setShortcut(QKeySequence(shortcut));
+    connect(action, &QAction::triggered, this, [this, act = std::move(act)] {
+      if (const std::optional<size_t> t = selectedTrack()) act(*t);
+    });
+    review_actions_.push_back(action);
+    return action;
+  };
+  review_action(track, "confirmTrack", tr("&Confirm"), tr("C"), [this](size_t t) {
+    setTrackVerdict(t, mission::Verdict::kConfirmed);
+  })->setStatusTip(tr("The selected track is a real moving target"));
+  review_action(track, "markTrackFalse", tr("Mark &False"), tr("X"),
+                [this](size_t t) { setTrackVerdict(t, mission::Verdict::kFalse); })
+      ->setStatusTip(tr("The selected track is not a moving target: hide it (Edit > Undo brings "
+                        "it back; View > Show False Tracks shows them)"));
+  review_action(track, "clearVerdict", tr("C&lear Verdict"), QString(),
+                [this](size_t t) { setTrackVerdict(t, mission::Verdict::kNone); });
+  QMenu* label = track->addMenu(tr("&Label"));
+  const std::array<std::tuple<mission::TargetLabel, QString, QString>, 4> labels = {{
+      {mission::TargetLabel::kVehicle, tr("&Vehicle"), tr("V")},
+      {mission::TargetLabel::kPerson, tr("&Person"), tr("P")},
+      {mission::TargetLabel::kOther, tr("&Other"), tr("O")},
+      {mission::TargetLabel::kNone, tr("&None"), QString()},
+  }};
+  for (const auto& [value, text, letter] : labels) {
+    review_action(
+        label,
+        QStringLiteral("label-") +
+            (mission::TargetLabelName(value)[0] != '\0' ? mission::TargetLabelName(value) : "none"),
+        text, letter, [this, v = value](size_t t) { setTrackLabel(t, v); });
+  }
+  review_action(track, "editNote", tr("&Note…"), tr("N"), [this](size_t) { editNote(); });
+  track->addSeparator();
+  show_false_action_ = track->addAction(tr("Show &False Tracks"));
+  show_false_action_->setObjectName(QStringLiteral("showFalseTracks"));
+  show_false_action_->setCheckable(true);
+  show_false_action_->setStatusTip(tr("Show the tracks marked false too, greyed in the table"));
+  connect(show_false_action_, &QAction::toggled, this, [this] { applyFilter(); });
 
   QMenu* tools_menu = menuBar()->addMenu(tr("&Tools"));
   measure_action_ = tools_menu->addAction(tr("&Measure Distance and Area"));
@@ -472,6 +557,10 @@ void MainWindow::forgetMission() {
   mission_path_.clear();
   track_index_.reset();
   selected_.reset();
+  reviews_.clear();
+  undo_->clear();
+  track_table_->setMission(nullptr);
+  selectionChanged();
   plane_.reset();
   view_->clearPreview();
   view_->setMission(nullptr, QString());
@@ -547,8 +636,12 @@ void MainWindow::missionLoaded(const Loaded& loaded) {
     selected_.reset();
     view_->setMarker(std::nullopt);
     view_->clearPreview();
+    undo_->clear();
   }
   mission_ = loaded.mission;
+  // The file's reviews, unless this window's last change did not reach it.
+  if (!same || reviews_saved_) reviews_ = mission_->reviews;
+  if (!same) reviews_saved_ = true;
   mission_path_ = loaded.path;
   video_path_ = loaded.video;
   video_problem_ = loaded.problem;
@@ -577,6 +670,8 @@ void MainWindow::missionLoaded(const Loaded& loaded) {
   }
   view_->setMission(mission_, mission_path_);
   frame_panel_->setMission(mission_, video_path_);
+  track_table_->setMission(mission_);
+  track_table_->reviewsChanged();
   const bool sky =
       std::any_of(mission_->frames.begin(), mission_->frames.end(),
                   [](const mission::FrameRecord& f) { return f.sky_line.has_value(); });
@@ -650,6 +745,9 @@ void MainWindow::processVideo(const QString& video, const QString& mission_path,
   mission_.reset();
   track_index_.reset();
   selected_.reset();
+  reviews_.clear();
+  undo_->clear();
+  track_table_->setMission(nullptr);
   view_->setMission(nullptr, QString());
   view_->clearPreview();
   frame_panel_->clear();
@@ -734,15 +832,19 @@ void MainWindow::exportFiles(const QString& what, const QString& path, const QSt
   }
   const bool filtered = shown.size() != mission_->tracks.size();
   const std::string source = mission_path_.toStdString();
-  // The mission shown is immutable and already loaded: the worker reads only the tiles.
-  startJob(what, [source, loaded = mission_, request, shown, filtered](JobContext* job) -> Status {
-    SAKER_ASSIGN_OR_RETURN(const std::unique_ptr<mission::MissionStore> store,
-                           mission::MissionStore::Open(source));
-    if (!filtered) return pipeline::ExportMission(*loaded, *store, request, job).status();
-    mission::Mission m = *loaded;
-    std::erase_if(m.tracks, [&](const mission::ActivityTrack& t) { return !shown.count(t.id); });
-    return pipeline::ExportMission(m, *store, request, job).status();
-  });
+  // The mission shown is immutable and already loaded: the worker reads only the tiles. The
+  // exports carry the analyst's reviews as this window has them.
+  startJob(what,
+           [source, loaded = mission_, request, shown, filtered,
+            reviews = reviews_](JobContext* job) -> Status {
+             SAKER_ASSIGN_OR_RETURN(const std::unique_ptr<mission::MissionStore> store,
+                                    mission::MissionStore::Open(source));
+             mission::Mission m = *loaded;
+             m.reviews = reviews;
+             std::erase_if(m.tracks,
+                           [&](const mission::ActivityTrack& t) { return !shown.count(t.id); });
+             return pipeline::ExportMission(m, *store, request, job).status();
+           });
   statusBar()->showMessage(tr("Writing %1…").arg(path));
 }
 
@@ -941,8 +1043,171 @@ bool MainWindow::pickAt(const Eigen::Vector2d& map_point, double tolerance) {
   if (!pick) return false;
   selected_ = {pick->track, pick->point};
   view_->setMarker(mission_->tracks[pick->track].points[pick->point].map);
+  selectionChanged();
   if (QDockWidget* dock = qobject_cast<QDockWidget*>(frame_panel_->parentWidget())) dock->show();
   frame_panel_->showObservation(pick->track, pick->point);
+  return true;
+}
+
+std::optional<size_t> MainWindow::selectedTrack() const {
+  if (!selected_) return std::nullopt;
+  return selected_->first;
+}
+
+void MainWindow::selectTrack(std::optional<size_t> track_index) {
+  if (!mission_ || (track_index && *track_index >= mission_->tracks.size())) {
+    track_index.reset();
+  }
+  if (!track_index) {
+    selected_.reset();
+  } else if (!selected_ || selected_->first != *track_index) {
+    const auto& points = mission_->tracks[*track_index].points;
+    selected_ = {*track_index, points.empty() ? 0 : points.size() / 2};
+  }
+  selectionChanged();
+}
+
+void MainWindow::selectionChanged() {
+  view_->setSelectedTrack(selectedTrack());
+  track_table_->selectTrack(selectedTrack());
+  updateActions();
+}
+
+void MainWindow::showTrack(size_t track_index) {
+  if (!mission_ || track_index >= mission_->tracks.size()) return;
+  const mission::ActivityTrack& t = mission_->tracks[track_index];
+  if (t.points.empty()) return;
+  view_->showTrack(track_index);
+  const size_t middle = t.points.size() / 2;
+  selected_ = {track_index, middle};
+  view_->setMarker(t.points[middle].map);
+  selectionChanged();
+  if (QDockWidget* dock = qobject_cast<QDockWidget*>(frame_panel_->parentWidget())) dock->show();
+  frame_panel_->showObservation(track_index, middle);
+}
+
+bool MainWindow::setTrackVerdict(size_t track_index, mission::Verdict verdict) {
+  static const char* const kWhat[] = {"Clear the verdict of track %1", "Confirm track %1",
+                                      "Mark track %1 false"};
+  return changeReview(
+      track_index, [verdict](mission::TrackReview* r) { r->verdict = verdict; },
+      tr(kWhat[static_cast<int>(verdict)]));
+}
+
+bool MainWindow::setTrackLabel(size_t track_index, mission::TargetLabel label) {
+  return changeReview(
+      track_index, [label](mission::TrackReview* r) { r->label = label; },
+      label == mission::TargetLabel::kNone
+          ? tr("Clear the label of track %1")
+          : tr("Label track %1 %2").arg("%1", FromStd(mission::TargetLabelName(label))));
+}
+
+bool MainWindow::setTrackNote(size_t track_index, const QString& note) {
+  const std::string text = note.trimmed().toStdString();
+  if (text.size() > mission::kMaxNoteBytes) {
+    showError(tr("Note too long"), tr("A note holds at most %1 bytes; this one has %2.")
+                                       .arg(mission::kMaxNoteBytes)
+                                       .arg(text.size()));
+    return false;
+  }
+  return changeReview(
+      track_index, [text](mission::TrackReview* r) { r->note = text; },
+      tr("Edit the note of track %1"));
+}
+
+void MainWindow::editNote() {
+  const std::optional<size_t> track = selectedTrack();
+  if (!track || !mission_) return;
+  const int64_t id = mission_->tracks[*track].id;
+  const mission::TrackReview* review = nullptr;
+  for (const mission::TrackReview& r : reviews_) {
+    if (r.track_id == id) review = &r;
+  }
+  bool ok = false;
+  const QString note = QInputDialog::getMultiLineText(
+      this, tr("Note on Track %1").arg(id), tr("What the analyst says of track %1:").arg(id),
+      review ? FromStd(review->note) : QString(), &ok);
+  if (ok) setTrackNote(*track, note);
+}
+
+bool MainWindow::changeReview(size_t track_index,
+                              const std::function<void(mission::TrackReview*)>& change,
+                              const QString& what) {
+  if (!mission_ || track_index >= mission_->tracks.size()) return false;
+  const int64_t id = mission_->tracks[track_index].id;
+  mission::TrackReview before{id, mission::Verdict::kNone, mission::TargetLabel::kNone, {}};
+  for (const mission::TrackReview& r : reviews_) {
+    if (r.track_id == id) before = r;
+  }
+  mission::TrackReview after = before;
+  change(&after);
+  if (after.verdict == before.verdict && after.label == before.label && after.note == before.note) {
+    return true;  // nothing to do
+  }
+  // QUndoStack::push runs redo() (applyReview) at once.
+  undo_->push(new FunctionCommand(
+      what.arg(id), [this, after] { applyReview(after); },
+      [this, before] { applyReview(before); }));
+  return reviews_saved_;
+}
+
+void MainWindow::applyReview(const mission::TrackReview& review) {
+  const auto it =
+      std::lower_bound(reviews_.begin(), reviews_.end(), review.track_id,
+                       [](const mission::TrackReview& r, int64_t id) { return r.track_id < id; });
+  const bool present = it != reviews_.end() && it->track_id == review.track_id;
+  if (review.empty()) {
+    if (present) reviews_.erase(it);
+  } else if (present) {
+    *it = review;
+  } else {
+    reviews_.insert(it, review);
+  }
+  reviews_saved_ = saveReviews();
+  applyFilter();  // a false track hides (or shows again)
+  track_table_->reviewsChanged();
+  // A track hidden by its verdict is no longer selected.
+  if (selected_ && !view_->isTrackVisible(selected_->first)) {
+    selected_.reset();
+    view_->setMarker(std::nullopt);
+  }
+  selectionChanged();
+  if (!reviews_saved_) {
+    statusBar()->showMessage(
+        tr("Track %1: not saved in the mission (see the message)").arg(review.track_id), 8000);
+    return;
+  }
+  QStringList said;
+  for (const char* part :
+       {mission::VerdictName(review.verdict), mission::TargetLabelName(review.label)}) {
+    if (part[0] != '\0') said << QString::fromUtf8(part);
+  }
+  if (!review.note.empty()) said << tr("a note");
+  statusBar()->showMessage(
+      tr("Track %1: %2 (Edit > Undo takes it back)")
+          .arg(review.track_id)
+          .arg(said.isEmpty() ? tr("no verdict, label or note") : said.join(QStringLiteral(", "))),
+      8000);
+}
+
+bool MainWindow::saveReviews() {
+  if (mission_path_.isEmpty()) return false;
+  const std::string path = mission_path_.toStdString();
+  Status status = [&]() -> Status {
+    SAKER_ASSIGN_OR_RETURN(std::unique_ptr<mission::MissionStore> store,
+                           mission::MissionStore::Open(path, mission::OpenMode::kReadWrite));
+    mission::Mission reviews;
+    reviews.reviews = reviews_;
+    reviews.bookmarks = mission_->bookmarks;  // not edited here yet: kept as the file has them
+    return store->SaveReviews(reviews);
+  }();
+  if (!status.ok()) {
+    showError(tr("Cannot save the verdict"),
+              tr("%1\n\nThe change stays in this window (Edit > Undo takes it back) but is not in "
+                 "the mission file.")
+                  .arg(FromStd(status.message())));
+    return false;
+  }
   return true;
 }
 
@@ -1006,7 +1271,13 @@ void MainWindow::applyFilter() {
   if (min_speed_->value() > min_speed_->minimum()) filter.min_speed = min_speed_->value();
   if (max_speed_->value() < max_speed_->maximum()) filter.max_speed = max_speed_->value();
   filter.min_confidence = min_confidence_->value();
+  if (!show_false_action_->isChecked()) {
+    for (const mission::TrackReview& r : reviews_) {
+      if (r.verdict == mission::Verdict::kFalse) filter.hidden_ids.insert(r.track_id);
+    }
+  }
   view_->setTrackFilter(filter);
+  track_table_->shownChanged();
   size_t shown = 0, total = mission_ ? mission_->tracks.size() : 0;
   for (size_t i = 0; i < total; ++i) shown += view_->isTrackVisible(i);
   shown_count_->setText(tr("%1 of %2 tracks shown").arg(shown).arg(total));
@@ -1078,6 +1349,25 @@ QMenu* MainWindow::contextMenuFor(const Eigen::Vector2d& map_point, double toler
       show->setObjectName(QStringLiteral("showTrackFrame"));
       connect(show, &QAction::triggered, this,
               [this, map_point, tolerance] { pickAt(map_point, tolerance); });
+      const size_t index = pick->track;
+      const bool idle = !jobs_->isRunning();
+      QAction* confirm = context_menu_->addAction(tr("Confirm Track %1").arg(id));
+      confirm->setObjectName(QStringLiteral("contextConfirm"));
+      confirm->setEnabled(idle);
+      connect(confirm, &QAction::triggered, this,
+              [this, index] { setTrackVerdict(index, mission::Verdict::kConfirmed); });
+      QAction* mark_false = context_menu_->addAction(tr("Mark Track %1 False").arg(id));
+      mark_false->setObjectName(QStringLiteral("contextMarkFalse"));
+      mark_false->setEnabled(idle);
+      connect(mark_false, &QAction::triggered, this,
+              [this, index] { setTrackVerdict(index, mission::Verdict::kFalse); });
+      QAction* note = context_menu_->addAction(tr("Note on Track %1…").arg(id));
+      note->setEnabled(idle);
+      connect(note, &QAction::triggered, this, [this, index] {
+        selectTrack(index);
+        editNote();
+      });
+      context_menu_->addSeparator();
     }
   }
   const QString position = positionText(map_point);
@@ -1187,6 +1477,8 @@ void MainWindow::updateActions() {
       has && !p->cancelled && (p->tiles || (p->activity && !mission_->pyramid.has_value()));
   resume_action_->setEnabled(has && idle && (!complete || checkpoint_frame_) &&
                              !video_path_.isEmpty());
+  const bool judge = has && idle && selectedTrack().has_value();
+  for (QAction* action : review_actions_) action->setEnabled(judge);
 }
 
 void MainWindow::addRecent(const QString& path) {

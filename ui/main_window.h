@@ -32,12 +32,14 @@ class QLabel;
 class QMenu;
 class QProgressBar;
 class QPushButton;
+class QUndoStack;
 
 namespace saker::ui {
 
 class FramePanel;
 class MosaicView;
 class TaskRunner;
+class TrackTable;
 
 class MainWindow : public QMainWindow {
   Q_OBJECT
@@ -83,6 +85,23 @@ class MainWindow : public QMainWindow {
   // The click: selects the shown track observation nearest `map_point` within `tolerance` (map
   // units), marks it and recalls its frame. False when there is none.
   bool pickAt(const Eigen::Vector2d& map_point, double tolerance);
+
+  // The analyst's judgement (the Track menu, the map's context menu): each change is one
+  // undoable step (Edit > Undo) and is saved in the mission at once (MissionStore::SaveReviews).
+  // False when there is no such track or no mission, or the change could not be saved (an error
+  // dialog says why; the change stays in this window).
+  bool setTrackVerdict(size_t track_index, mission::Verdict verdict);
+  bool setTrackLabel(size_t track_index, mission::TargetLabel label);
+  bool setTrackNote(size_t track_index, const QString& note);
+  // The reviews as the window has them (saved, unless saving failed).
+  const std::vector<mission::TrackReview>& reviews() const { return reviews_; }
+  QUndoStack* undoStack() const { return undo_; }
+  // Selects a track (highlighted on the map, its row in the track table); nullopt: none.
+  void selectTrack(std::optional<size_t> track_index);
+  std::optional<size_t> selectedTrack() const;
+  // Jumps to a track: selects it, fits the map to it and recalls its middle observation.
+  void showTrack(size_t track_index);
+  TrackTable* trackTable() const { return track_table_; }
 
   // How positions are written (status bar, Copy Coordinates): View > Coordinates.
   void setCoordinateFormat(geo::CoordinateFormat format);
@@ -141,6 +160,14 @@ class MainWindow : public QMainWindow {
   void updateMissionFacts();
   void updateActions();
   void updateCursor(const std::optional<Eigen::Vector2d>& map_point);
+  // Changes the review of track `track_index` with `change`, as one undoable step named `what`.
+  bool changeReview(size_t track_index, const std::function<void(mission::TrackReview*)>& change,
+                    const QString& what);
+  // Makes `review` the review of its track (none when empty), saves, and shows it.
+  void applyReview(const mission::TrackReview& review);
+  bool saveReviews();
+  void selectionChanged();  // selected_ changed: the map's highlight, the table's row, actions
+  void editNote();          // asks for the selected track's note
   void updateMeasure();
   void addRecent(const QString& path);
   void rebuildRecentMenu();
@@ -185,6 +212,14 @@ class MainWindow : public QMainWindow {
   QActionGroup* coordinate_group_ = nullptr;
   QAction* measure_action_ = nullptr;
   QMenu* context_menu_ = nullptr;
+
+  // The analyst's reviews (sorted by track id) and the undo stack of their changes.
+  std::vector<mission::TrackReview> reviews_;
+  QUndoStack* undo_ = nullptr;
+  bool reviews_saved_ = true;  // the last change reached the file
+  TrackTable* track_table_ = nullptr;
+  QAction* show_false_action_ = nullptr;
+  std::vector<QAction*> review_actions_;  // need a selected track and no job on the mission
 
   QMenu* recent_menu_ = nullptr;
   QActionGroup* colour_group_ = nullptr;

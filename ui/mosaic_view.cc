@@ -177,6 +177,7 @@ void MosaicView::setMission(std::shared_ptr<const mission::Mission> mission,
   }
   if (!reload) {
     marker_.reset();
+    selected_track_.reset();
     if (!measure_path_.empty()) setMeasurePath({});  // another map
   }
   rebuildMissionGeometry();
@@ -385,7 +386,8 @@ void MosaicView::rebuildVisibility() {
                         !(filter_.end_s && t.start_s > *filter_.end_s) &&
                         !(filter_.min_speed && speed < *filter_.min_speed) &&
                         !(filter_.max_speed && speed > *filter_.max_speed) &&
-                        activity::PassesConfidence(t, filter_.min_confidence);
+                        activity::PassesConfidence(t, filter_.min_confidence) &&
+                        filter_.hidden_ids.count(t.id) == 0;
   }
 }
 
@@ -724,6 +726,7 @@ void MosaicView::paintEvent(QPaintEvent*) {
       paintTracks(painter);
       break;
   }
+  if (frame_ == Frame::kMap) paintSelection(painter);
   paintMarker(painter);
   paintMeasure(painter);
   paintLegend(painter);
@@ -915,6 +918,55 @@ void MosaicView::drawTracks(QPainter& painter) const {
     AddArrowheads(line, &arrows);
     painter.setBrush(track_colours_[i]);
     for (const QPolygonF& arrow : arrows) painter.drawPolygon(arrow);
+  }
+  painter.restore();
+}
+
+void MosaicView::setSelectedTrack(std::optional<size_t> track_index) {
+  if (track_index && (!mission_ || *track_index >= mission_->tracks.size())) track_index.reset();
+  if (selected_track_ == track_index) return;
+  selected_track_ = track_index;
+  update();
+}
+
+void MosaicView::showTrack(size_t track_index) {
+  if (track_index >= track_shapes_.size() || track_shapes_[track_index].points.empty()) return;
+  const QRectF bounds = track_shapes_[track_index].bounds;
+  const double side = std::max({bounds.width(), bounds.height(), 1e-9});
+  // Half the view's smaller side for the track, within the zoom limits.
+  const double ppu = 0.5 * std::min(width(), height()) / side;
+  auto_fit_ = false;
+  setView(Eigen::Vector2d(bounds.center().x(), bounds.center().y()),
+          std::clamp(ppu, minPixelsPerMapUnit(), maxPixelsPerMapUnit()));
+}
+
+void MosaicView::paintSelection(QPainter& painter) {
+  if (!selected_track_ || !isTrackVisible(*selected_track_) ||
+      *selected_track_ >= track_shapes_.size()) {
+    return;
+  }
+  const TrackShape& shape = track_shapes_[*selected_track_];
+  if (shape.points.empty()) return;
+  const QTransform transform = widgetFromMapTransform();
+  QPolygonF line;
+  line.reserve(static_cast<qsizetype>(shape.points.size()));
+  for (const QPointF& point : shape.points) line << transform.map(point);
+  painter.save();
+  painter.setRenderHint(QPainter::Antialiasing);
+  painter.setBrush(Qt::NoBrush);
+  const QColor colour =
+      *selected_track_ < track_colours_.size() && colour_mode_ != activity::ColourMode::kDensity
+          ? track_colours_[*selected_track_]
+          : QColor(255, 214, 0);
+  painter.setPen(QPen(QColor(255, 255, 255, 230), 8, Qt::SolidLine, Qt::RoundCap, Qt::RoundJoin));
+  painter.drawPolyline(line);
+  painter.setPen(QPen(kTrackOutline, 5, Qt::SolidLine, Qt::RoundCap, Qt::RoundJoin));
+  painter.drawPolyline(line);
+  painter.setPen(QPen(colour, 3, Qt::SolidLine, Qt::RoundCap, Qt::RoundJoin));
+  painter.drawPolyline(line);
+  if (line.size() == 1) {
+    painter.setBrush(colour);
+    painter.drawEllipse(line.front(), 5, 5);
   }
   painter.restore();
 }

@@ -25,6 +25,7 @@
 #include <array>
 #include <memory>
 #include <optional>
+#include <set>
 #include <vector>
 
 // Map points travel in signals as Eigen vectors (registered in the MosaicView constructor, so
@@ -53,6 +54,8 @@ class MosaicView : public QWidget {
     // Shown when activity::PassesConfidence: at 0 every track, above it only tracks whose
     // confidence is known and at least this.
     double min_confidence = 0;
+    // Never shown (by ActivityTrack::id): the tracks the analyst marked false, unless asked.
+    std::set<int64_t> hidden_ids;
   };
 
   explicit MosaicView(QWidget* parent = nullptr);
@@ -103,6 +106,13 @@ class MosaicView : public QWidget {
   // geo-referenced map north (+y) is up.
   QPointF widgetFromMap(const Eigen::Vector2d& map) const;
   Eigen::Vector2d mapFromWidget(const QPointF& widget) const;
+
+  // The selected track (an index into the mission's tracks), drawn over the others with a white
+  // halo; nullopt: none.
+  void setSelectedTrack(std::optional<size_t> track_index);
+  const std::optional<size_t>& selectedTrack() const { return selected_track_; }
+  // Centres the view on a track and zooms so that it fills about half the view.
+  void showTrack(size_t track_index);
 
   // The red cross that marks a recalled place; nullopt removes it.
   void setMarker(std::optional<Eigen::Vector2d> map_point);
@@ -201,6 +211,7 @@ class MosaicView : public QWidget {
   void drawTracks(QPainter& painter) const;  // every visible track, in widget coordinates
   void tracksChanged();                      // what the tracks look like changed: redraw them
   void paintMarker(QPainter& painter);
+  void paintSelection(QPainter& painter);
   void paintMeasure(QPainter& painter);
   void addMeasurePoint(const QPointF& widget);
   void paintLegend(QPainter& painter);
@@ -254,6 +265,7 @@ class MosaicView : public QWidget {
   QTimer* settle_timer_ = nullptr;
 
   std::optional<Eigen::Vector2d> marker_;
+  std::optional<size_t> selected_track_;
 
   // Measuring.
   bool measuring_ = false;

@@ -10,6 +10,7 @@
 #include "ui/frame_panel.h"
 #include "ui/mosaic_view.h"
 #include "ui/task_runner.h"
+#include "ui/track_table.h"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -36,9 +37,11 @@
 #include <QRegularExpression>
 #include <QSignalSpy>
 #include <QStatusBar>
+#include <QTableView>
 #include <QTest>
 #include <QTextBrowser>
 #include <QTimer>
+#include <QUndoStack>
 #include <QUrl>
 #include <QXmlStreamReader>
 #include <algorithm>
@@ -282,7 +285,7 @@ TEST(MainWindowTest, ClickOnATrackRecallsTheFrameWithTheObjectMarkedWhereTheTrut
   // Like an analyst: the tracks seen around that moment, zoomed in on the place, then a click.
   const double time_s = frame.time_s;
   MosaicView* view = window.mosaicView();
-  view->setTrackFilter({time_s - 0.5, time_s + 0.5, std::nullopt, std::nullopt});
+  view->setTrackFilter({time_s - 0.5, time_s + 0.5, std::nullopt, std::nullopt, 0, {}});
   view->fitToWindow();
   view->zoomAt(4, view->widgetFromMap(at));
   const QPointF click = view->widgetFromMap(at);
@@ -470,6 +473,155 @@ TEST(MainWindowTest, CoordinateFormatsMeasuringAndTheContextMenu) {
   again.close();
 }
 
+// The analyst's judgement: the track table lists the shown tracks and follows the selection both
+// ways; marking a track false hides it (map, table, exports), is saved in the mission at once
+// and undone by Edit > Undo; labels and notes are saved and filterable; a verdict that cannot be
+// saved says so and stays in the window.
+TEST(MainWindowTest, TheAnalystJudgesTracksAndTheTrackTableFollows) {
+  const TestMission* m = SmallMission();
+  ASSERT_NE(m, nullptr);
+  ASSERT_GE(m->loaded.tracks.size(), 3u);
+  const fs::path dir = saker::testing::MakeTempDir("saker-ui-reviews");
+  const fs::path path = dir / "reviews.saker";
+  ASSERT_NO_FATAL_FAILURE(SaveChangedCopy(m->loaded, path, [](mission::Mission&) {}));
+  const auto saved_reviews = [&] {
+    auto store = mission::MissionStore::Open(path.string());
+    EXPECT_TRUE(store.ok());
+    auto loaded = (*store)->Load();
+    EXPECT_TRUE(loaded.ok());
+    return loaded.ok() ? loaded->reviews : std::vector<mission::TrackReview>{};
+  };
+  auto window = std::make_unique<MainWindow>();
+  window->resize(1300, 900);
+  window->show();
+  QSignalSpy opened(window.get(), &MainWindow::missionOpened);
+  window->openMission(QString::fromStdString(path.string()));
+  ASSERT_TRUE(opened.wait(30000));
+  const auto& tracks = window->mission()->tracks;
+  TrackTable* table = window->trackTable();
+  ASSERT_NE(table, nullptr);
+  EXPECT_EQ(table->rowsShown(), static_cast<int>(tracks.size()));
+
+  // Sorted by speed, fastest first; a click on a row selects its track on the map.
+  table->view()->sortByColumn(TrackTableModel::kSpeed, Qt::DescendingOrder);
+  const std::optional<size_t> fastest = table->trackAtRow(0);
+  ASSERT_TRUE(fastest.has_value());
+  for (const auto& t : tracks) {
+    EXPECT_LE(t.speed_mps.value_or(t.speed), tracks[*fastest].speed_mps.value_or(0) + 1e-9);
+  }
+  const QRect first_row = table->view()->visualRect(table->filterModel()->index(0, 0));
+  QTest::mouseClick(table->view()->viewport(), Qt::LeftButton, Qt::NoModifier, first_row.center());
+  EXPECT_EQ(window->selectedTrack(), fastest);
+  EXPECT_EQ(window->mosaicView()->selectedTrack(), fastest);
+  // ...and a pick on the map selects the row.
+  const size_t picked = *fastest == 0 ? 1 : 0;
+  ASSERT_TRUE(window->pickAt(tracks[picked].points.front().map, 1e-6));
+  EXPECT_EQ(window->selectedTrack(), picked);
+  const QModelIndex current = table->view()->currentIndex();
+  ASSERT_TRUE(current.isValid());
+  EXPECT_EQ(table->filterModel()->mapToSource(current).row(), static_cast<int>(picked));
+
+  // Mark it false: hidden everywhere, saved, undoable.
+  auto* mark_false = window->findChild<QAction*>("markTrackFalse");
+  ASSERT_NE(mark_false, nullptr);
+  ASSERT_TRUE(mark_false->isEnabled());
+  mark_false->trigger();
+  EXPECT_FALSE(window->mosaicView()->isTrackVisible(picked));
+  EXPECT_EQ(table->rowsShown(), static_cast<int>(tracks.size()) - 1);
+  EXPECT_FALSE(window->selectedTrack().has_value());
+  EXPECT_FALSE(mark_false->isEnabled()) << "nothing selected any more";
+  std::vector<mission::TrackReview> saved = saved_reviews();
+  ASSERT_EQ(saved.size(), 1u);
+  EXPECT_EQ(saved[0].track_id, tracks[picked].id);
+  EXPECT_EQ(saved[0].verdict, mission::Verdict::kFalse);
+  window->undoStack()->undo();
+  EXPECT_TRUE(window->mosaicView()->isTrackVisible(picked));
+  EXPECT_TRUE(saved_reviews().empty());
+  window->undoStack()->redo();
+  EXPECT_FALSE(window->mosaicView()->isTrackVisible(picked));
+  // Show False Tracks brings it back to the map and the table (greyed there).
+  auto* show_false = window->findChild<QAction*>("showFalseTracks");
+  ASSERT_NE(show_false, nullptr);
+  show_false->trigger();
+  EXPECT_TRUE(window->mosaicView()->isTrackVisible(picked));
+  EXPECT_EQ(table->rowsShown(), static_cast<int>(tracks.size()));
+  show_false->trigger();
+
+  // A label and a note on another track, from the menu and the API; the table filters on them.
+  const size_t other = picked == 1 ? 2 : 1;
+  window->selectTrack(other);
+  window->findChild<QAction*>("label-vehicle")->trigger();
+  ASSERT_TRUE(window->setTrackNote(other, "  stops at the gate\nthen turns  "));
+  window->findChild<QAction*>("confirmTrack")->trigger();
+  saved = saved_reviews();
+  ASSERT_EQ(saved.size(), 2u);
+  const mission::TrackReview& judged = saved[saved[0].track_id == tracks[other].id ? 0 : 1];
+  EXPECT_EQ(judged.track_id, tracks[other].id);
+  EXPECT_EQ(judged.verdict, mission::Verdict::kConfirmed);
+  EXPECT_EQ(judged.label, mission::TargetLabel::kVehicle);
+  EXPECT_EQ(judged.note, "stops at the gate\nthen turns");
+  QTest::keyClicks(table->filterEdit(), "GATE");
+  ASSERT_EQ(table->rowsShown(), 1);
+  EXPECT_EQ(table->trackAtRow(0), other);
+  const QModelIndex note = table->filterModel()->index(0, TrackTableModel::kNote);
+  EXPECT_EQ(note.data().toString(), "stops at the gate");
+  EXPECT_EQ(table->filterModel()->index(0, TrackTableModel::kVerdict).data().toString(),
+            "Confirmed");
+  table->filterEdit()->clear();
+
+  // Double-click (activate) a row: the track is shown and its frame recalled.
+  QSignalSpy shown(window->framePanel(), &FramePanel::frameShown);
+  emit table->view()->activated(table->filterModel()->mapFromSource(
+      table->filterModel()->sourceModel()->index(static_cast<int>(other), 0)));
+  EXPECT_EQ(window->selectedTrack(), other);
+  EXPECT_TRUE(window->mosaicView()->marker().has_value());
+  EXPECT_TRUE(shown.count() > 0 || shown.wait(10000));
+
+  // The exports carry the verdicts and leave the false track out.
+  const fs::path geojson = dir / "tracks.geojson";
+  QSignalSpy finished(window.get(), &MainWindow::jobFinished);
+  window->exportTracks(QString::fromStdString(geojson.string()));
+  ASSERT_TRUE(finished.wait(30000));
+  const nlohmann::json j = nlohmann::json::parse(std::ifstream(geojson), nullptr, false);
+  ASSERT_FALSE(j.is_discarded());
+  EXPECT_EQ(j["features"].size(), tracks.size() - 1);
+  bool found = false;
+  for (const auto& feature : j["features"]) {
+    EXPECT_NE(feature["id"], tracks[picked].id);
+    if (feature["id"] == tracks[other].id) {
+      found = true;
+      EXPECT_EQ(feature["properties"]["verdict"], "confirmed");
+      EXPECT_EQ(feature["properties"]["label"], "vehicle");
+    }
+  }
+  EXPECT_TRUE(found);
+
+  // While another writer holds the mission, a verdict is not saved: a message says so, and the
+  // window keeps it.
+  {
+    auto writer = mission::MissionStore::Open(path.string(), mission::OpenMode::kReadWrite);
+    ASSERT_TRUE(writer.ok()) << writer.status().ToString();
+    EXPECT_FALSE(window->setTrackVerdict(other, mission::Verdict::kNone));
+    QMessageBox* box = nullptr;
+    ASSERT_TRUE(WaitUntil([&] {
+      box = window->findChild<QMessageBox*>("errorDialog");
+      return box != nullptr;
+    }));
+    EXPECT_TRUE(box->text().contains("not in the mission file")) << box->text().toStdString();
+    box->close();
+  }
+  EXPECT_EQ(saved_reviews().size(), 2u);
+
+  // A new window on the file reads the verdicts back.
+  window.reset();
+  MainWindow again;
+  QSignalSpy reopened(&again, &MainWindow::missionOpened);
+  again.openMission(QString::fromStdString(path.string()));
+  ASSERT_TRUE(reopened.wait(30000));
+  EXPECT_EQ(again.reviews().size(), 2u);
+  EXPECT_FALSE(again.mosaicView()->isTrackVisible(picked));
+}
+
 TEST(MainWindowTest, HelpShowsTheUserGuideWithItsPictures) {
   MainWindow window;
   window.show();
@@ -645,7 +797,7 @@ TEST(MainWindowTest, ExportsWriteValidFilesOfTheShownTracks) {
   for (const auto& t : tracks) speeds.push_back(t.speed_mps.value_or(0));
   std::sort(speeds.begin(), speeds.end());
   const double median = speeds[speeds.size() / 2];
-  window.mosaicView()->setTrackFilter({std::nullopt, std::nullopt, median, std::nullopt});
+  window.mosaicView()->setTrackFilter({std::nullopt, std::nullopt, median, std::nullopt, 0, {}});
   size_t shown = 0;
   for (size_t i = 0; i < tracks.size(); ++i) shown += window.mosaicView()->isTrackVisible(i);
   ASSERT_GT(shown, 0u);
