@@ -34,6 +34,7 @@
 #include <QInputDialog>
 #include <QKeySequence>
 #include <QLabel>
+#include <QListWidget>
 #include <QMenu>
 #include <QMenuBar>
 #include <QMessageBox>
@@ -281,6 +282,45 @@ void MainWindow::createDocks() {
   connect(track_table_, &TrackTable::trackSelected, this,
           [this](size_t track) { selectTrack(track); });
   connect(track_table_, &TrackTable::trackActivated, this, &MainWindow::showTrack);
+
+  // The bookmarks, in a tab beside the tracks.
+  bookmark_list_ = new QListWidget(this);
+  bookmark_list_->setObjectName("bookmarkList");
+  bookmark_list_->setContextMenuPolicy(Qt::CustomContextMenu);
+  auto* bookmark_dock = new QDockWidget(tr("Bookmarks"), this);
+  bookmark_dock->setObjectName("bookmarkDock");
+  bookmark_dock->setWidget(bookmark_list_);
+  tabifyDockWidget(table_dock, bookmark_dock);
+  table_dock->raise();
+  const auto bookmark_of = [this](const QListWidgetItem* item) -> const mission::Bookmark* {
+    if (item == nullptr) return nullptr;
+    const int64_t id = item->data(Qt::UserRole).toLongLong();
+    for (const mission::Bookmark& b : bookmarks_) {
+      if (b.id == id) return &b;
+    }
+    return nullptr;
+  };
+  connect(bookmark_list_, &QListWidget::itemActivated, this,
+          [this, bookmark_of](QListWidgetItem* item) {
+            if (const mission::Bookmark* b = bookmark_of(item)) view_->centreOn(b->map);
+          });
+  connect(bookmark_list_, &QWidget::customContextMenuRequested, this,
+          [this, bookmark_of](const QPoint& at) {
+            const mission::Bookmark* b = bookmark_of(bookmark_list_->itemAt(at));
+            if (b == nullptr) return;
+            const int64_t id = b->id;
+            const QString note = FromStd(b->note);
+            auto* menu = new QMenu(bookmark_list_);
+            menu->setAttribute(Qt::WA_DeleteOnClose);
+            menu->addAction(tr("Edit Note…"), this, [this, id, note] {
+              bool ok = false;
+              const QString text = QInputDialog::getText(this, tr("Bookmark %1").arg(id),
+                                                         tr("Note:"), QLineEdit::Normal, note, &ok);
+              if (ok) setBookmarkNote(id, text);
+            });
+            menu->addAction(tr("Delete Bookmark"), this, [this, id] { removeBookmark(id); });
+            menu->popup(bookmark_list_->viewport()->mapToGlobal(at));
+          });
 }
 
 void MainWindow::createActions() {
@@ -440,6 +480,13 @@ void MainWindow::createActions() {
   }
   review_action(track, "editNote", tr("&Note…"), tr("N"), [this](size_t) { editNote(); });
   track->addSeparator();
+  QAction* bookmark = track->addAction(tr("Add &Bookmark…"));
+  bookmark->setObjectName(QStringLiteral("addBookmark"));
+  bookmark->setShortcut(QKeySequence(tr("Ctrl+B")));
+  bookmark->setStatusTip(
+      tr("Mark the selected observation's place and time (or the map's centre) with a note"));
+  connect(bookmark, &QAction::triggered, this, [this] { chooseBookmark(std::nullopt); });
+  track->addSeparator();
   show_false_action_ = track->addAction(tr("Show &False Tracks"));
   show_false_action_->setObjectName(QStringLiteral("showFalseTracks"));
   show_false_action_->setCheckable(true);
@@ -558,8 +605,10 @@ void MainWindow::forgetMission() {
   track_index_.reset();
   selected_.reset();
   reviews_.clear();
+  bookmarks_.clear();
   undo_->clear();
   track_table_->setMission(nullptr);
+  rebuildBookmarkList();
   selectionChanged();
   plane_.reset();
   view_->clearPreview();
@@ -640,7 +689,10 @@ void MainWindow::missionLoaded(const Loaded& loaded) {
   }
   mission_ = loaded.mission;
   // The file's reviews, unless this window's last change did not reach it.
-  if (!same || reviews_saved_) reviews_ = mission_->reviews;
+  if (!same || reviews_saved_) {
+    reviews_ = mission_->reviews;
+    bookmarks_ = mission_->bookmarks;
+  }
   if (!same) reviews_saved_ = true;
   mission_path_ = loaded.path;
   video_path_ = loaded.video;
@@ -672,6 +724,7 @@ void MainWindow::missionLoaded(const Loaded& loaded) {
   frame_panel_->setMission(mission_, video_path_);
   track_table_->setMission(mission_);
   track_table_->reviewsChanged();
+  rebuildBookmarkList();
   const bool sky =
       std::any_of(mission_->frames.begin(), mission_->frames.end(),
                   [](const mission::FrameRecord& f) { return f.sky_line.has_value(); });
@@ -746,8 +799,10 @@ void MainWindow::processVideo(const QString& video, const QString& mission_path,
   track_index_.reset();
   selected_.reset();
   reviews_.clear();
+  bookmarks_.clear();
   undo_->clear();
   track_table_->setMission(nullptr);
+  rebuildBookmarkList();
   view_->setMission(nullptr, QString());
   view_->clearPreview();
   frame_panel_->clear();
@@ -835,12 +890,13 @@ void MainWindow::exportFiles(const QString& what, const QString& path, const QSt
   // The mission shown is immutable and already loaded: the worker reads only the tiles. The
   // exports carry the analyst's reviews as this window has them.
   startJob(what,
-           [source, loaded = mission_, request, shown, filtered,
-            reviews = reviews_](JobContext* job) -> Status {
+           [source, loaded = mission_, request, shown, filtered, reviews = reviews_,
+            bookmarks = bookmarks_](JobContext* job) -> Status {
              SAKER_ASSIGN_OR_RETURN(const std::unique_ptr<mission::MissionStore> store,
                                     mission::MissionStore::Open(source));
              mission::Mission m = *loaded;
              m.reviews = reviews;
+             m.bookmarks = bookmarks;
              std::erase_if(m.tracks,
                            [&](const mission::ActivityTrack& t) { return !shown.count(t.id); });
              return pipeline::ExportMission(m, *store, request, job).status();
@@ -1190,6 +1246,92 @@ void MainWindow::applyReview(const mission::TrackReview& review) {
       8000);
 }
 
+int64_t MainWindow::addBookmark(const Eigen::Vector2d& map_point, std::optional<double> time_s,
+                                const QString& note) {
+  if (!mission_ || !map_point.allFinite()) return 0;
+  if (!time_s) {
+    const std::vector<size_t> seen = mission::FramesSeeing(*mission_, map_point, 1);
+    time_s = seen.empty() ? 0.0 : mission_->frames[seen.front()].time_s;
+  }
+  const std::string text = note.trimmed().toStdString();
+  if (text.size() > mission::kMaxNoteBytes) return 0;
+  std::vector<mission::Bookmark> after = bookmarks_;
+  const int64_t id = after.empty() ? 1 : after.back().id + 1;
+  after.push_back({id, *time_s, map_point, text});
+  changeBookmarks(std::move(after), tr("Add bookmark %1").arg(id));
+  return id;
+}
+
+bool MainWindow::setBookmarkNote(int64_t id, const QString& note) {
+  std::vector<mission::Bookmark> after = bookmarks_;
+  const std::string text = note.trimmed().toStdString();
+  if (text.size() > mission::kMaxNoteBytes) return false;
+  for (mission::Bookmark& b : after) {
+    if (b.id != id) continue;
+    b.note = text;
+    return changeBookmarks(std::move(after), tr("Edit bookmark %1").arg(id));
+  }
+  return false;
+}
+
+bool MainWindow::removeBookmark(int64_t id) {
+  std::vector<mission::Bookmark> after = bookmarks_;
+  const auto removed = std::remove_if(after.begin(), after.end(),
+                                      [id](const mission::Bookmark& b) { return b.id == id; });
+  if (removed == after.end()) return false;
+  after.erase(removed, after.end());
+  return changeBookmarks(std::move(after), tr("Delete bookmark %1").arg(id));
+}
+
+bool MainWindow::changeBookmarks(std::vector<mission::Bookmark> after, const QString& what) {
+  if (!mission_) return false;
+  undo_->push(new FunctionCommand(
+      what, [this, after] { applyBookmarks(after); },
+      [this, before = bookmarks_] { applyBookmarks(before); }));
+  return reviews_saved_;
+}
+
+void MainWindow::applyBookmarks(const std::vector<mission::Bookmark>& bookmarks) {
+  bookmarks_ = bookmarks;
+  reviews_saved_ = saveReviews();
+  rebuildBookmarkList();
+}
+
+void MainWindow::rebuildBookmarkList() {
+  bookmark_list_->clear();
+  std::vector<std::pair<int64_t, Eigen::Vector2d>> pins;
+  for (const mission::Bookmark& b : bookmarks_) {
+    const double t = std::max(b.time_s, 0.0);
+    const int minutes = static_cast<int>(t / 60);
+    auto* item = new QListWidgetItem(tr("%1  ·  %2:%3  ·  %4")
+                                         .arg(b.id)
+                                         .arg(minutes)
+                                         .arg(t - 60.0 * minutes, 4, 'f', 1, QLatin1Char('0'))
+                                         .arg(b.note.empty() ? tr("(no note)") : FromStd(b.note)),
+                                     bookmark_list_);
+    item->setData(Qt::UserRole, static_cast<qlonglong>(b.id));
+    item->setToolTip(positionText(b.map));
+    pins.emplace_back(b.id, b.map);
+  }
+  view_->setBookmarks(std::move(pins));
+}
+
+void MainWindow::chooseBookmark(std::optional<Eigen::Vector2d> at) {
+  if (!mission_) return;
+  std::optional<double> time_s;
+  if (!at && selected_ && selected_->first < mission_->tracks.size()) {
+    const mission::TrackPoint& p = mission_->tracks[selected_->first].points[selected_->second];
+    at = p.map;
+    time_s = p.time_s;
+  }
+  if (!at) at = view_->mapFromWidget(QPointF(view_->width() / 2.0, view_->height() / 2.0));
+  bool ok = false;
+  const QString note = QInputDialog::getText(
+      this, tr("Add Bookmark"), tr("Note for the bookmark at %1:").arg(positionText(*at)),
+      QLineEdit::Normal, QString(), &ok);
+  if (ok) addBookmark(*at, time_s, note);
+}
+
 bool MainWindow::saveReviews() {
   if (mission_path_.isEmpty()) return false;
   const std::string path = mission_path_.toStdString();
@@ -1198,7 +1340,7 @@ bool MainWindow::saveReviews() {
                            mission::MissionStore::Open(path, mission::OpenMode::kReadWrite));
     mission::Mission reviews;
     reviews.reviews = reviews_;
-    reviews.bookmarks = mission_->bookmarks;  // not edited here yet: kept as the file has them
+    reviews.bookmarks = bookmarks_;
     return store->SaveReviews(reviews);
   }();
   if (!status.ok()) {
@@ -1376,6 +1518,11 @@ QMenu* MainWindow::contextMenuFor(const Eigen::Vector2d& map_point, double toler
   copy->setEnabled(!position.isEmpty());
   connect(copy, &QAction::triggered, this,
           [position] { QGuiApplication::clipboard()->setText(position); });
+  QAction* add_bookmark = context_menu_->addAction(tr("Add Bookmark Here…"));
+  add_bookmark->setObjectName(QStringLiteral("addBookmarkHere"));
+  add_bookmark->setEnabled(mission_ != nullptr && !jobs_->isRunning());
+  connect(add_bookmark, &QAction::triggered, this,
+          [this, map_point] { chooseBookmark(map_point); });
   QAction* measure = context_menu_->addAction(tr("Measure From Here"));
   measure->setObjectName(QStringLiteral("measureFromHere"));
   measure->setEnabled(mission_ != nullptr);

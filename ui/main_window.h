@@ -29,6 +29,7 @@ class QAction;
 class QActionGroup;
 class QDoubleSpinBox;
 class QLabel;
+class QListWidget;
 class QMenu;
 class QProgressBar;
 class QPushButton;
@@ -95,6 +96,14 @@ class MainWindow : public QMainWindow {
   bool setTrackNote(size_t track_index, const QString& note);
   // The reviews as the window has them (saved, unless saving failed).
   const std::vector<mission::TrackReview>& reviews() const { return reviews_; }
+  // Bookmarks (Track > Add Bookmark, the map's context menu, the Bookmarks panel): undoable and
+  // saved at once like the reviews. A bookmark without a time takes that of the first frame that
+  // saw its place (0 when none did). addBookmark returns the new id (0 when there is no mission).
+  int64_t addBookmark(const Eigen::Vector2d& map_point, std::optional<double> time_s,
+                      const QString& note);
+  bool setBookmarkNote(int64_t id, const QString& note);
+  bool removeBookmark(int64_t id);
+  const std::vector<mission::Bookmark>& bookmarks() const { return bookmarks_; }
   QUndoStack* undoStack() const { return undo_; }
   // Selects a track (highlighted on the map, its row in the track table); nullopt: none.
   void selectTrack(std::optional<size_t> track_index);
@@ -166,6 +175,11 @@ class MainWindow : public QMainWindow {
   // Makes `review` the review of its track (none when empty), saves, and shows it.
   void applyReview(const mission::TrackReview& review);
   bool saveReviews();
+  // Replaces the bookmarks with `after` as one undoable step named `what`.
+  bool changeBookmarks(std::vector<mission::Bookmark> after, const QString& what);
+  void applyBookmarks(const std::vector<mission::Bookmark>& bookmarks);
+  void chooseBookmark(std::optional<Eigen::Vector2d> at);  // asks for the note, then adds
+  void rebuildBookmarkList();
   void selectionChanged();  // selected_ changed: the map's highlight, the table's row, actions
   void editNote();          // asks for the selected track's note
   void updateMeasure();
@@ -215,6 +229,8 @@ class MainWindow : public QMainWindow {
 
   // The analyst's reviews (sorted by track id) and the undo stack of their changes.
   std::vector<mission::TrackReview> reviews_;
+  std::vector<mission::Bookmark> bookmarks_;
+  QListWidget* bookmark_list_ = nullptr;
   QUndoStack* undo_ = nullptr;
   bool reviews_saved_ = true;  // the last change reached the file
   TrackTable* track_table_ = nullptr;

@@ -726,7 +726,10 @@ void MosaicView::paintEvent(QPaintEvent*) {
       paintTracks(painter);
       break;
   }
-  if (frame_ == Frame::kMap) paintSelection(painter);
+  if (frame_ == Frame::kMap) {
+    paintSelection(painter);
+    paintBookmarks(painter);
+  }
   paintMarker(painter);
   paintMeasure(painter);
   paintLegend(painter);
@@ -938,6 +941,47 @@ void MosaicView::showTrack(size_t track_index) {
   auto_fit_ = false;
   setView(Eigen::Vector2d(bounds.center().x(), bounds.center().y()),
           std::clamp(ppu, minPixelsPerMapUnit(), maxPixelsPerMapUnit()));
+}
+
+void MosaicView::setBookmarks(std::vector<std::pair<int64_t, Eigen::Vector2d>> bookmarks) {
+  bookmarks_ = std::move(bookmarks);
+  update();
+}
+
+void MosaicView::centreOn(const Eigen::Vector2d& map_point) {
+  if (!map_point.allFinite()) return;
+  auto_fit_ = false;
+  setView(map_point, ppu_);
+}
+
+void MosaicView::paintBookmarks(QPainter& painter) {
+  if (bookmarks_.empty()) return;
+  painter.save();
+  painter.setRenderHint(QPainter::Antialiasing);
+  QFont font = painter.font();
+  font.setBold(true);
+  painter.setFont(font);
+  const QFontMetricsF metrics(font);
+  const QRectF area = rect();
+  for (const auto& [id, map] : bookmarks_) {
+    const QPointF p = widgetFromMap(map);
+    if (!area.adjusted(-20, -20, 20, 20).contains(p)) continue;
+    // A pin: a diamond whose lower tip is the place, the number beside it.
+    const QPolygonF pin({p, p + QPointF(-7, -10), p + QPointF(0, -20), p + QPointF(7, -10)});
+    painter.setPen(QPen(QColor(20, 20, 24), 1.5));
+    painter.setBrush(QColor(255, 214, 0));
+    painter.drawPolygon(pin);
+    const QString label = QString::number(id);
+    QRectF box = metrics.boundingRect(label);
+    box.moveTopLeft(p + QPointF(9, -24));
+    box.adjust(-3, -1, 3, 1);
+    painter.setPen(Qt::NoPen);
+    painter.setBrush(QColor(20, 20, 24, 200));
+    painter.drawRoundedRect(box, 3, 3);
+    painter.setPen(QColor(255, 214, 0));
+    painter.drawText(box, Qt::AlignCenter, label);
+  }
+  painter.restore();
 }
 
 void MosaicView::paintSelection(QPainter& painter) {

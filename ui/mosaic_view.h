@@ -114,6 +114,11 @@ class MosaicView : public QWidget {
   // Centres the view on a track and zooms so that it fills about half the view.
   void showTrack(size_t track_index);
 
+  // The analyst's bookmarks, drawn as numbered amber pins (map frame only).
+  void setBookmarks(std::vector<std::pair<int64_t, Eigen::Vector2d>> bookmarks);
+  // Centres the view on a map point, keeping the zoom.
+  void centreOn(const Eigen::Vector2d& map_point);
+
   // The red cross that marks a recalled place; nullopt removes it.
   void setMarker(std::optional<Eigen::Vector2d> map_point);
   const std::optional<Eigen::Vector2d>& marker() const { return marker_; }
@@ -212,6 +217,7 @@ class MosaicView : public QWidget {
   void tracksChanged();                      // what the tracks look like changed: redraw them
   void paintMarker(QPainter& painter);
   void paintSelection(QPainter& painter);
+  void paintBookmarks(QPainter& painter);
   void paintMeasure(QPainter& painter);
   void addMeasurePoint(const QPointF& widget);
   void paintLegend(QPainter& painter);
@@ -266,6 +272,7 @@ class MosaicView : public QWidget {
 
   std::optional<Eigen::Vector2d> marker_;
   std::optional<size_t> selected_track_;
+  std::vector<std::pair<int64_t, Eigen::Vector2d>> bookmarks_;
 
   // Measuring.
   bool measuring_ = false;

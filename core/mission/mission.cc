@@ -1,6 +1,7 @@
 #include "core/mission/mission.h"
 
 #include <Eigen/Geometry>
+#include <Eigen/LU>
 
 #include <algorithm>
 #include <cmath>
@@ -57,6 +58,31 @@ const TrackReview* ReviewOf(const Mission& mission, int64_t track_id) {
       std::lower_bound(mission.reviews.begin(), mission.reviews.end(), track_id,
                        [](const TrackReview& r, int64_t id) { return r.track_id < id; });
   return it != mission.reviews.end() && it->track_id == track_id ? &*it : nullptr;
+}
+
+std::vector<size_t> FramesSeeing(const Mission& mission, const Eigen::Vector2d& map_point,
+                                 size_t max) {
+  std::vector<size_t> seen;
+  if (!map_point.allFinite()) return seen;
+  const double width = mission.source.width, height = mission.source.height;
+  for (size_t i = 0; i < mission.frames.size(); ++i) {
+    const std::optional<Eigen::Matrix3d>& h = mission.frames[i].map_from_frame;
+    if (!h) continue;
+    Eigen::Matrix3d frame_from_map;
+    bool invertible = false;
+    h->computeInverseWithCheck(frame_from_map, invertible);
+    if (!invertible) continue;
+    const Eigen::Vector3d p = frame_from_map * map_point.homogeneous();
+    // In front of the camera: the map point maps back with the sign the frame's pixels have.
+    const Eigen::Vector3d centre = *h * Eigen::Vector3d(width / 2, height / 2, 1);
+    if (!(p.z() * centre.z() > 0)) continue;
+    const Eigen::Vector2d q = p.hnormalized();
+    if (q.x() >= -0.5 && q.y() >= -0.5 && q.x() < width - 0.5 && q.y() < height - 0.5) {
+      seen.push_back(i);
+      if (max > 0 && seen.size() >= max) break;
+    }
+  }
+  return seen;
 }
 
 bool IsMarkedFalse(const Mission& mission, int64_t track_id) {

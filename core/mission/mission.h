@@ -275,6 +275,12 @@ struct Mission {
   std::vector<Bookmark> bookmarks;
 };
 
+// The frames (indices into Mission::frames, in order) whose picture saw the map point: placed on
+// the map, the point in front of the camera and inside the frame's width x height pixels (of
+// Mission::source). At most `max` of them (0: all).
+std::vector<size_t> FramesSeeing(const Mission& mission, const Eigen::Vector2d& map_point,
+                                 size_t max = 0);
+
 // The review of track `track_id`, or null when it has none.
 const TrackReview* ReviewOf(const Mission& mission, int64_t track_id);
 // Whether the analyst marked the track false.

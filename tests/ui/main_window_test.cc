@@ -29,6 +29,7 @@
 #include <QImage>
 #include <QLabel>
 #include <QLineEdit>
+#include <QListWidget>
 #include <QMenu>
 #include <QMessageBox>
 #include <QMimeData>
@@ -620,6 +621,80 @@ TEST(MainWindowTest, TheAnalystJudgesTracksAndTheTrackTableFollows) {
   ASSERT_TRUE(reopened.wait(30000));
   EXPECT_EQ(again.reviews().size(), 2u);
   EXPECT_FALSE(again.mosaicView()->isTrackVisible(picked));
+}
+
+// Bookmarks: made at a place (the time of the first frame that saw it), listed, noted, undone,
+// deleted, saved in the mission and exported.
+TEST(MainWindowTest, BookmarksAreListedSavedUndoneAndExported) {
+  const TestMission* m = SmallMission();
+  ASSERT_NE(m, nullptr);
+  const fs::path dir = saker::testing::MakeTempDir("saker-ui-bookmarks");
+  const fs::path path = dir / "bookmarks.saker";
+  ASSERT_NO_FATAL_FAILURE(SaveChangedCopy(m->loaded, path, [](mission::Mission&) {}));
+  const auto saved = [&] {
+    auto store = mission::MissionStore::Open(path.string());
+    EXPECT_TRUE(store.ok());
+    auto loaded = (*store)->Load();
+    EXPECT_TRUE(loaded.ok());
+    return loaded.ok() ? loaded->bookmarks : std::vector<mission::Bookmark>{};
+  };
+  MainWindow window;
+  window.show();
+  QSignalSpy opened(&window, &MainWindow::missionOpened);
+  window.openMission(QString::fromStdString(path.string()));
+  ASSERT_TRUE(opened.wait(30000));
+  auto* list = window.findChild<QListWidget*>("bookmarkList");
+  ASSERT_NE(list, nullptr);
+  EXPECT_EQ(list->count(), 0);
+
+  // At a track's place: the time is that of the first frame whose picture saw it.
+  const mission::Mission& mission = *window.mission();
+  const Eigen::Vector2d place = mission.tracks.front().points.back().map;
+  const std::vector<size_t> seen = mission::FramesSeeing(mission, place, 1);
+  ASSERT_FALSE(seen.empty());
+  EXPECT_EQ(window.addBookmark(place, std::nullopt, "  the gate  "), 1);
+  EXPECT_EQ(window.addBookmark(place + Eigen::Vector2d(5, 5), 12.5, ""), 2);
+  std::vector<mission::Bookmark> file = saved();
+  ASSERT_EQ(file.size(), 2u);
+  EXPECT_EQ(file[0].note, "the gate");
+  EXPECT_DOUBLE_EQ(file[0].time_s, mission.frames[seen.front()].time_s);
+  EXPECT_DOUBLE_EQ(file[1].time_s, 12.5);
+  ASSERT_EQ(list->count(), 2);
+  EXPECT_TRUE(list->item(0)->text().contains("the gate")) << list->item(0)->text().toStdString();
+  EXPECT_TRUE(list->item(1)->text().contains("0:12.5")) << list->item(1)->text().toStdString();
+
+  ASSERT_TRUE(window.setBookmarkNote(2, "parking"));
+  EXPECT_EQ(saved()[1].note, "parking");
+  window.undoStack()->undo();
+  EXPECT_EQ(saved()[1].note, "");
+  ASSERT_TRUE(window.removeBookmark(1));
+  EXPECT_EQ(list->count(), 1);
+  EXPECT_EQ(saved().size(), 1u);
+  window.undoStack()->undo();
+  EXPECT_EQ(saved().size(), 2u);
+  EXPECT_FALSE(window.removeBookmark(99));
+
+  // Activating a bookmark centres the map on it.
+  emit list->itemActivated(list->item(1));
+  const Eigen::Vector2d centre = window.mosaicView()->mapFromWidget(
+      QPointF(window.mosaicView()->width() / 2.0, window.mosaicView()->height() / 2.0));
+  EXPECT_LT((centre - file[1].map).norm(), 1e-6 + 1 / window.mosaicView()->pixelsPerMapUnit());
+
+  // Exported as points with their notes.
+  const fs::path geojson = dir / "bookmarks.geojson";
+  QSignalSpy finished(&window, &MainWindow::jobFinished);
+  window.exportTracks(QString::fromStdString(geojson.string()));
+  ASSERT_TRUE(finished.wait(30000));
+  const nlohmann::json j = nlohmann::json::parse(std::ifstream(geojson), nullptr, false);
+  ASSERT_FALSE(j.is_discarded());
+  int points = 0;
+  for (const auto& feature : j["features"]) {
+    if (feature["properties"].contains("bookmark")) {
+      ++points;
+      EXPECT_EQ(feature["geometry"]["type"], "Point");
+    }
+  }
+  EXPECT_EQ(points, 2);
 }
 
 TEST(MainWindowTest, HelpShowsTheUserGuideWithItsPictures) {

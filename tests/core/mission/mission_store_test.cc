@@ -4,6 +4,7 @@
 #include "tests/testing/test_data.h"
 
 #include <fcntl.h>
+#include <Eigen/Geometry>
 #include <gtest/gtest.h>
 #include <sqlite3.h>
 #include <sys/wait.h>
@@ -1407,6 +1408,42 @@ TEST_F(MissionStoreTest, KillNineLeavesTheLastCommittedSave) {
   EXPECT_GT(progressed, 0);
   std::cout << "[ kill -9  ] " << kRounds << " rounds (one save " << save_us << " us), "
             << progressed << " with commits, " << generation << " generations\n";
+}
+
+}  // namespace
+}  // namespace saker::mission
+
+namespace saker::mission {
+namespace {
+
+// The frames whose picture saw a map point: inside the frame, in front of the camera, whatever
+// the overall sign of the homography.
+TEST(FramesSeeingTest, InsideTheFrameAndInFrontOnly) {
+  Mission m;
+  m.source.width = 100;
+  m.source.height = 50;
+  const auto frame = [](int64_t index, std::optional<Eigen::Matrix3d> h) {
+    FrameRecord f;
+    f.index = index;
+    f.map_from_frame = h;
+    return f;
+  };
+  Eigen::Matrix3d shifted = Eigen::Matrix3d::Identity();
+  shifted(0, 2) = 80;  // frame 1 covers map x 80..180
+  Eigen::Matrix3d oblique = Eigen::Matrix3d::Identity();
+  oblique(2, 1) = 0.05;  // w = 1 + 0.05 y: the horizon at y = -20
+  m.frames = {frame(0, Eigen::Matrix3d::Identity()), frame(1, shifted), frame(2, std::nullopt),
+              frame(3, -Eigen::Matrix3d::Identity()), frame(4, oblique)};
+  EXPECT_EQ(FramesSeeing(m, {10, 10}), (std::vector<size_t>{0, 3, 4}));
+  EXPECT_EQ(FramesSeeing(m, {90, 10}), (std::vector<size_t>{0, 1, 3}));
+  EXPECT_EQ(FramesSeeing(m, {90, 10}, 2), (std::vector<size_t>{0, 1}));
+  EXPECT_TRUE(FramesSeeing(m, {500, 10}).empty());
+  EXPECT_TRUE(FramesSeeing(m, {std::nan(""), 10}).empty());
+  // Behind the oblique camera: the point maps back with w < 0 onto its own pixels' range.
+  const Eigen::Vector3d behind = oblique * Eigen::Vector3d(10, -40, 1);  // w = -1
+  EXPECT_LT(behind.z(), 0);
+  const std::vector<size_t> seen = FramesSeeing(m, behind.hnormalized());
+  EXPECT_EQ(std::count(seen.begin(), seen.end(), 4u), 0);
 }
 
 }  // namespace
