@@ -2,16 +2,23 @@
 
 #include "ui/frame_recall.h"
 
+#include <Eigen/Geometry>
+#include <Eigen/LU>
+
 #include <QAction>
+#include <QClipboard>
 #include <QCoreApplication>
 #include <QDateTime>
 #include <QDir>
+#include <QFileDialog>
 #include <QFileInfo>
 #include <QFontMetrics>
 #include <QGridLayout>
+#include <QGuiApplication>
 #include <QHBoxLayout>
 #include <QKeySequence>
 #include <QLabel>
+#include <QMouseEvent>
 #include <QPaintEvent>
 #include <QPainter>
 #include <QPainterPath>
@@ -22,6 +29,7 @@
 #include <QTimer>
 #include <QToolButton>
 #include <QVBoxLayout>
+#include <QWheelEvent>
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -93,10 +101,43 @@ QString ShortcutText(const QAction* action) {
   return keys.join(QStringLiteral(", "));
 }
 
+// The track's motion at observation `i`: over the observations within 0.5 s either side (at least
+// a neighbour), speed in map units per second and heading in degrees clockwise from map north
+// (+y geo-referenced, up the image otherwise); nullopt for a single observation.
+struct Motion {
+  double speed = 0;
+  double heading_deg = 0;
+};
+std::optional<Motion> MotionAt(const mission::ActivityTrack& track, size_t i, bool geo) {
+  const auto& points = track.points;
+  if (points.size() < 2 || i >= points.size()) return std::nullopt;
+  constexpr double kHalfWindowS = 0.5;
+  size_t a = i, b = i;
+  while (a > 0 && points[i].time_s - points[a - 1].time_s <= kHalfWindowS) --a;
+  while (b + 1 < points.size() && points[b + 1].time_s - points[i].time_s <= kHalfWindowS) ++b;
+  if (a == b) (i > 0 ? a : b) = i > 0 ? i - 1 : i + 1;
+  const double dt = points[b].time_s - points[a].time_s;
+  const Eigen::Vector2d d = points[b].map - points[a].map;
+  if (!(dt > 0) || !d.allFinite()) return std::nullopt;
+  const double heading = std::atan2(d.x(), geo ? d.y() : -d.y()) * 180 / M_PI;
+  return Motion{d.norm() / dt, std::fmod(heading + 360, 360)};
+}
+
+// The mission's record of frame `index`, or null.
+const mission::FrameRecord* FrameRecordOf(const mission::Mission& mission, int64_t index) {
+  const auto& frames = mission.frames;
+  const auto it = std::lower_bound(
+      frames.begin(), frames.end(), index,
+      [](const mission::FrameRecord& r, int64_t value) { return r.index < value; });
+  return it != frames.end() && it->index == index ? &*it : nullptr;
+}
+
 }  // namespace
 
-// The frame, scaled to fit and kept in proportion, with the observation's mark painted at display
-// scale on top (so the lines stay crisp however the frame is scaled).
+// The frame, scaled to fit and kept in proportion (zoomable with the wheel, dragged to pan,
+// double-click to zoom in or back out), with the observation's mark painted at display scale on
+// top (so the lines stay crisp however the frame is scaled), the target's chip in a corner and a
+// north arrow when the map is geo-referenced.
 class FrameCanvas : public QWidget {
  public:
   explicit FrameCanvas(QWidget* parent) : QWidget(parent) {
@@ -106,15 +147,19 @@ class FrameCanvas : public QWidget {
   }
 
   void setImage(const QImage& image) {
+    if (image.size() != image_.size()) resetZoom();
     image_ = image;
     update();
   }
-  // The observation to mark, in video frame pixels; nullopt hides the mark.
+  // The observation to mark, in video frame pixels; nullopt hides the mark. Zoomed in, the view
+  // follows the mark unless the user has panned since the observation changed.
   void setMark(std::optional<QPointF> point, QRectF box) {
     mark_ = point;
     box_ = box;
+    if (mark_ && zoom_ > 1 && !panned_) centre_ = *mark_;
     update();
   }
+  void observationChanged() { panned_ = false; }
   const std::optional<QPointF>& mark() const { return mark_; }
   // The overlay mask to draw over the frame: one pixel a cell of `cell_px` video frame pixels
   // (the mask's colour and transparency are the image's); a null image draws none.
@@ -129,6 +174,13 @@ class FrameCanvas : public QWidget {
     sky_ = line;
     update();
   }
+  // Where north points in the frame (radians clockwise from the frame's up); nullopt: not
+  // geo-referenced, no arrow.
+  void setNorth(std::optional<double> radians) {
+    north_ = radians;
+    update();
+  }
+  const std::optional<double>& north() const { return north_; }
   const QString& hint() const { return hint_; }
   void setPlaceholder(const QString& text) {
     placeholder_ = text;
@@ -138,6 +190,61 @@ class FrameCanvas : public QWidget {
     if (hint_ == text) return;
     hint_ = text;
     update();
+  }
+
+  // Zoom: 1 fits the frame; up to kMaxZoom, about `anchor` (widget) when given.
+  double zoom() const { return zoom_; }
+  void setZoom(double zoom, std::optional<QPointF> anchor = std::nullopt) {
+    if (image_.isNull()) return;
+    zoom = std::clamp(zoom, 1.0, kMaxZoom);
+    const QPointF at = anchor.value_or(QPointF(width() / 2.0, height() / 2.0));
+    const QPointF fixed = imageFromWidget(at);  // stays under `at`
+    zoom_ = zoom;
+    const double scale = fitScale() * zoom_;
+    // The image point at the widget centre such that `fixed` is drawn at `at`.
+    centre_ = fixed + (QPointF(width() / 2.0, height() / 2.0) - at) / scale;
+    if (zoom_ <= 1) resetZoom();
+    update();
+  }
+  void resetZoom() {
+    zoom_ = 1;
+    panned_ = false;
+    update();
+  }
+
+  // The chip: the target enlarged (the area round the box, at least 32 px, made kChipSide px
+  // wide), with the box drawn; null without a mark.
+  QImage chip() const {
+    if (!mark_ || image_.isNull()) return {};
+    const double side = std::max({32.0, box_.width() * 2.5, box_.height() * 2.5});
+    const QRectF area(*mark_ - QPointF(side / 2, side / 2), QSizeF(side, side));
+    QImage out(kChipSide, kChipSide, QImage::Format_RGB32);
+    out.fill(QColor(24, 24, 24));
+    QPainter painter(&out);
+    painter.setRenderHint(QPainter::SmoothPixmapTransform);
+    // Frame pixel p (centres at integers) covers [p - 0.5, p + 0.5).
+    const QRectF source = area.translated(0.5, 0.5);
+    painter.drawImage(QRectF(0, 0, kChipSide, kChipSide), image_, source);
+    const double scale = kChipSide / side;
+    const QRectF box((box_.left() + 0.5 - source.left()) * scale,
+                     (box_.top() + 0.5 - source.top()) * scale, box_.width() * scale,
+                     box_.height() * scale);
+    painter.setRenderHint(QPainter::Antialiasing);
+    painter.setPen(QPen(QColor(255, 255, 255, 200), 3));
+    painter.drawRect(box.adjusted(-3, -3, 3, 3));
+    painter.setPen(QPen(QColor(230, 20, 20), 1.5));
+    painter.drawRect(box.adjusted(-3, -3, 3, 3));
+    return out;
+  }
+  // The frame at its own size with the mark drawn, as saved by "Save Frame".
+  QImage annotatedFrame() const {
+    if (image_.isNull()) return {};
+    QImage out = image_.convertToFormat(QImage::Format_RGB32);
+    QPainter painter(&out);
+    const QRectF target(0, 0, image_.width(), image_.height());
+    if (mark_) paintMark(painter, target);
+    if (north_) paintNorth(painter, target);
+    return out;
   }
 
   QSize sizeHint() const override { return {480, 270}; }
@@ -151,28 +258,153 @@ class FrameCanvas : public QWidget {
       painter.drawText(rect().adjusted(12, 12, -12, -12), Qt::AlignCenter | Qt::TextWordWrap,
                        placeholder_);
     } else {
-      const QSizeF fitted = QSizeF(image_.size()).scaled(QSizeF(size()), Qt::KeepAspectRatio);
-      const QRectF target(QPointF((width() - fitted.width()) / 2, (height() - fitted.height()) / 2),
-                          fitted);
-      painter.setRenderHint(QPainter::SmoothPixmapTransform);
+      const QRectF target = imageRect();
+      painter.save();
+      painter.setClipRect(rect());
+      painter.setRenderHint(QPainter::SmoothPixmapTransform, zoom_ < 4);
       painter.drawImage(target, image_);
-
       if (sky_) paintSky(painter, target);
       if (!overlay_.isNull()) paintOverlay(painter, target);
       if (mark_) paintMark(painter, target);
+      painter.restore();
+      if (north_) paintNorth(painter, QRectF(rect()));
+      if (mark_ && width() >= 3 * kChipSide / 2 && height() >= kChipSide + 40) paintChip(painter);
+      if (zoom_ > 1) {
+        const QString text = QStringLiteral("×%1").arg(zoom_, 0, 'f', zoom_ < 10 ? 1 : 0);
+        paintBadge(painter, text, rect().bottomRight() + QPoint(-8, -8), Qt::AlignRight);
+      }
     }
 
-    if (!hint_.isEmpty()) {
-      const QFontMetrics metrics(font());
-      const QRect text = metrics.boundingRect(hint_).adjusted(-6, -3, 6, 3);
-      const QRect box(rect().topRight() + QPoint(-text.width() - 8, 8), text.size());
-      painter.fillRect(box, QColor(0, 0, 0, 170));
-      painter.setPen(Qt::white);
-      painter.drawText(box, Qt::AlignCenter, hint_);
+    if (!hint_.isEmpty())
+      paintBadge(painter, hint_, rect().topRight() + QPoint(-8, 8), Qt::AlignTop);
+  }
+
+  void wheelEvent(QWheelEvent* event) override {
+    const int delta = event->angleDelta().y();
+    if (delta == 0 || image_.isNull()) {
+      event->ignore();
+      return;
     }
+    setZoom(zoom_ * std::pow(1.25, delta / 120.0), event->position());
+    panned_ = zoom_ > 1;
+    event->accept();
+  }
+  void mousePressEvent(QMouseEvent* event) override {
+    if (event->button() == Qt::LeftButton && zoom_ > 1) {
+      drag_from_ = event->position();
+      setCursor(Qt::ClosedHandCursor);
+    }
+    QWidget::mousePressEvent(event);
+  }
+  void mouseMoveEvent(QMouseEvent* event) override {
+    if (drag_from_) {
+      centre_ -= (event->position() - *drag_from_) / (fitScale() * zoom_);
+      drag_from_ = event->position();
+      panned_ = true;
+      update();
+    }
+    QWidget::mouseMoveEvent(event);
+  }
+  void mouseReleaseEvent(QMouseEvent* event) override {
+    drag_from_.reset();
+    unsetCursor();
+    QWidget::mouseReleaseEvent(event);
+  }
+  void mouseDoubleClickEvent(QMouseEvent* event) override {
+    // Double-click: back to the whole frame, or (at the whole frame) 4x about the click.
+    if (zoom_ > 1) {
+      resetZoom();
+    } else {
+      setZoom(4, event->position());
+    }
+    event->accept();
   }
 
  private:
+  static constexpr double kMaxZoom = 16;
+  static constexpr int kChipSide = 128;
+
+  double fitScale() const {
+    if (image_.isNull()) return 1;
+    return std::min(width() / static_cast<double>(image_.width()),
+                    height() / static_cast<double>(image_.height()));
+  }
+  // Where the image is drawn (widget coordinates): fitted, or zoomed about centre_ (kept so
+  // that the image covers the widget where it can).
+  QRectF imageRect() const {
+    const double scale = fitScale() * zoom_;
+    const QSizeF size(image_.width() * scale, image_.height() * scale);
+    if (zoom_ <= 1) {
+      return QRectF(QPointF((width() - size.width()) / 2, (height() - size.height()) / 2), size);
+    }
+    QPointF top_left =
+        QPointF(width() / 2.0, height() / 2.0) - (centre_ + QPointF(0.5, 0.5)) * scale;
+    const auto clamp_axis = [](double v, double extent, double view) {
+      return extent <= view ? (view - extent) / 2 : std::clamp(v, view - extent, 0.0);
+    };
+    top_left.setX(clamp_axis(top_left.x(), size.width(), width()));
+    top_left.setY(clamp_axis(top_left.y(), size.height(), height()));
+    return QRectF(top_left, size);
+  }
+  QPointF imageFromWidget(const QPointF& widget) const {
+    const QRectF target = imageRect();
+    const double scale = target.width() / image_.width();
+    return (widget - target.topLeft()) / scale - QPointF(0.5, 0.5);
+  }
+
+  void paintBadge(QPainter& painter, const QString& text, QPoint corner,
+                  Qt::Alignment where) const {
+    const QFontMetrics metrics(font());
+    const QRect size = metrics.boundingRect(text).adjusted(-6, -3, 6, 3);
+    QRect box(QPoint(0, 0), size.size());
+    if (where & Qt::AlignRight) {
+      box.moveBottomRight(corner);
+    } else {
+      box.moveTopRight(corner);
+    }
+    painter.fillRect(box, QColor(0, 0, 0, 170));
+    painter.setPen(Qt::white);
+    painter.drawText(box, Qt::AlignCenter, text);
+  }
+
+  // The target chip, in the canvas's lower-left corner.
+  void paintChip(QPainter& painter) const {
+    const QImage picture = chip();
+    if (picture.isNull()) return;
+    const QRectF box(8, height() - 8 - kChipSide, kChipSide, kChipSide);
+    painter.save();
+    painter.drawImage(box, picture);
+    painter.setPen(QPen(QColor(255, 255, 255, 220), 2));
+    painter.setBrush(Qt::NoBrush);
+    painter.drawRect(box.adjusted(-1, -1, 1, 1));
+    painter.restore();
+  }
+
+  // A north arrow in the upper-left corner of `area`, rotated as north lies in the frame.
+  void paintNorth(QPainter& painter, const QRectF& area) const {
+    const double radius = std::clamp(std::min(area.width(), area.height()) / 14, 12.0, 40.0);
+    const QPointF centre = area.topLeft() + QPointF(radius + 8, radius + 8);
+    painter.save();
+    painter.setRenderHint(QPainter::Antialiasing);
+    painter.setPen(Qt::NoPen);
+    painter.setBrush(QColor(0, 0, 0, 150));
+    painter.drawEllipse(centre, radius, radius);
+    painter.translate(centre);
+    painter.rotate(*north_ * 180 / M_PI);
+    const QPolygonF arrow({QPointF(0, -radius * 0.8), QPointF(radius * 0.35, radius * 0.45),
+                           QPointF(0, radius * 0.2), QPointF(-radius * 0.35, radius * 0.45)});
+    painter.setBrush(QColor(235, 235, 235));
+    painter.drawPolygon(arrow);
+    QFont font = painter.font();
+    font.setBold(true);
+    font.setPixelSize(std::max(9, static_cast<int>(radius * 0.55)));
+    painter.setFont(font);
+    painter.setPen(QColor(230, 40, 40));
+    painter.drawText(QRectF(-radius, -radius * 1.02, 2 * radius, radius * 0.7), Qt::AlignCenter,
+                     QStringLiteral("N"));
+    painter.restore();
+  }
+
   // The overlay mask's cells over the image drawn in `target`, sharp-edged: cell (x, y) covers
   // frame pixels [x, x+1) * cell_px, and pixel p is drawn at [p, p+1) * scale.
   void paintOverlay(QPainter& painter, const QRectF& target) const {
@@ -209,7 +441,8 @@ class FrameCanvas : public QWidget {
     painter.restore();
   }
 
-  // The mark over the image drawn in `target` (widget coordinates).
+  // The mark over the image drawn in `target` (widget coordinates): a box round the object and
+  // a cross whose arms start outside the box, so that the object itself stays clear.
   void paintMark(QPainter& painter, const QRectF& target) const {
     // Pixel centres are at integer coordinates (the engine's convention), so pixel (0, 0) covers
     // [-0.5, 0.5) and is drawn at [0, scale).
@@ -223,14 +456,17 @@ class FrameCanvas : public QWidget {
     const QPointF centre = to_widget(*mark_);
     const QRectF box = QRectF(to_widget(box_.topLeft()), to_widget(box_.bottomRight()))
                            .normalized()
-                           .adjusted(-1, -1, 1, 1);
-    // Arms of the cross, with a gap so the object itself stays visible.
-    constexpr double kGap = 4;
+                           .adjusted(-2, -2, 2, 2);
+    constexpr double kGap = 5;
     constexpr double kArm = 11;
     QPainterPath cross;
-    for (const QPointF direction : {QPointF(1, 0), QPointF(-1, 0), QPointF(0, 1), QPointF(0, -1)}) {
-      cross.moveTo(centre + direction * kGap);
-      cross.lineTo(centre + direction * (kGap + kArm));
+    const double half_w = std::max(box.width() / 2, 2.0) + kGap;
+    const double half_h = std::max(box.height() / 2, 2.0) + kGap;
+    for (const auto& [direction, start] :
+         {std::pair{QPointF(1, 0), half_w}, std::pair{QPointF(-1, 0), half_w},
+          std::pair{QPointF(0, 1), half_h}, std::pair{QPointF(0, -1), half_h}}) {
+      cross.moveTo(centre + direction * start);
+      cross.lineTo(centre + direction * (start + kArm));
     }
     // A thin white outline under the red keeps the mark visible on red or dark ground.
     painter.setBrush(Qt::NoBrush);
@@ -246,11 +482,16 @@ class FrameCanvas : public QWidget {
   QImage overlay_;  // ARGB, a pixel a cell
   int overlay_cell_px_ = 8;
   std::optional<mission::SkyLine> sky_;
+  std::optional<double> north_;
   QImage image_;
   std::optional<QPointF> mark_;
   QRectF box_;
   QString placeholder_;
   QString hint_;
+  double zoom_ = 1;
+  QPointF centre_;  // zoomed: the image point at the widget's centre
+  bool panned_ = false;
+  std::optional<QPointF> drag_from_;
 };
 
 // A value of the observation's attributes. Its text does not size the panel: playback changes it
@@ -368,6 +609,30 @@ FramePanel::FramePanel(QWidget* parent)
     buttons->addWidget(button);
   }
   buttons->addStretch(1);
+  // The frame and the target, for a report or a message.
+  save_frame_button_ = new QToolButton(this);
+  save_frame_button_->setObjectName(QStringLiteral("saveFrameButton"));
+  save_frame_button_->setText(tr("Save Frame…"));
+  save_frame_button_->setToolTip(
+      tr("Save the frame on screen, with the target marked, as a picture"));
+  save_frame_button_->setAutoRaise(true);
+  save_frame_button_->setFocusPolicy(Qt::NoFocus);
+  connect(save_frame_button_, &QToolButton::clicked, this, [this] {
+    const QString path = QFileDialog::getSaveFileName(
+        this, tr("Save Frame"),
+        QDir::home().filePath(QStringLiteral("frame-%1.png").arg(displayed_frame_)),
+        tr("Pictures (*.png *.jpg *.tif)"));
+    if (!path.isEmpty()) saveFrame(path);
+  });
+  copy_chip_button_ = new QToolButton(this);
+  copy_chip_button_->setObjectName(QStringLiteral("copyChipButton"));
+  copy_chip_button_->setText(tr("Copy Chip"));
+  copy_chip_button_->setToolTip(tr("Copy the target, enlarged, to the clipboard"));
+  copy_chip_button_->setAutoRaise(true);
+  copy_chip_button_->setFocusPolicy(Qt::NoFocus);
+  connect(copy_chip_button_, &QToolButton::clicked, this, &FramePanel::copyChip);
+  buttons->addWidget(save_frame_button_);
+  buttons->addWidget(copy_chip_button_);
 
   // The observation's attributes, two pairs a row to stay compact.
   auto* info = new QGridLayout;
@@ -388,9 +653,9 @@ FramePanel::FramePanel(QWidget* parent)
   time_value_ = add(1, 0, tr("Time"), "timeValue");
   frame_value_ = add(1, 1, tr("Frame"), "frameValue");
   utc_value_ = add(2, 0, tr("UTC"), "utcValue", 3);
-  speed_value_ = add(3, 0, tr("Speed"), "speedValue");
-  heading_value_ = add(3, 1, tr("Heading"), "headingValue");
-  confidence_value_ = add(4, 0, tr("Confidence"), "confidenceValue");
+  speed_value_ = add(3, 0, tr("Speed"), "speedValue", 3);
+  heading_value_ = add(4, 0, tr("Heading"), "headingValue", 3);
+  confidence_value_ = add(5, 0, tr("Confidence"), "confidenceValue");
   info->setColumnStretch(1, 1);
   info->setColumnStretch(3, 1);
 
@@ -607,6 +872,7 @@ void FramePanel::setObservation(size_t track_index, size_t point_index, bool ann
   const std::pair<size_t, size_t> observation(track_index, point_index);
   const bool changed = current_ != observation;
   current_ = observation;
+  if (changed) canvas_->observationChanged();  // zoomed in: follow the target again
   updateMark();
   updateInfo();
   updateActions();
@@ -799,13 +1065,37 @@ void FramePanel::updateOverlay() {
 
 void FramePanel::updateMark() {
   const mission::TrackPoint* point = currentPoint();
+  save_frame_button_->setEnabled(!image_.isNull());
+  copy_chip_button_->setEnabled(false);
   if (point == nullptr || image_.isNull() || point->frame != displayed_frame_) {
     canvas_->setMark(std::nullopt, {});
+    canvas_->setNorth(std::nullopt);
     return;
   }
+  copy_chip_button_->setEnabled(true);
   canvas_->setMark(QPointF(point->image.x(), point->image.y()),
                    QRectF(QPointF(point->box_min.x(), point->box_min.y()),
                           QPointF(point->box_max.x(), point->box_max.y())));
+  // North in the frame: the image direction of a step north on the map from the target.
+  std::optional<double> north;
+  const mission::FrameRecord* record = FrameRecordOf(*mission_, displayed_frame_);
+  if (mission_->map.geo_referenced && record != nullptr && record->map_from_frame) {
+    const Eigen::Matrix3d& h = *record->map_from_frame;
+    Eigen::Matrix3d frame_from_map;
+    bool invertible = false;
+    h.computeInverseWithCheck(frame_from_map, invertible);
+    const Eigen::Vector3d at = h * point->image.homogeneous();
+    if (invertible && std::abs(at.z()) > 1e-12) {
+      const Eigen::Vector2d ground = at.hnormalized();
+      const Eigen::Vector3d ahead = frame_from_map * (ground + Eigen::Vector2d(0, 1)).homogeneous();
+      const Eigen::Vector2d step = ahead.hnormalized() - point->image;
+      // Clockwise from the frame's up (image y grows down).
+      if (ahead.z() * at.z() > 0 && step.allFinite() && step.norm() > 1e-9) {
+        north = std::atan2(step.x(), -step.y());
+      }
+    }
+  }
+  canvas_->setNorth(north);
 }
 
 void FramePanel::updateInfo() {
@@ -839,6 +1129,13 @@ void FramePanel::updateInfo() {
                                 ? DirectionWord(heading, kCompassPoints)
                                 : DirectionWord(heading, kPictureDirections);
   heading_value_->setText(tr("%1° %2").arg(std::lround(heading) % 360).arg(direction));
+  // Beside the track's averages: its speed and heading at this observation (over a second).
+  if (const std::optional<Motion> now =
+          MotionAt(track, current_->second, mission_->map.geo_referenced)) {
+    speed_value_->setText(tr("%1; now %2").arg(speed_value_->text()).arg(now->speed, 0, 'f', 1));
+    heading_value_->setText(
+        tr("%1; now %2°").arg(heading_value_->text()).arg(std::lround(now->heading_deg) % 360));
+  }
 
   // Time and frame: of the observation, unless playback (or a pause after it) shows another frame.
   const bool recalling = pending_ticket_ != 0 && pending_from_click_;
@@ -927,5 +1224,28 @@ int64_t FramePanel::frameCount() const {
 }
 
 double FramePanel::frameRate() const { return fps_ > 0 ? fps_ : 25.0; }
+
+QImage FramePanel::chipImage() const { return canvas_->chip(); }
+
+void FramePanel::copyChip() {
+  const QImage chip = chipImage();
+  if (!chip.isNull()) QGuiApplication::clipboard()->setImage(chip);
+}
+
+bool FramePanel::saveFrame(const QString& path) {
+  const QImage frame = canvas_->annotatedFrame();
+  if (frame.isNull()) return false;
+  if (!frame.save(path)) {
+    showError(tr("Cannot save the frame to %1 (an unwritable folder, or a name without .png, "
+                 ".jpg or .tif)")
+                  .arg(path));
+    return false;
+  }
+  return true;
+}
+
+double FramePanel::zoom() const { return canvas_->zoom(); }
+void FramePanel::setZoom(double zoom) { canvas_->setZoom(zoom); }
+std::optional<double> FramePanel::northInFrame() const { return canvas_->north(); }
 
 }  // namespace saker::ui

@@ -82,7 +82,18 @@ class FramePanel : public QWidget {
   const mission::OverlayRecord* drawnOverlayMask() const { return drawn_overlay_; }
   // The sky line drawn over the frame on screen: nullopt when none is.
   const std::optional<mission::SkyLine>& drawnSkyLine() const { return drawn_sky_; }
-  QString errorText() const;       // the decode error shown in the panel, empty when none
+  QString errorText() const;  // the decode error shown in the panel, empty when none
+  // The target enlarged (the frame panel's chip, Copy Chip); null without a mark on screen.
+  QImage chipImage() const;
+  // Saves the frame on screen at its own size with the target marked (and north, when
+  // geo-referenced); false, with the reason shown in the panel, when it cannot.
+  bool saveFrame(const QString& path);
+  // The frame's zoom (1: the whole frame; the wheel zooms about the cursor, up to 16).
+  double zoom() const;
+  void setZoom(double zoom);
+  // Where north lies in the frame on screen, radians clockwise from its up; nullopt when the map
+  // is not geo-referenced or the frame is not placed.
+  std::optional<double> northInFrame() const;
   bool decodingHintShown() const;  // "decoding…" is on screen (a decode pending > 100 ms)
 
  public slots:
@@ -93,6 +104,7 @@ class FramePanel : public QWidget {
   void play();
   void pause();
   void togglePlay();
+  void copyChip();  // the chip to the clipboard
 
  signals:
   // The panel moved to another observation (showObservation, stepping, or playback reaching a
@@ -139,6 +151,8 @@ class FramePanel : public QWidget {
   QLabel* speed_value_ = nullptr;
   QLabel* heading_value_ = nullptr;
   QLabel* confidence_value_ = nullptr;
+  QToolButton* save_frame_button_ = nullptr;
+  QToolButton* copy_chip_button_ = nullptr;
   QAction* previous_action_ = nullptr;
   QAction* next_action_ = nullptr;
   QAction* play_action_ = nullptr;

@@ -12,6 +12,7 @@
 #include "tests/ui/ui_testing.h"
 #include "ui/frame_recall.h"
 
+#include <Eigen/Geometry>
 #include <gtest/gtest.h>
 #include <opencv2/imgproc.hpp>
 
@@ -223,6 +224,77 @@ QPoint OnCanvas(const QWidget& canvas, const QSize& frame, double x, double y) {
 
 // The overlay mask layer: off by default; when on, the cells of the displayed frame's mask are
 // tinted over the frame and the rest is untouched; a frame that no mask covers draws none.
+// Judging a target: zoom in the frame, the chip, north in the frame, save the frame, and the
+// speed and heading at the observation beside the track's averages.
+TEST(FramePanelTest, ZoomChipNorthSaveAndSpeedNow) {
+  const TestMission* test = SmallMission();
+  ASSERT_NE(test, nullptr);
+  const auto mission = Shared(*test);
+  ASSERT_TRUE(mission->map.geo_referenced);
+  FramePanel panel;
+  panel.resize(640, 520);
+  panel.show();
+  panel.setMission(mission, VideoOf(*test));
+  ASSERT_TRUE(WaitWarm(panel));
+  const size_t track_index = LongestTrack(*mission);
+  const auto& track = mission->tracks[track_index];
+  const size_t point_index = track.points.size() / 2;
+  const mission::TrackPoint& point = track.points[point_index];
+  ASSERT_TRUE(ShowAndWait(panel, track_index, point_index));
+
+  // The chip: the target enlarged, its middle the frame around the target.
+  const QImage chip = panel.chipImage();
+  ASSERT_FALSE(chip.isNull());
+  EXPECT_EQ(chip.width(), chip.height());
+  EXPECT_GE(chip.width(), 96);
+  // Save Frame: the frame at its own size.
+  const auto dir = saker::testing::MakeTempDir("saker-frame-save");
+  const QString saved = QString::fromStdString((dir / "frame.png").string());
+  ASSERT_TRUE(panel.saveFrame(saved));
+  const QImage read(saved);
+  EXPECT_EQ(read.size(), panel.displayedImage().size());
+  EXPECT_FALSE(panel.saveFrame(QString::fromStdString((dir / "missing" / "f.png").string())));
+  EXPECT_FALSE(panel.errorText().isEmpty());
+
+  // Zoom: 1 is the whole frame, 16 the most.
+  EXPECT_DOUBLE_EQ(panel.zoom(), 1);
+  panel.setZoom(3);
+  EXPECT_DOUBLE_EQ(panel.zoom(), 3);
+  panel.setZoom(100);
+  EXPECT_DOUBLE_EQ(panel.zoom(), 16);
+  panel.setZoom(0.2);
+  EXPECT_DOUBLE_EQ(panel.zoom(), 1);
+
+  // North: a step along it in the frame goes north on the map (forward through the frame's
+  // homography, the inverse of how the panel found it).
+  const std::optional<double> north = panel.northInFrame();
+  ASSERT_TRUE(north.has_value());
+  const mission::FrameRecord* record = nullptr;
+  for (const auto& f : mission->frames) {
+    if (f.index == point.frame) record = &f;
+  }
+  ASSERT_NE(record, nullptr);
+  ASSERT_TRUE(record->map_from_frame.has_value());
+  const Eigen::Matrix3d& h = *record->map_from_frame;
+  const Eigen::Vector2d step(std::sin(*north), -std::cos(*north));
+  const Eigen::Vector2d from = (h * point.image.homogeneous()).hnormalized();
+  const Eigen::Vector2d to = (h * (point.image + 5 * step).homogeneous()).hnormalized();
+  const Eigen::Vector2d moved = to - from;
+  EXPECT_GT(moved.y(), 0);
+  EXPECT_LT(std::abs(moved.x()), 0.05 * moved.y()) << moved.transpose();
+
+  // Speed and heading: the averages, then "now" at the observation.
+  auto* speed = panel.findChild<QLabel*>("speedValue");
+  auto* heading = panel.findChild<QLabel*>("headingValue");
+  ASSERT_NE(speed, nullptr);
+  ASSERT_NE(heading, nullptr);
+  EXPECT_TRUE(speed->text().contains("; now ")) << speed->text().toStdString();
+  EXPECT_TRUE(heading->text().contains("; now ")) << heading->text().toStdString();
+  const double now = speed->text().section("; now ", 1).toDouble();
+  EXPECT_GT(now, 0.3 * track.speed_mps.value_or(1));
+  EXPECT_LT(now, 3 * track.speed_mps.value_or(1) + 1);
+}
+
 TEST(FramePanelTest, DrawsTheOverlayMaskOfTheDisplayedFrameWhenAsked) {
   const TestMission* test = SmallMission();
   ASSERT_NE(test, nullptr);
