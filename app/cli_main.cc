@@ -5,6 +5,7 @@
 #include "app/cli_common.h"
 #include "app/cli_evaluate.h"
 #include "app/cli_mission.h"
+#include "app/cli_report.h"
 #include "app/cli_mosaic.h"
 #include "app/cli_simulate.h"
 #include "core/ingest/report.h"
@@ -134,6 +135,7 @@ int main(int argc, char** argv) {
   saker::app::ExportCommand export_command(app);
   saker::app::CopyCommand copy(app);
   saker::app::InfoCommand info(app);
+  saker::app::ReportCommand report(app);
 
   try {
     app.parse(argc, argv);
@@ -156,6 +158,7 @@ int main(int argc, char** argv) {
     if (export_command.parsed()) return export_command.Run();
     if (copy.parsed()) return copy.Run();
     if (info.parsed()) return info.Run();
+    if (report.parsed()) return report.Run();
     if (demo.parsed()) {
       // The main job: the demo video processed into a mission, and its activity map.
       return demo.Run([&](const std::string& video) {

@@ -6,9 +6,11 @@
 #include "core/pipeline/export_mission.h"
 #include "core/pipeline/open_mission.h"
 #include "core/pipeline/process.h"
+#include "core/report/report.h"
 #include "core/util/memory.h"
 #include "ui/frame_panel.h"
 #include "ui/mosaic_view.h"
+#include "ui/report_pdf.h"
 #include "ui/task_runner.h"
 #include "ui/track_table.h"
 
@@ -344,6 +346,18 @@ void MainWindow::createActions() {
   export_tracks_action_ = file->addAction(tr("Export &Tracks…"), this, &MainWindow::chooseTracks);
   export_mosaic_action_ =
       file->addAction(tr("Export Mo&saic (GeoTIFF)…"), this, &MainWindow::chooseMosaic);
+  export_report_action_ = file->addAction(tr("Export &Report…"), this, [this] {
+    if (!mission_) return;
+    const QFileInfo info(mission_path_);
+    const QString path = QFileDialog::getSaveFileName(
+        this, tr("Export Report"), info.dir().filePath(info.completeBaseName() + "-report.html"),
+        tr("Report (*.html *.pdf)"));
+    if (!path.isEmpty()) exportReport(path);
+  });
+  export_report_action_->setObjectName(QStringLiteral("exportReport"));
+  export_report_action_->setStatusTip(
+      tr("The mission's facts, the activity map, the tracks shown with a chip of each, your "
+         "verdicts and notes, and the bookmarks, as HTML or PDF"));
   file->addSeparator();
   locate_action_ = file->addAction(tr("&Locate Video…"), this, &MainWindow::locateVideo);
   locate_action_->setStatusTip(tr("Tell Saker where this mission's video is now"));
@@ -880,28 +894,31 @@ void MainWindow::exportFiles(const QString& what, const QString& path, const QSt
   request.kml = kml.toStdString();
   request.csv = csv.toStdString();
   request.map.colour_by = view_->colourMode();
-  // Only the tracks shown: the filters apply to exports as to the view.
-  std::set<int64_t> shown;
-  for (size_t i = 0; i < mission_->tracks.size(); ++i) {
-    if (view_->isTrackVisible(i)) shown.insert(mission_->tracks[i].id);
-  }
-  const bool filtered = shown.size() != mission_->tracks.size();
+  // Only the tracks shown: the filters apply to exports as to the view. The mission shown is
+  // immutable and already loaded: the worker reads only the tiles.
   const std::string source = mission_path_.toStdString();
-  // The mission shown is immutable and already loaded: the worker reads only the tiles. The
-  // exports carry the analyst's reviews as this window has them.
-  startJob(what,
-           [source, loaded = mission_, request, shown, filtered, reviews = reviews_,
-            bookmarks = bookmarks_](JobContext* job) -> Status {
-             SAKER_ASSIGN_OR_RETURN(const std::unique_ptr<mission::MissionStore> store,
-                                    mission::MissionStore::Open(source));
-             mission::Mission m = *loaded;
-             m.reviews = reviews;
-             m.bookmarks = bookmarks;
-             std::erase_if(m.tracks,
-                           [&](const mission::ActivityTrack& t) { return !shown.count(t.id); });
-             return pipeline::ExportMission(m, *store, request, job).status();
-           });
+  startJob(what, [source, request, shown = shownMission()](JobContext* job) -> Status {
+    SAKER_ASSIGN_OR_RETURN(const std::unique_ptr<mission::MissionStore> store,
+                           mission::MissionStore::Open(source));
+    return pipeline::ExportMission(shown.Make(), *store, request, job).status();
+  });
   statusBar()->showMessage(tr("Writing %1…").arg(path));
+}
+
+mission::Mission MainWindow::ShownMission::Make() const {
+  mission::Mission m = *loaded;
+  m.reviews = reviews;
+  m.bookmarks = bookmarks;
+  std::erase_if(m.tracks, [&](const mission::ActivityTrack& t) { return !ids.count(t.id); });
+  return m;
+}
+
+MainWindow::ShownMission MainWindow::shownMission() const {
+  ShownMission shown{mission_, {}, reviews_, bookmarks_};
+  for (size_t i = 0; i < mission_->tracks.size(); ++i) {
+    if (view_->isTrackVisible(i)) shown.ids.insert(mission_->tracks[i].id);
+  }
+  return shown;
 }
 
 void MainWindow::exportActivityMap(const QString& path) {
@@ -921,6 +938,33 @@ void MainWindow::exportTracks(const QString& path) {
 
 void MainWindow::exportMosaic(const QString& path) {
   exportFiles(tr("Export"), path, {}, path, {}, {}, {});
+}
+
+void MainWindow::exportReport(const QString& path) {
+  if (!mission_) return;
+  // The tracks shown (the filters apply), with the verdicts as this window has them; false
+  // tracks are left out by the report (and hidden here unless shown on purpose).
+  report::ReportOptions options;
+  options.map.colour_by = view_->colourMode();
+  options.video_path = video_path_.toStdString();
+  options.chips = !video_path_.isEmpty();
+  options.include_false = show_false_action_->isChecked();
+  options.saker_version = SAKER_VERSION;
+  const bool pdf = QFileInfo(path).suffix().compare("pdf", Qt::CaseInsensitive) == 0;
+  startJob(tr("Export"),
+           [source = mission_path_.toStdString(), target = path.toStdString(),
+            shown = shownMission(), options, pdf](JobContext* job) -> Status {
+             SAKER_ASSIGN_OR_RETURN(const std::unique_ptr<mission::MissionStore> store,
+                                    mission::MissionStore::Open(source));
+             const mission::Mission m = shown.Make();
+             SAKER_ASSIGN_OR_RETURN(
+                 const report::Report built,
+                 report::BuildReport(
+                     m, pipeline::StoreTileReader(*store, m.pyramid ? m.pyramid->tile_size : 0),
+                     options, job));
+             return pdf ? WriteReportPdf(built, target) : report::WriteHtml(built, target);
+           });
+  statusBar()->showMessage(tr("Writing %1…").arg(path));
 }
 
 void MainWindow::saveMissionAs(const QString& path) {
@@ -1618,6 +1662,7 @@ void MainWindow::updateActions() {
   export_map_action_->setEnabled(has && idle && (!mission_->tracks.empty() || mission_->pyramid));
   export_tracks_action_->setEnabled(has && idle && !mission_->tracks.empty());
   export_mosaic_action_->setEnabled(has && idle && mission_->pyramid.has_value());
+  export_report_action_->setEnabled(has && idle);
   locate_action_->setEnabled(has);
   const mission::Progress* p = has ? &mission_->progress : nullptr;
   const bool complete =

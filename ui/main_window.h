@@ -24,6 +24,8 @@
 #include <functional>
 #include <memory>
 #include <optional>
+#include <set>
+#include <vector>
 
 class QAction;
 class QActionGroup;
@@ -70,6 +72,8 @@ class MainWindow : public QMainWindow {
   void exportActivityMap(const QString& path);
   void exportTracks(const QString& path);  // by extension: .geojson / .json, .kml, .csv
   void exportMosaic(const QString& path);  // GeoTIFF, full resolution
+  // The mission report (HTML or PDF by the extension) of the tracks shown.
+  void exportReport(const QString& path);
   void saveMissionAs(const QString& path);
   // Uses `path` as the mission's video from now on (remembered by the video's fingerprint); a
   // file that is not that video is refused with a dialog unless `force`.
@@ -137,6 +141,16 @@ class MainWindow : public QMainWindow {
 
  private:
   struct Loaded;
+  // The mission as the window shows it, for a worker: the tracks the filters show (by id), the
+  // reviews and bookmarks as the window has them.
+  struct ShownMission {
+    std::shared_ptr<const mission::Mission> loaded;
+    std::set<int64_t> ids;
+    std::vector<mission::TrackReview> reviews;
+    std::vector<mission::Bookmark> bookmarks;
+    mission::Mission Make() const;
+  };
+  ShownMission shownMission() const;
 
   void createActions();
   void createDocks();
@@ -243,6 +257,7 @@ class MainWindow : public QMainWindow {
   QAction* export_map_action_ = nullptr;
   QAction* export_tracks_action_ = nullptr;
   QAction* export_mosaic_action_ = nullptr;
+  QAction* export_report_action_ = nullptr;
   QAction* locate_action_ = nullptr;
   QAction* resume_action_ = nullptr;
   QAction* show_tracks_action_ = nullptr;

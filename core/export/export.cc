@@ -2,6 +2,7 @@
 
 #include "core/geo/utm.h"
 #include "core/util/durable_file.h"
+#include "core/util/markup.h"
 
 #include <Eigen/Dense>
 #include <cpl_error.h>
@@ -70,69 +71,8 @@ std::string VideoName(const mission::Mission& mission) {
   return std::filesystem::path(mission.source.path).filename().string();
 }
 
-// Text as XML character data: valid UTF-8 only (invalid bytes become U+FFFD), no characters
-// XML 1.0 forbids (other control characters are dropped), and & < > " ' escaped.
-std::string XmlText(std::string_view text) {
-  static constexpr std::string_view kReplacement = "\xEF\xBF\xBD";
-  std::string out;
-  out.reserve(text.size());
-  size_t i = 0;
-  while (i < text.size()) {
-    const auto byte = static_cast<unsigned char>(text[i]);
-    if (byte < 0x80) {
-      switch (byte) {
-        case '&':
-          out += "&amp;";
-          break;
-        case '<':
-          out += "&lt;";
-          break;
-        case '>':
-          out += "&gt;";
-          break;
-        case '"':
-          out += "&quot;";
-          break;
-        case '\'':
-          out += "&apos;";
-          break;
-        default:
-          if (byte >= 0x20 || byte == '\t' || byte == '\n' || byte == '\r') out += text[i];
-      }
-      ++i;
-      continue;
-    }
-    int length = 0;
-    uint32_t code = 0;
-    if ((byte & 0xE0) == 0xC0) {
-      length = 2;
-      code = byte & 0x1F;
-    } else if ((byte & 0xF0) == 0xE0) {
-      length = 3;
-      code = byte & 0x0F;
-    } else if ((byte & 0xF8) == 0xF0) {
-      length = 4;
-      code = byte & 0x07;
-    }
-    bool valid = length > 0 && i + length <= text.size();
-    for (int k = 1; valid && k < length; ++k) {
-      const auto next = static_cast<unsigned char>(text[i + k]);
-      valid = (next & 0xC0) == 0x80;
-      code = (code << 6) | (next & 0x3F);
-    }
-    static constexpr uint32_t kMinimum[] = {0, 0, 0x80, 0x800, 0x10000};
-    valid = valid && code >= kMinimum[length] && code <= 0x10FFFF &&
-            !(code >= 0xD800 && code <= 0xDFFF) && code != 0xFFFE && code != 0xFFFF;
-    if (valid) {
-      out.append(text.substr(i, length));
-      i += length;
-    } else {
-      out += kReplacement;
-      ++i;
-    }
-  }
-  return out;
-}
+// Text as XML character data (core/util/markup.h).
+std::string XmlText(std::string_view text) { return EscapeMarkup(text, MarkupQuote::kXml); }
 
 // A CSV field (RFC 4180): quoted, with quotes doubled, when it holds a comma, quote or line
 // break.

@@ -15,7 +15,9 @@
 #include <array>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <iostream>
+#include <iterator>
 #include <map>
 #include <string>
 #include <vector>
@@ -404,6 +406,25 @@ TEST(CliMissionTest, MinConfidenceFiltersProcessAndExportAndRefusesBadValues) {
   info = RunCli("info '" + mission + "'");
   EXPECT_NE(info.out.find("analyst: 0 tracks confirmed, 1 marked false"), std::string::npos)
       << info.out;
+
+  // The report: HTML or PDF by the name, the false track left out; another name is refused.
+  const std::string html = (dir / "report.html").string(), pdf = (dir / "report.pdf").string();
+  CliRun report = RunCli("report '" + mission + "' -o '" + html + "'");
+  ASSERT_EQ(report.exit_code, 0) << report.out;
+  EXPECT_NE(report.out.find("report: " + std::to_string(all.size() - 1) + " tracks"),
+            std::string::npos)
+      << report.out;
+  std::ifstream html_in(html);
+  const std::string html_text((std::istreambuf_iterator<char>(html_in)),
+                              std::istreambuf_iterator<char>());
+  EXPECT_EQ(html_text.rfind("<!DOCTYPE html>", 0), 0u);
+  EXPECT_EQ(html_text.find("<b>Track " + std::to_string(judged) + "</b>"), std::string::npos);
+  report = RunCli("report '" + mission + "' -o '" + pdf + "' --no-chips");
+  ASSERT_EQ(report.exit_code, 0) << report.out;
+  EXPECT_TRUE(std::filesystem::file_size(pdf) > 1000);
+  report = RunCli("report '" + mission + "' -o '" + (dir / "report.docx").string() + "'");
+  EXPECT_EQ(report.exit_code, 2) << report.out;
+  EXPECT_NE(report.out.find(".html or .pdf"), std::string::npos) << report.out;
 
   // Processing with the threshold stores only the tracks at it and counts the others.
   const std::string strict = (dir / "strict.saker").string();

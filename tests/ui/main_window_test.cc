@@ -50,6 +50,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <iterator>
 #include <memory>
 #include <set>
 
@@ -695,6 +696,17 @@ TEST(MainWindowTest, BookmarksAreListedSavedUndoneAndExported) {
     }
   }
   EXPECT_EQ(points, 2);
+
+  // File > Export Report: the bookmarks and the tracks shown, one HTML file.
+  const fs::path report = dir / "report.html";
+  window.exportReport(QString::fromStdString(report.string()));
+  ASSERT_TRUE(finished.wait(60000));
+  EXPECT_TRUE(finished.last().at(1).value<Status>().ok());
+  std::ifstream in(report);
+  const std::string html((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_EQ(html.rfind("<!DOCTYPE html>", 0), 0u);
+  EXPECT_NE(html.find("the gate"), std::string::npos);
+  EXPECT_NE(html.find("data:image/jpeg;base64,"), std::string::npos);
 }
 
 TEST(MainWindowTest, HelpShowsTheUserGuideWithItsPictures) {
