@@ -764,6 +764,30 @@ void FramePanel::showObservation(size_t track_index, size_t point_index) {
   }
 }
 
+void FramePanel::showFrame(int64_t frame_index) {
+  if (!mission_ || !video_available_ || frame_index < 0) return;
+  pause();
+  click_timer_.Restart();
+  // The selected track's observation in that frame, if it has one, is marked.
+  if (current_) {
+    const auto& points = mission_->tracks[current_->first].points;
+    const auto it = std::lower_bound(
+        points.begin(), points.end(), frame_index,
+        [](const mission::TrackPoint& p, int64_t index) { return p.frame < index; });
+    if (it != points.end() && it->frame == frame_index) {
+      setObservation(current_->first, static_cast<size_t>(it - points.begin()), true);
+    }
+  }
+  if (frame_index == displayed_frame_ && pending_ticket_ == 0) {
+    updateMark();
+    updateInfo();
+    return;
+  }
+  pending_from_click_ = true;
+  requestFrame(frame_index);
+  updateInfo();
+}
+
 void FramePanel::clear() {
   pause();
   current_.reset();
@@ -1104,6 +1128,17 @@ void FramePanel::updateInfo() {
     for (QLabel* label : {track_value_, visit_value_, time_value_, frame_value_, utc_value_,
                           speed_value_, heading_value_, confidence_value_}) {
       label->setText(QStringLiteral("–"));
+    }
+    // A frame shown for its time (the time line, a place): its time, number and UTC.
+    if (const mission::FrameRecord* record =
+            mission_ && displayed_frame_ >= 0 ? FrameRecordOf(*mission_, displayed_frame_) : nullptr) {
+      time_value_->setText(tr("%1 s").arg(record->time_s, 0, 'f', 2));
+      frame_value_->setText(QString::number(record->index));
+      if (record->utc_us) {
+        const QDateTime utc =
+            QDateTime::fromMSecsSinceEpoch(*record->utc_us / 1000, QTimeZone::utc());
+        utc_value_->setText(utc.toString(QStringLiteral("yyyy-MM-dd'T'HH:mm:ss.zzz'Z'")));
+      }
     }
     return;
   }

@@ -59,6 +59,9 @@ class FramePanel : public QWidget {
   // Recalls the frame of mission->tracks[track_index].points[point_index]; indices out of range
   // are ignored. Pauses playback. Emits observationChanged when the observation changes.
   void showObservation(size_t track_index, size_t point_index);
+  // Recalls frame `frame_index` of the video (the time line, a place on the map): the selected
+  // track's observation in it is marked when it has one. Pauses playback.
+  void showFrame(int64_t frame_index);
   // Forgets the observation and the frame (the video stays open and warm).
   void clear();
 

@@ -12,6 +12,7 @@
 #include "ui/mosaic_view.h"
 #include "ui/report_pdf.h"
 #include "ui/task_runner.h"
+#include "ui/time_line.h"
 #include "ui/track_table.h"
 
 #include <QAction>
@@ -19,6 +20,7 @@
 #include <QApplication>
 #include <QClipboard>
 #include <QCloseEvent>
+#include <QCursor>
 #include <QDialog>
 #include <QDialogButtonBox>
 #include <QDir>
@@ -157,12 +159,26 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
     if (loaded) missionLoaded(*loaded);
   });
 
-  view_ = new MosaicView(this);
-  setCentralWidget(view_);
+  // The map, with the mission's time line under it.
+  auto* centre = new QWidget(this);
+  view_ = new MosaicView(centre);
+  time_line_ = new TimeLine(centre);
+  auto* centre_layout = new QVBoxLayout(centre);
+  centre_layout->setContentsMargins(0, 0, 0, 0);
+  centre_layout->setSpacing(0);
+  centre_layout->addWidget(view_, 1);
+  centre_layout->addWidget(time_line_);
+  setCentralWidget(centre);
   connect(view_, &MosaicView::mapClicked, this,
           [this](const Eigen::Vector2d& map_point, double tolerance) {
-            if (!pickAt(map_point, tolerance)) view_->setMarker(std::nullopt);
+            if (pickAt(map_point, tolerance)) return;
+            view_->setMarker(std::nullopt);
+            seekGround(map_point);  // bare ground: the frames that saw it
           });
+  connect(time_line_, &TimeLine::frameChanged, this, [this](int64_t frame) {
+    view_->setCurrentFrame(frame);
+    frame_panel_->showFrame(frame);
+  });
   connect(view_, &MosaicView::cursorMoved, this, &MainWindow::updateCursor);
   connect(view_, &MosaicView::measureChanged, this, &MainWindow::updateMeasure);
   connect(view_, &MosaicView::contextMenuAt, this,
@@ -202,6 +218,12 @@ void MainWindow::createDocks() {
     selectionChanged();
   });
   connect(frame_panel_, &FramePanel::locateVideoRequested, this, &MainWindow::locateVideo);
+  // The frame on screen is the map's time: its footprint and the tracks at that moment.
+  connect(frame_panel_, &FramePanel::frameShown, this, [this](int64_t frame, double) {
+    if (time_line_->isPlaying()) return;
+    time_line_->setFrame(frame);
+    view_->setCurrentFrame(frame);
+  });
 
   // The mission's facts and the track filters.
   auto* side = new QWidget(this);
@@ -622,6 +644,7 @@ void MainWindow::forgetMission() {
   bookmarks_.clear();
   undo_->clear();
   track_table_->setMission(nullptr);
+  time_line_->setMission(nullptr);
   rebuildBookmarkList();
   selectionChanged();
   plane_.reset();
@@ -738,6 +761,7 @@ void MainWindow::missionLoaded(const Loaded& loaded) {
   frame_panel_->setMission(mission_, video_path_);
   track_table_->setMission(mission_);
   track_table_->reviewsChanged();
+  time_line_->setMission(mission_);
   rebuildBookmarkList();
   const bool sky =
       std::any_of(mission_->frames.begin(), mission_->frames.end(),
@@ -816,6 +840,7 @@ void MainWindow::processVideo(const QString& video, const QString& mission_path,
   bookmarks_.clear();
   undo_->clear();
   track_table_->setMission(nullptr);
+  time_line_->setMission(nullptr);
   rebuildBookmarkList();
   view_->setMission(nullptr, QString());
   view_->clearPreview();
@@ -1147,6 +1172,54 @@ bool MainWindow::pickAt(const Eigen::Vector2d& map_point, double tolerance) {
   if (QDockWidget* dock = qobject_cast<QDockWidget*>(frame_panel_->parentWidget())) dock->show();
   frame_panel_->showObservation(pick->track, pick->point);
   return true;
+}
+
+std::vector<MainWindow::Pass> MainWindow::passesSeeing(const Eigen::Vector2d& map_point) const {
+  std::vector<Pass> passes;
+  if (!mission_) return passes;
+  // A gap of more than 2 s between frames that saw the place starts another pass.
+  constexpr double kPassGapS = 2;
+  std::vector<const mission::FrameRecord*> seeing;
+  for (const size_t i : mission::FramesSeeing(*mission_, map_point)) {
+    seeing.push_back(&mission_->frames[i]);
+  }
+  for (size_t k = 0; k < seeing.size(); ++k) {
+    if (k == 0 || seeing[k]->time_s - seeing[k - 1]->time_s > kPassGapS) {
+      passes.push_back({seeing[k]->index, seeing[k]->index, seeing[k]->time_s, seeing[k]->time_s});
+    }
+    passes.back().last_frame = seeing[k]->index;
+    passes.back().end_s = seeing[k]->time_s;
+  }
+  return passes;
+}
+
+void MainWindow::seekGround(const Eigen::Vector2d& map_point) {
+  const std::vector<Pass> passes = passesSeeing(map_point);
+  if (passes.empty()) return;
+  const auto seek = [this](const Pass& pass) {
+    // The middle of the pass: the place well inside the picture.
+    const int64_t frame = pass.first_frame + (pass.last_frame - pass.first_frame) / 2;
+    time_line_->setFrame(frame);
+    view_->setCurrentFrame(frame);
+    frame_panel_->showFrame(frame);
+  };
+  if (passes.size() == 1 || ground_menu_suppressed_) {
+    seek(passes.front());
+    return;
+  }
+  auto* menu = new QMenu(this);
+  menu->setObjectName(QStringLiteral("passesMenu"));
+  menu->setAttribute(Qt::WA_DeleteOnClose);
+  menu->addSection(tr("Seen in %1 passes").arg(passes.size()));
+  for (const Pass& pass : passes) {
+    menu->addAction(tr("%1 to %2 (frames %3-%4)")
+                        .arg(pass.start_s, 0, 'f', 1)
+                        .arg(pass.end_s, 0, 'f', 1)
+                        .arg(pass.first_frame)
+                        .arg(pass.last_frame),
+                    this, [seek, pass] { seek(pass); });
+  }
+  menu->popup(QCursor::pos());
 }
 
 std::optional<size_t> MainWindow::selectedTrack() const {

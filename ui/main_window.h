@@ -42,6 +42,7 @@ namespace saker::ui {
 class FramePanel;
 class MosaicView;
 class TaskRunner;
+class TimeLine;
 class TrackTable;
 
 class MainWindow : public QMainWindow {
@@ -115,6 +116,19 @@ class MainWindow : public QMainWindow {
   // Jumps to a track: selects it, fits the map to it and recalls its middle observation.
   void showTrack(size_t track_index);
   TrackTable* trackTable() const { return track_table_; }
+  TimeLine* timeLine() const { return time_line_; }
+  // The passes of the aircraft that saw a map point: runs of frames whose picture holds it,
+  // split where 2 s pass without one.
+  struct Pass {
+    int64_t first_frame = 0, last_frame = 0;
+    double start_s = 0, end_s = 0;
+  };
+  std::vector<Pass> passesSeeing(const Eigen::Vector2d& map_point) const;
+  // A click on bare ground: the time line, the map and the frame go to the middle of the pass
+  // that saw it (a menu of the passes when several did).
+  void seekGround(const Eigen::Vector2d& map_point);
+  // For tests: no menu of passes, the first one is taken.
+  void setGroundMenuSuppressed(bool suppressed) { ground_menu_suppressed_ = suppressed; }
 
   // How positions are written (status bar, Copy Coordinates): View > Coordinates.
   void setCoordinateFormat(geo::CoordinateFormat format);
@@ -248,6 +262,8 @@ class MainWindow : public QMainWindow {
   QUndoStack* undo_ = nullptr;
   bool reviews_saved_ = true;  // the last change reached the file
   TrackTable* track_table_ = nullptr;
+  TimeLine* time_line_ = nullptr;
+  bool ground_menu_suppressed_ = false;
   QAction* show_false_action_ = nullptr;
   std::vector<QAction*> review_actions_;  // need a selected track and no job on the mission
 

@@ -178,12 +178,14 @@ void MosaicView::setMission(std::shared_ptr<const mission::Mission> mission,
   if (!reload) {
     marker_.reset();
     selected_track_.reset();
+    current_frame_.reset();
     if (!measure_path_.empty()) setMeasurePath({});  // another map
   }
   rebuildMissionGeometry();
   rebuildColouring();
   rebuildVisibility();
   rebuildDensity();
+  rebuildTimeMarkers();
   tracksChanged();
   frameChanged(/*refit=*/!reload);
   update();
@@ -454,6 +456,7 @@ void MosaicView::setTrackFilter(const TrackFilter& filter) {
   filter_ = filter;
   rebuildVisibility();
   rebuildDensity();
+  rebuildTimeMarkers();
   tracksChanged();
 }
 
@@ -728,6 +731,7 @@ void MosaicView::paintEvent(QPaintEvent*) {
   }
   if (frame_ == Frame::kMap) {
     paintSelection(painter);
+    paintTimeLine(painter);
     paintBookmarks(painter);
   }
   paintMarker(painter);
@@ -941,6 +945,88 @@ void MosaicView::showTrack(size_t track_index) {
   auto_fit_ = false;
   setView(Eigen::Vector2d(bounds.center().x(), bounds.center().y()),
           std::clamp(ppu, minPixelsPerMapUnit(), maxPixelsPerMapUnit()));
+}
+
+void MosaicView::setCurrentFrame(std::optional<int64_t> frame_index) {
+  current_frame_ = frame_index;
+  rebuildTimeMarkers();
+  update();
+}
+
+void MosaicView::rebuildTimeMarkers() {
+  footprint_.reset();
+  time_markers_.clear();
+  time_trails_.clear();
+  if (!current_frame_ || !mission_) return;
+  const auto& frames = mission_->frames;
+  const auto it = std::lower_bound(
+      frames.begin(), frames.end(), *current_frame_,
+      [](const mission::FrameRecord& r, int64_t index) { return r.index < index; });
+  if (it == frames.end() || it->index != *current_frame_) return;
+  const double t = it->time_s;
+  if (it->map_from_frame) {
+    std::array<Eigen::Vector2d, 4> corners;
+    bool ok = true;
+    const auto image = track::ImageCorners(mission_->source.width, mission_->source.height);
+    for (size_t k = 0; k < 4; ++k) {
+      const Eigen::Vector3d p = *it->map_from_frame * image[k].homogeneous();
+      ok = ok && p.z() > 1e-12 && p.allFinite();
+      if (ok) corners[k] = p.hnormalized();
+    }
+    if (ok) footprint_ = corners;
+  }
+  constexpr double kTrailS = 3;
+  for (size_t i = 0; i < mission_->tracks.size(); ++i) {
+    const mission::ActivityTrack& track = mission_->tracks[i];
+    if (!isTrackVisible(i) || track.points.empty() || t < track.start_s || t > track.end_s) {
+      continue;
+    }
+    const auto& points = track.points;
+    // The last observation at or before the time (the track may skip a frame or two).
+    const auto at =
+        std::upper_bound(points.begin(), points.end(), t,
+                         [](double v, const mission::TrackPoint& p) { return v < p.time_s; });
+    if (at == points.begin()) continue;
+    const auto last = std::prev(at);
+    if (t - last->time_s > 1.0) continue;  // not seen around this time
+    time_markers_.emplace_back(i, last->map);
+    std::vector<QPointF> trail;
+    for (auto p = points.begin(); p != at; ++p) {
+      if (t - p->time_s <= kTrailS) trail.emplace_back(p->map.x(), p->map.y());
+    }
+    time_trails_.emplace_back(i, std::move(trail));
+  }
+}
+
+void MosaicView::paintTimeLine(QPainter& painter) {
+  if (!current_frame_) return;
+  painter.save();
+  painter.setRenderHint(QPainter::Antialiasing);
+  if (footprint_) {
+    QPolygonF outline;
+    for (const Eigen::Vector2d& c : *footprint_) outline << widgetFromMap(c);
+    painter.setBrush(QColor(255, 255, 255, 28));
+    painter.setPen(QPen(QColor(255, 255, 255, 220), 1.5, Qt::DashLine));
+    painter.drawPolygon(outline);
+  }
+  const QTransform transform = widgetFromMapTransform();
+  for (const auto& [i, trail] : time_trails_) {
+    const QColor colour = i < track_colours_.size() ? track_colours_[i] : QColor(255, 214, 0);
+    // Fading towards the past: each segment more transparent the older it is.
+    for (size_t k = 1; k < trail.size(); ++k) {
+      QColor faded = colour;
+      faded.setAlphaF(0.15 + 0.85 * static_cast<double>(k) / static_cast<double>(trail.size()));
+      painter.setPen(QPen(faded, 3, Qt::SolidLine, Qt::RoundCap));
+      painter.drawLine(transform.map(trail[k - 1]), transform.map(trail[k]));
+    }
+  }
+  for (const auto& [i, map] : time_markers_) {
+    const QColor colour = i < track_colours_.size() ? track_colours_[i] : QColor(255, 214, 0);
+    painter.setPen(QPen(QColor(12, 12, 14), 2));
+    painter.setBrush(colour);
+    painter.drawEllipse(widgetFromMap(map), 5.5, 5.5);
+  }
+  painter.restore();
 }
 
 void MosaicView::setBookmarks(std::vector<std::pair<int64_t, Eigen::Vector2d>> bookmarks) {

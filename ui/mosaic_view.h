@@ -114,6 +114,15 @@ class MosaicView : public QWidget {
   // Centres the view on a track and zooms so that it fills about half the view.
   void showTrack(size_t track_index);
 
+  // The time line's frame (a mission frame index; nullopt: none): its footprint drawn on the map,
+  // and every shown track seen at its time as a marker with its last seconds as a fading trail.
+  void setCurrentFrame(std::optional<int64_t> frame_index);
+  const std::optional<int64_t>& currentFrameIndex() const { return current_frame_; }
+  // The markers drawn for the current frame: (track index, map point).
+  const std::vector<std::pair<size_t, Eigen::Vector2d>>& timeMarkers() const {
+    return time_markers_;
+  }
+
   // The analyst's bookmarks, drawn as numbered amber pins (map frame only).
   void setBookmarks(std::vector<std::pair<int64_t, Eigen::Vector2d>> bookmarks);
   // Centres the view on a map point, keeping the zoom.
@@ -218,6 +227,8 @@ class MosaicView : public QWidget {
   void paintMarker(QPainter& painter);
   void paintSelection(QPainter& painter);
   void paintBookmarks(QPainter& painter);
+  void paintTimeLine(QPainter& painter);  // the current frame's footprint, markers and trails
+  void rebuildTimeMarkers();
   void paintMeasure(QPainter& painter);
   void addMeasurePoint(const QPointF& widget);
   void paintLegend(QPainter& painter);
@@ -273,6 +284,10 @@ class MosaicView : public QWidget {
   std::optional<Eigen::Vector2d> marker_;
   std::optional<size_t> selected_track_;
   std::vector<std::pair<int64_t, Eigen::Vector2d>> bookmarks_;
+  std::optional<int64_t> current_frame_;
+  std::optional<std::array<Eigen::Vector2d, 4>> footprint_;  // of the current frame, on the map
+  std::vector<std::pair<size_t, Eigen::Vector2d>> time_markers_;
+  std::vector<std::pair<size_t, std::vector<QPointF>>> time_trails_;  // map points, oldest first
 
   // Measuring.
   bool measuring_ = false;

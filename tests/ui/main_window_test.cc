@@ -10,6 +10,7 @@
 #include "ui/frame_panel.h"
 #include "ui/mosaic_view.h"
 #include "ui/task_runner.h"
+#include "ui/time_line.h"
 #include "ui/track_table.h"
 
 #include <gtest/gtest.h>
@@ -37,6 +38,7 @@
 #include <QPushButton>
 #include <QRegularExpression>
 #include <QSignalSpy>
+#include <QSlider>
 #include <QStatusBar>
 #include <QTableView>
 #include <QTest>
@@ -709,6 +711,86 @@ TEST(MainWindowTest, BookmarksAreListedSavedUndoneAndExported) {
   EXPECT_NE(html.find("data:image/jpeg;base64,"), std::string::npos);
 }
 
+// The time line: dragging the slider moves the map's footprint and markers and the frame panel
+// to that time; playback runs at the chosen speed; a click on bare ground seeks to a pass that saw
+// it; a recalled observation moves the time line.
+TEST(MainWindowTest, TheTimeLineScrubsPlaysAndFollows) {
+  const TestMission* m = SmallMission();
+  ASSERT_NE(m, nullptr);
+  MainWindow window;
+  window.resize(1300, 900);
+  window.show();
+  ASSERT_TRUE(OpenAndWait(window, *m));
+  const mission::Mission& mission = *window.mission();
+  ASSERT_GT(mission.frames.size(), 50u);
+  TimeLine* line = window.timeLine();
+  ASSERT_NE(line, nullptr);
+  auto* slider = line->findChild<QSlider*>("timeLineSlider");
+  ASSERT_NE(slider, nullptr);
+  EXPECT_EQ(slider->maximum(), static_cast<int>(mission.frames.size()) - 1);
+
+  // Scrub to the middle: the frame, the footprint's frame and the markers of that moment.
+  QSignalSpy shown(window.framePanel(), &FramePanel::frameShown);
+  const size_t middle = mission.frames.size() / 2;
+  slider->setValue(static_cast<int>(middle));
+  const int64_t frame = mission.frames[middle].index;
+  EXPECT_EQ(line->frame(), frame);
+  EXPECT_EQ(window.mosaicView()->currentFrameIndex(), frame);
+  ASSERT_TRUE(WaitUntil([&] { return window.framePanel()->displayedFrame() == frame; }, 10000));
+  const double t = mission.frames[middle].time_s;
+  for (const auto& [track, map] : window.mosaicView()->timeMarkers()) {
+    EXPECT_LE(mission.tracks[track].start_s, t + 1e-9);
+    EXPECT_GE(mission.tracks[track].end_s, t - 1e-9);
+  }
+  size_t alive = 0;
+  for (const auto& track : mission.tracks) alive += track.start_s <= t && t <= track.end_s;
+  EXPECT_GT(alive, 0u);
+  EXPECT_GT(window.mosaicView()->timeMarkers().size(), 0u);
+
+  // Playback at 8x: the position follows a clock, 8 video seconds a second.
+  line->setSpeed(8);
+  QElapsedTimer clock;
+  clock.start();
+  line->play();
+  EXPECT_TRUE(line->isPlaying());
+  QTest::qWait(600);
+  line->pause();
+  const double played = [&] {
+    for (const auto& f : mission.frames) {
+      if (f.index == line->frame()) return f.time_s - t;
+    }
+    return -1.0;
+  }();
+  const double wall = clock.elapsed() / 1000.0;
+  // At least a second of video (8x for 0.6 s, even if the machine starves the timer for a
+  // while); never more than the speed allows.
+  EXPECT_GT(played, 1.0) << played << " s of video in " << wall << " s";
+  EXPECT_LT(played, 8 * wall + 1) << played << " s of video in " << wall << " s";
+  EXPECT_EQ(window.mosaicView()->currentFrameIndex(), line->frame());
+
+  // Bare ground: the centre of an early frame's picture, seen in one pass or more.
+  const mission::FrameRecord& early = mission.frames[10];
+  ASSERT_TRUE(early.map_from_frame.has_value());
+  const Eigen::Vector2d ground =
+      (*early.map_from_frame *
+       Eigen::Vector3d(mission.source.width / 2.0, mission.source.height / 2.0, 1))
+          .hnormalized();
+  const auto passes = window.passesSeeing(ground);
+  ASSERT_FALSE(passes.empty());
+  EXPECT_LE(passes.front().first_frame, early.index);
+  EXPECT_GE(passes.front().last_frame, early.index);
+  window.setGroundMenuSuppressed(true);
+  window.seekGround(ground);
+  EXPECT_GE(line->frame(), passes.front().first_frame);
+  EXPECT_LE(line->frame(), passes.front().last_frame);
+  EXPECT_EQ(window.mosaicView()->currentFrameIndex(), line->frame());
+
+  // A recalled observation moves the time line to its frame.
+  const auto& track = mission.tracks.front();
+  window.framePanel()->showObservation(0, track.points.size() - 1);
+  ASSERT_TRUE(WaitUntil([&] { return line->frame() == track.points.back().frame; }, 10000));
+}
+
 TEST(MainWindowTest, HelpShowsTheUserGuideWithItsPictures) {
   MainWindow window;
   window.show();
@@ -1261,6 +1343,19 @@ TEST(MainWindowScreenshots, DemoMission) {
   ASSERT_TRUE(shown.wait(10000));
   QTest::qWait(300);
   window.grab().save(folder + "/recall.png");
+
+  // The time line at 0:28: the frame's footprint and the tracks of that moment.
+  view->fitToWindow();
+  auto* slider = window.timeLine()->findChild<QSlider*>("timeLineSlider");
+  ASSERT_NE(slider, nullptr);
+  window.framePanel()->clear();
+  window.selectTrack(std::nullopt);
+  view->setMarker(std::nullopt);
+  slider->setValue(700);
+  ASSERT_TRUE(WaitUntil([&] { return window.framePanel()->displayedFrame() >= 0; }, 10000));
+  ASSERT_TRUE(WaitUntil([&] { return view->tilesComplete(); }));
+  QTest::qWait(300);
+  window.grab().save(folder + "/time-line.png");
 
   // Processing a video: the key-frame preview growing, the stage and Cancel in the status bar.
   const fs::path temp = saker::testing::MakeTempDir("saker-ui-shots");
