@@ -751,6 +751,7 @@ void FramePanel::showObservation(size_t track_index, size_t point_index) {
   }
   pause();
   click_timer_.Restart();
+  scrub_requests_.clear();  // a click ends scrubbing: its frame alone is awaited
   const int64_t frame = mission_->tracks[track_index].points[point_index].frame;
   // Another observation in the frame already on screen: only the mark moves.
   const bool on_screen = video_available_ && frame == displayed_frame_ && pending_ticket_ == 0;
@@ -774,8 +775,10 @@ void FramePanel::showFrame(int64_t frame_index) {
     const auto it = std::lower_bound(
         points.begin(), points.end(), frame_index,
         [](const mission::TrackPoint& p, int64_t index) { return p.frame < index; });
+    // Marked in the frame, without moving the map's cross: the time line and the place clicked
+    // lead here, not the observation.
     if (it != points.end() && it->frame == frame_index) {
-      setObservation(current_->first, static_cast<size_t>(it - points.begin()), true);
+      setObservation(current_->first, static_cast<size_t>(it - points.begin()), false);
     }
   }
   if (frame_index == displayed_frame_ && pending_ticket_ == 0) {
@@ -785,6 +788,8 @@ void FramePanel::showFrame(int64_t frame_index) {
   }
   pending_from_click_ = true;
   requestFrame(frame_index);
+  scrub_requests_.emplace_back(pending_ticket_, scrub_clock_.ElapsedMs());
+  while (scrub_requests_.size() > 64) scrub_requests_.pop_front();
   updateInfo();
 }
 
@@ -926,7 +931,18 @@ QString FramePanel::idlePlaceholder() const {
 
 void FramePanel::onFrameReady(quint64 ticket, int64_t frame_index, const QImage& image,
                               double decode_ms) {
-  if (ticket != pending_ticket_) return;  // superseded
+  if (ticket != pending_ticket_) {
+    // Superseded. A frame asked for while scrubbing is still newer than the one on screen: shown,
+    // so that a drag shows frames as fast as they decode rather than none until it stops.
+    const auto asked = std::find_if(scrub_requests_.begin(), scrub_requests_.end(),
+                                    [ticket](const auto& r) { return r.first == ticket; });
+    if (asked == scrub_requests_.end() || ticket <= presented_ticket_ || playing_) return;
+    presented_ticket_ = ticket;
+    present(frame_index, image);
+    emit frameShown(frame_index, scrub_clock_.ElapsedMs() - asked->second);
+    return;
+  }
+  presented_ticket_ = ticket;
   pending_ticket_ = 0;
   hint_timer_->stop();
   canvas_->setHint(QString());
@@ -1130,8 +1146,9 @@ void FramePanel::updateInfo() {
       label->setText(QStringLiteral("–"));
     }
     // A frame shown for its time (the time line, a place): its time, number and UTC.
-    if (const mission::FrameRecord* record =
-            mission_ && displayed_frame_ >= 0 ? FrameRecordOf(*mission_, displayed_frame_) : nullptr) {
+    if (const mission::FrameRecord* record = mission_ && displayed_frame_ >= 0
+                                                 ? FrameRecordOf(*mission_, displayed_frame_)
+                                                 : nullptr) {
       time_value_->setText(tr("%1 s").arg(record->time_s, 0, 'f', 2));
       frame_value_->setText(QString::number(record->index));
       if (record->utc_us) {

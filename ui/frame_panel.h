@@ -23,6 +23,7 @@
 #include <QWidget>
 #include <cstddef>
 #include <cstdint>
+#include <deque>
 #include <memory>
 #include <optional>
 #include <utility>
@@ -183,8 +184,12 @@ class FramePanel : public QWidget {
   const mission::OverlayRecord* drawn_overlay_ = nullptr;  // in mission_->overlays
   std::optional<mission::SkyLine> drawn_sky_;
 
-  // The request in flight (latest wins: answers to any other ticket are dropped).
+  // The request in flight (latest wins: answers to any other ticket are dropped, except frames
+  // asked for by showFrame, newer than the one on screen: scrubbing).
   quint64 next_ticket_ = 0;
+  quint64 presented_ticket_ = 0;                           // of the frame on screen
+  std::deque<std::pair<quint64, double>> scrub_requests_;  // ticket, scrub_clock_ ms when asked
+  Stopwatch scrub_clock_;
   quint64 pending_ticket_ = 0;  // 0: none
   Stopwatch click_timer_;       // since the showObservation that asked for the pending frame
   bool pending_from_click_ = false;

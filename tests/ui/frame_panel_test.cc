@@ -295,6 +295,38 @@ TEST(FramePanelTest, ZoomChipNorthSaveAndSpeedNow) {
   EXPECT_LT(now, 3 * track.speed_mps.value_or(1) + 1);
 }
 
+// Scrubbing (frames asked for faster than they decode): frames reach the screen while the drag
+// goes on, always newer than the one shown, and the last one asked for ends on screen.
+TEST(FramePanelTest, ScrubbingShowsFramesInOrderAndEndsOnTheLast) {
+  const TestMission* test = SmallMission();
+  ASSERT_NE(test, nullptr);
+  const auto mission = Shared(*test);
+  ASSERT_GT(mission->frames.size(), 80u);
+  FramePanel panel;
+  panel.resize(640, 520);
+  panel.show();
+  panel.setMission(mission, VideoOf(*test));
+  ASSERT_TRUE(WaitWarm(panel));
+  std::vector<int64_t> shown;
+  QObject::connect(&panel, &FramePanel::frameShown,
+                   [&](int64_t frame, double) { shown.push_back(frame); });
+  int64_t last = -1;
+  for (size_t i = 10; i < 70; ++i) {
+    last = mission->frames[i].index;
+    panel.showFrame(last);
+    QTest::qWait(2);
+  }
+  ASSERT_TRUE(WaitUntil([&] { return !shown.empty() && shown.back() == last; }, 10000));
+  EXPECT_GE(shown.size(), 2u);
+  EXPECT_TRUE(std::is_sorted(shown.begin(), shown.end()));
+  EXPECT_EQ(std::adjacent_find(shown.begin(), shown.end()), shown.end()) << "each shown once";
+  EXPECT_EQ(panel.displayedFrame(), last);
+  EXPECT_FALSE(panel.markVisible() && panel.currentObservation().has_value() &&
+               mission->tracks[panel.currentObservation()->first]
+                       .points[panel.currentObservation()->second]
+                       .frame != last);
+}
+
 TEST(FramePanelTest, DrawsTheOverlayMaskOfTheDisplayedFrameWhenAsked) {
   const TestMission* test = SmallMission();
   ASSERT_NE(test, nullptr);
