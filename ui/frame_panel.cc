@@ -123,15 +123,6 @@ std::optional<Motion> MotionAt(const mission::ActivityTrack& track, size_t i, bo
   return Motion{d.norm() / dt, std::fmod(heading + 360, 360)};
 }
 
-// The mission's record of frame `index`, or null.
-const mission::FrameRecord* FrameRecordOf(const mission::Mission& mission, int64_t index) {
-  const auto& frames = mission.frames;
-  const auto it = std::lower_bound(
-      frames.begin(), frames.end(), index,
-      [](const mission::FrameRecord& r, int64_t value) { return r.index < value; });
-  return it != frames.end() && it->index == index ? &*it : nullptr;
-}
-
 }  // namespace
 
 // The frame, scaled to fit and kept in proportion (zoomable with the wheel, dragged to pan,
@@ -1069,10 +1060,9 @@ void FramePanel::updateOverlay() {
   // The displayed frame's sky line (low oblique views), with the overlay mask.
   std::optional<mission::SkyLine> sky;
   if (overlay_visible_ && mission_ && displayed_frame_ >= 0 && !image_.isNull()) {
-    const auto frame = std::lower_bound(
-        mission_->frames.begin(), mission_->frames.end(), displayed_frame_,
-        [](const mission::FrameRecord& f, int64_t index) { return f.index < index; });
-    if (frame != mission_->frames.end() && frame->index == displayed_frame_) sky = frame->sky_line;
+    if (const mission::FrameRecord* frame = mission::FrameRecordOf(*mission_, displayed_frame_)) {
+      sky = frame->sky_line;
+    }
   }
   if (sky.has_value() != drawn_sky_.has_value() ||
       (sky && (sky->y0 != drawn_sky_->y0 || sky->slope != drawn_sky_->slope))) {
@@ -1118,7 +1108,7 @@ void FramePanel::updateMark() {
                           QPointF(point->box_max.x(), point->box_max.y())));
   // North in the frame: the image direction of a step north on the map from the target.
   std::optional<double> north;
-  const mission::FrameRecord* record = FrameRecordOf(*mission_, displayed_frame_);
+  const mission::FrameRecord* record = mission::FrameRecordOf(*mission_, displayed_frame_);
   if (mission_->map.geo_referenced && record != nullptr && record->map_from_frame) {
     const Eigen::Matrix3d& h = *record->map_from_frame;
     Eigen::Matrix3d frame_from_map;
@@ -1146,9 +1136,9 @@ void FramePanel::updateInfo() {
       label->setText(QStringLiteral("–"));
     }
     // A frame shown for its time (the time line, a place): its time, number and UTC.
-    if (const mission::FrameRecord* record = mission_ && displayed_frame_ >= 0
-                                                 ? FrameRecordOf(*mission_, displayed_frame_)
-                                                 : nullptr) {
+    if (const mission::FrameRecord* record =
+            mission_ && displayed_frame_ >= 0 ? mission::FrameRecordOf(*mission_, displayed_frame_)
+                                              : nullptr) {
       time_value_->setText(tr("%1 s").arg(record->time_s, 0, 'f', 2));
       frame_value_->setText(QString::number(record->index));
       if (record->utc_us) {
@@ -1193,12 +1183,7 @@ void FramePanel::updateInfo() {
   const bool recalling = pending_ticket_ != 0 && pending_from_click_;
   const int64_t frame =
       (video_available_ && !recalling && displayed_frame_ >= 0) ? displayed_frame_ : point->frame;
-  const mission::FrameRecord* record = nullptr;
-  const auto& frames = mission_->frames;
-  auto it = std::lower_bound(
-      frames.begin(), frames.end(), frame,
-      [](const mission::FrameRecord& r, int64_t index) { return r.index < index; });
-  if (it != frames.end() && it->index == frame) record = &*it;
+  const mission::FrameRecord* record = mission::FrameRecordOf(*mission_, frame);
   double time_s = point->time_s;
   if (frame != point->frame) {
     time_s = record != nullptr ? record->time_s

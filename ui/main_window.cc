@@ -369,11 +369,8 @@ void MainWindow::createActions() {
   export_mosaic_action_ =
       file->addAction(tr("Export Mo&saic (GeoTIFF)…"), this, &MainWindow::chooseMosaic);
   export_report_action_ = file->addAction(tr("Export &Report…"), this, [this] {
-    if (!mission_) return;
-    const QFileInfo info(mission_path_);
-    const QString path = QFileDialog::getSaveFileName(
-        this, tr("Export Report"), info.dir().filePath(info.completeBaseName() + "-report.html"),
-        tr("Report (*.html *.pdf)"));
+    const QString path =
+        askExportPath(tr("Export Report"), "-report.html", tr("Report (*.html *.pdf)"));
     if (!path.isEmpty()) exportReport(path);
   });
   export_report_action_->setObjectName(QStringLiteral("exportReport"));
@@ -1043,35 +1040,33 @@ void MainWindow::chooseSaveAs() {
   if (!path.isEmpty()) saveMissionAs(path);
 }
 
-void MainWindow::chooseActivityMap() {
-  if (!mission_) return;
+QString MainWindow::askExportPath(const QString& title, const QString& name_suffix,
+                                  const QString& filters) {
+  if (!mission_) return {};
   const QFileInfo info(mission_path_);
-  const QString suggestion =
-      info.dir().filePath(info.completeBaseName() + "-activity-" +
-                          activity::ColourModeName(view_->colourMode()) + ".png");
-  const QString path = QFileDialog::getSaveFileName(
-      this, tr("Export Activity Map"), suggestion,
+  return QFileDialog::getSaveFileName(
+      this, title, info.dir().filePath(info.completeBaseName() + name_suffix), filters);
+}
+
+void MainWindow::chooseActivityMap() {
+  const QString path = askExportPath(
+      tr("Export Activity Map"),
+      QStringLiteral("-activity-") + activity::ColourModeName(view_->colourMode()) + ".png",
       tr("PNG pictures (*.png);;JPEG pictures (*.jpg);;TIFF pictures (*.tif)"));
   if (!path.isEmpty()) exportActivityMap(path);
 }
 
 void MainWindow::chooseTracks() {
   if (!mission_) return;
-  const QFileInfo info(mission_path_);
   QString filters = tr("GeoJSON (*.geojson);;CSV (*.csv)");
   if (mission_->map.geo_referenced) filters += tr(";;KML (*.kml)");
-  const QString path = QFileDialog::getSaveFileName(
-      this, tr("Export Tracks"), info.dir().filePath(info.completeBaseName() + "-tracks.geojson"),
-      filters);
+  const QString path = askExportPath(tr("Export Tracks"), "-tracks.geojson", filters);
   if (!path.isEmpty()) exportTracks(path);
 }
 
 void MainWindow::chooseMosaic() {
-  if (!mission_) return;
-  const QFileInfo info(mission_path_);
-  const QString path = QFileDialog::getSaveFileName(
-      this, tr("Export Mosaic"), info.dir().filePath(info.completeBaseName() + "-mosaic.tif"),
-      tr("GeoTIFF (*.tif *.tiff)"));
+  const QString path =
+      askExportPath(tr("Export Mosaic"), "-mosaic.tif", tr("GeoTIFF (*.tif *.tiff)"));
   if (!path.isEmpty()) exportMosaic(path);
 }
 
@@ -1292,10 +1287,7 @@ void MainWindow::editNote() {
   const std::optional<size_t> track = selectedTrack();
   if (!track || !mission_) return;
   const int64_t id = mission_->tracks[*track].id;
-  const mission::TrackReview* review = nullptr;
-  for (const mission::TrackReview& r : reviews_) {
-    if (r.track_id == id) review = &r;
-  }
+  const mission::TrackReview* review = mission::FindReview(reviews_, id);
   bool ok = false;
   const QString note = QInputDialog::getMultiLineText(
       this, tr("Note on Track %1").arg(id), tr("What the analyst says of track %1:").arg(id),
@@ -1309,9 +1301,7 @@ bool MainWindow::changeReview(size_t track_index,
   if (!mission_ || track_index >= mission_->tracks.size()) return false;
   const int64_t id = mission_->tracks[track_index].id;
   mission::TrackReview before{id, mission::Verdict::kNone, mission::TargetLabel::kNone, {}};
-  for (const mission::TrackReview& r : reviews_) {
-    if (r.track_id == id) before = r;
-  }
+  if (const mission::TrackReview* r = mission::FindReview(reviews_, id)) before = *r;
   mission::TrackReview after = before;
   change(&after);
   if (after.verdict == before.verdict && after.label == before.label && after.note == before.note) {

@@ -178,6 +178,8 @@ class MainWindow : public QMainWindow {
   void chooseActivityMap();
   void chooseTracks();
   void chooseMosaic();
+  // Asks where to export (beside the mission, named after it with `name_suffix`); empty: cancelled.
+  QString askExportPath(const QString& title, const QString& name_suffix, const QString& filters);
   void locateVideo();
   void showAbout();
   void showUserGuide();

@@ -958,11 +958,8 @@ void MosaicView::rebuildTimeMarkers() {
   time_markers_.clear();
   time_trails_.clear();
   if (!current_frame_ || !mission_) return;
-  const auto& frames = mission_->frames;
-  const auto it = std::lower_bound(
-      frames.begin(), frames.end(), *current_frame_,
-      [](const mission::FrameRecord& r, int64_t index) { return r.index < index; });
-  if (it == frames.end() || it->index != *current_frame_) return;
+  const mission::FrameRecord* it = mission::FrameRecordOf(*mission_, *current_frame_);
+  if (it == nullptr) return;
   const double t = it->time_s;
   if (it->map_from_frame) {
     std::array<Eigen::Vector2d, 4> corners;

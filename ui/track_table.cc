@@ -89,11 +89,7 @@ int TrackTableModel::columnCount(const QModelIndex& parent) const {
 
 const mission::TrackReview* TrackTableModel::ReviewAt(int row) const {
   if (reviews_ == nullptr || !mission_) return nullptr;
-  const int64_t id = mission_->tracks[static_cast<size_t>(row)].id;
-  const auto it = std::lower_bound(
-      reviews_->begin(), reviews_->end(), id,
-      [](const mission::TrackReview& r, int64_t value) { return r.track_id < value; });
-  return it != reviews_->end() && it->track_id == id ? &*it : nullptr;
+  return mission::FindReview(*reviews_, mission_->tracks[static_cast<size_t>(row)].id);
 }
 
 QVariant TrackTableModel::data(const QModelIndex& index, int role) const {

@@ -53,11 +53,22 @@ const char* TargetLabelName(TargetLabel label) {
   return "";
 }
 
-const TrackReview* ReviewOf(const Mission& mission, int64_t track_id) {
+const FrameRecord* FrameRecordOf(const Mission& mission, int64_t index) {
   const auto it =
-      std::lower_bound(mission.reviews.begin(), mission.reviews.end(), track_id,
+      std::lower_bound(mission.frames.begin(), mission.frames.end(), index,
+                       [](const FrameRecord& r, int64_t value) { return r.index < value; });
+  return it != mission.frames.end() && it->index == index ? &*it : nullptr;
+}
+
+const TrackReview* FindReview(const std::vector<TrackReview>& reviews, int64_t track_id) {
+  const auto it =
+      std::lower_bound(reviews.begin(), reviews.end(), track_id,
                        [](const TrackReview& r, int64_t id) { return r.track_id < id; });
-  return it != mission.reviews.end() && it->track_id == track_id ? &*it : nullptr;
+  return it != reviews.end() && it->track_id == track_id ? &*it : nullptr;
+}
+
+const TrackReview* ReviewOf(const Mission& mission, int64_t track_id) {
+  return FindReview(mission.reviews, track_id);
 }
 
 std::vector<size_t> FramesSeeing(const Mission& mission, const Eigen::Vector2d& map_point,

@@ -281,6 +281,11 @@ struct Mission {
 std::vector<size_t> FramesSeeing(const Mission& mission, const Eigen::Vector2d& map_point,
                                  size_t max = 0);
 
+// The record of frame `index` in Mission::frames (sorted by index), or null when it has none.
+const FrameRecord* FrameRecordOf(const Mission& mission, int64_t index);
+
+// The review of track `track_id` in reviews sorted by track id (Mission::reviews), or null.
+const TrackReview* FindReview(const std::vector<TrackReview>& reviews, int64_t track_id);
 // The review of track `track_id`, or null when it has none.
 const TrackReview* ReviewOf(const Mission& mission, int64_t track_id);
 // Whether the analyst marked the track false.

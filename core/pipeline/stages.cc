@@ -163,10 +163,9 @@ StatusOr<bool> TilesStage(const StageOptions& options, const StageHooks& hooks, 
     const auto it = images.find(static_cast<int>(node.id));
     if (it == images.end() || it->second->grey.empty()) continue;
     std::optional<mission::SkyLine> sky;
-    const auto frame = std::lower_bound(
-        m.frames.begin(), m.frames.end(), node.frame_index,
-        [](const mission::FrameRecord& f, int64_t index) { return f.index < index; });
-    if (frame != m.frames.end() && frame->index == node.frame_index) sky = frame->sky_line;
+    if (const mission::FrameRecord* frame = mission::FrameRecordOf(m, node.frame_index)) {
+      sky = frame->sky_line;
+    }
     views.push_back({&it->second->grey, it->second->scale, node.map_from_frame, overlay_of(node),
                      sky, &it->second->chroma, it->second->coding});
   }

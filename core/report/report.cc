@@ -75,14 +75,6 @@ StatusOr<ReportImage> Jpeg(const std::string& name, const cv::Mat& bgr) {
   return image;
 }
 
-// The record of frame `index`, or null.
-const mission::FrameRecord* FrameOf(const mission::Mission& mission, int64_t index) {
-  const auto it = std::lower_bound(
-      mission.frames.begin(), mission.frames.end(), index,
-      [](const mission::FrameRecord& r, int64_t value) { return r.index < value; });
-  return it != mission.frames.end() && it->index == index ? &*it : nullptr;
-}
-
 // A row of a two-column facts table.
 void Fact(std::ostringstream& out, const std::string& name, const std::string& value) {
   out << "<tr><th>" << HtmlText(name) << "</th><td>" << HtmlText(value) << "</td></tr>\n";
@@ -308,7 +300,7 @@ StatusOr<Report> BuildReport(const mission::Mission& mission, const render::Tile
       }
     }
     const mission::TrackReview* review = mission::ReviewOf(mission, t.id);
-    const mission::FrameRecord* record = FrameOf(mission, middle.frame);
+    const mission::FrameRecord* record = mission::FrameRecordOf(mission, middle.frame);
     const double speed = geo && t.speed_mps ? *t.speed_mps : t.speed;
     out << "</td><td><b>Track " << t.id << "</b>";
     if (review && review->verdict != mission::Verdict::kNone) {

@@ -20,8 +20,7 @@ TEST(CoordinatesTest, DecimalAndDmsRoundOnceAndNameTheHemispheres) {
   // 59.99 seconds rounds up into the next minute, and a minute into the next degree.
   const Wgs84 edge{-(10 + 59.0 / 60 + 59.99 / 3600), 179.99999, 0};
   EXPECT_EQ(FormatPosition(edge, CoordinateFormat::kDms), "11° 00′ 00.0″ S, 180° 00′ 00.0″ E");
-  EXPECT_EQ(FormatPosition({0, 0, 0}, CoordinateFormat::kDecimalDegrees),
-            "0.00000° N, 0.00000° E");
+  EXPECT_EQ(FormatPosition({0, 0, 0}, CoordinateFormat::kDecimalDegrees), "0.00000° N, 0.00000° E");
 }
 
 TEST(CoordinatesTest, UtmAndMgrsOnTheGrid) {

@@ -3,8 +3,8 @@
 #include "tests/core/mission/mission_fixtures.h"
 #include "tests/testing/test_data.h"
 
-#include <fcntl.h>
 #include <Eigen/Geometry>
+#include <fcntl.h>
 #include <gtest/gtest.h>
 #include <sqlite3.h>
 #include <sys/wait.h>
