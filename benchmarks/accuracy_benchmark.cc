@@ -34,6 +34,7 @@ int main(int argc, char** argv) {
   int jobs = 1;
   bool json = false;
   std::string overlay_mask = "default";
+  std::string noise_thresholds = "measured";
   std::string details;
   app.add_option("MANIFEST", manifest, "Corpus manifest (docs/accuracy.md)")->capture_default_str();
   app.add_option("--seeds", seeds_name,
@@ -53,6 +54,12 @@ int main(int argc, char** argv) {
                  "(docs/front-end.md, Overlays)")
       ->capture_default_str()
       ->check(CLI::IsMember({"default", "on", "off"}));
+  app.add_option("--noise-thresholds", noise_thresholds,
+                 "The motion thresholds: raised where the video's measured noise asks for it "
+                 "(measured, the engine's default) or the fixed ones alone (fixed), to measure "
+                 "what measuring gains (docs/front-end.md, Noisy video)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"measured", "fixed"}));
   app.add_option("--details", details,
                  "Also write each case's evaluation with its missed sightings and false tracks "
                  "(saker-cli evaluate --details) to DIR/CONDITION-SEED.txt");
@@ -85,6 +92,12 @@ int main(int argc, char** argv) {
   options.cache_dir = cache;
   options.jobs = jobs;
   if (overlay_mask != "default") options.front_end.overlays.enabled = overlay_mask == "on";
+  if (noise_thresholds == "fixed") {
+    options.front_end.segmentation.noise_multiple = 0;
+    options.front_end.segmentation.window_noise_multiple = 0;
+    options.front_end.change.measured_noise_multiple = 0;
+    options.front_end.change.measured_registration_multiple = 0;
+  }
   options.progress = [](const std::string& line) { std::cerr << line << std::endl; };
   const Stopwatch start;
   const std::vector<bench::CaseResult> results = bench::RunCorpus(cases, options);

@@ -135,17 +135,18 @@ class ManifestReader {
 
   Status ReadFloor(const json& object, const std::string& where, CorpusFloor* floor) const {
     if (!object.is_object()) return Error(where, "must be an object");
-    SAKER_RETURN_IF_ERROR(CheckKeys(
-        object, where,
-        {"track_precision", "track_recall", "overlay_tracks", "cuts_found", "tracks_across_cuts"}));
+    SAKER_RETURN_IF_ERROR(CheckKeys(object, where,
+                                    {"track_precision", "track_recall", "overlay_tracks",
+                                     "cuts_found", "tracks_across_cuts", "false_tracks"}));
     for (const auto& [key, value] : object.items()) {
       const std::string at = where + "." + key;
-      if (key == "overlay_tracks" || key == "tracks_across_cuts") {
+      if (key == "overlay_tracks" || key == "tracks_across_cuts" || key == "false_tracks") {
         if (!value.is_number_unsigned()) {
           return Error(at, "must be a whole number >= 0 (at most), got " + value.dump());
         }
-        (key == "overlay_tracks" ? floor->overlay_tracks : floor->tracks_across_cuts) =
-            value.get<int64_t>();
+        (key == "overlay_tracks"       ? floor->overlay_tracks
+         : key == "tracks_across_cuts" ? floor->tracks_across_cuts
+                                       : floor->false_tracks) = value.get<int64_t>();
         continue;
       }
       if (!value.is_number() || value.get<double>() < 0 || value.get<double>() > 1) {
@@ -243,6 +244,7 @@ CorpusFigures FiguresOf(const eval::VideoEvaluation& e, const sim::Truth& truth)
   }
   f.overlay_tracks = CountOverlayTracks(e.front_end, truth);
   f.frames = static_cast<int64_t>(truth.frames.size());
+  f.noisy_frames = std::max(e.front_end.noise.feature_frames, e.front_end.noise.change_frames);
   f.mask_off_overlay_frames =
       e.detection.overlay_mask.off_overlay_fraction * static_cast<double>(f.frames);
   f.speed_relative_errors = e.activity.speed_relative_errors;
@@ -283,6 +285,7 @@ json FiguresToJson(const CorpusFigures& f) {
           {"median_latency_s", Optional(f.MedianLatency())},
           {"overlay_tracks", f.overlay_tracks},
           {"mask_off_overlay", Optional(f.MaskOffOverlay())},
+          {"noisy_frames", f.noisy_frames},
           {"speed",
            {{"compared", f.speed_relative_errors.size()},
             {"median_relative_error", Optional(f.SpeedError(0.5))},
@@ -325,10 +328,12 @@ std::string Pad(const std::string& text, size_t width, bool left = false) {
 
 // Column titles, in the order Cells() gives the cells.
 const std::vector<std::string>& Titles() {
+  // clang-format off
   static const std::vector<std::string> titles = {
-      "track P", "ok/all", "track R",    "found/all", "frame P", "frame R",
-      "lat s",   "ovl",    "mask off %", "speed %",   "H px",    "mosaic before > after",
-      "cuts",    "x-cut",  "other",      "sim s",     "proc s"};
+      "track P", "ok/all", "track R", "found/all", "frame P", "frame R", "lat s", "ovl",
+      "mask off %", "noisy %", "speed %", "H px", "mosaic before > after", "cuts", "x-cut",
+      "other", "sim s", "proc s"};
+  // clang-format on
   return titles;
 }
 
@@ -354,6 +359,9 @@ std::vector<std::string> Cells(const CorpusFigures& f, bool cached) {
           std::to_string(f.overlay_tracks),
           FormatOr("%.2f",
                    f.MaskOffOverlay() ? std::optional(100 * *f.MaskOffOverlay()) : std::nullopt),
+          f.frames > 0 ? Format("%.0f", 100.0 * static_cast<double>(f.noisy_frames) /
+                                            static_cast<double>(f.frames))
+                       : "-",
           speed,
           FormatOr("%.3f", f.HomographyMedian()),
           mosaic,
@@ -694,6 +702,7 @@ void CorpusFigures::Add(const CorpusFigures& o) {
   overlay_tracks += o.overlay_tracks;
   frames += o.frames;
   mask_off_overlay_frames += o.mask_off_overlay_frames;
+  noisy_frames += o.noisy_frames;
   speed_relative_errors.insert(speed_relative_errors.end(), o.speed_relative_errors.begin(),
                                o.speed_relative_errors.end());
   homography_errors_px.insert(homography_errors_px.end(), o.homography_errors_px.begin(),
@@ -750,6 +759,7 @@ std::vector<std::string> FloorShortfalls(const CorpusFloor& floor, const CorpusF
   at_most("tracks on overlay pixels", floor.overlay_tracks, figures.overlay_tracks);
   at_least("cuts found", floor.cuts_found, figures.cuts.found, figures.cuts.expected);
   at_most("tracks across a cut", floor.tracks_across_cuts, figures.cuts.tracks_across);
+  at_most("false tracks", floor.false_tracks, figures.detected_tracks - figures.correct_tracks);
   return shortfalls;
 }
 
@@ -885,7 +895,8 @@ std::string CorpusReportText(const std::vector<CaseResult>& results) {
          "track P: target-track precision (ok/all: correct/detected tracks); track R: recall "
          "(found/all: truth sightings); frame P/R: per frame;\n"
          "lat s: median detection latency; ovl: tracks on overlay pixels; mask off %: image "
-         "wrongly masked as overlay (mean over frames);\nspeed %: matched "
+         "wrongly masked as overlay (mean over frames);\nnoisy %: frames whose motion "
+         "thresholds the video's own noise raised; speed %: matched "
          "tracks' relative speed error, median/90th percentile;\n"
          "H px: median corner error of the frame homographies; mosaic: key frame corner RMS "
          "before > after adjustment (m: geo-referenced, as mapped;\n"

@@ -52,9 +52,10 @@ struct CorpusFloor {
   std::optional<int64_t> overlay_tracks;      // at most (0: no track on an overlay)
   std::optional<double> cuts_found;           // at least this fraction of the cuts found
   std::optional<int64_t> tracks_across_cuts;  // at most
+  std::optional<int64_t> false_tracks;        // at most: target tracks paired with no target
   bool empty() const {
     return !track_precision && !track_recall && !overlay_tracks && !cuts_found &&
-           !tracks_across_cuts;
+           !tracks_across_cuts && !false_tracks;
   }
 };
 
@@ -149,6 +150,8 @@ struct CorpusFigures {
   // overlay, as frames x fraction of the image.
   int64_t frames = 0;
   double mask_off_overlay_frames = 0;
+  // Frames whose motion thresholds the video's own noise raised (FrontEndResult::noise).
+  int64_t noisy_frames = 0;
   std::vector<double> speed_relative_errors;  // per matched track compared on speed
   std::vector<double> homography_errors_px;   // per frame with an estimate
   int64_t homography_failed = 0;

@@ -42,9 +42,11 @@ constexpr int64_t kMemoryCheckPixels = int64_t{25} * 1280 * 720;
 // FramePipelineBytes: the H.264 decoder keeps up to 16 reference pictures.
 constexpr int64_t kDecoderReferencePictures = 16;
 // The layout of the trackers' state in a checkpoint (FrontEndCheckpoint::state). Layouts 1 (before
-// the overlay detector's state was added) and 2 (before the polarity switches) are still read:
-// their runs start without overlay evidence, or without the switches before the checkpoint.
-constexpr uint32_t kStateLayout = 3;
+// the overlay detector's state was added), 2 (before the polarity switches) and 3 (before the
+// segmentation's feature noise) are still read: their runs start without overlay evidence,
+// without the switches before the checkpoint, or with the noise measured afresh.
+constexpr uint32_t kStateLayout = 4;
+constexpr uint32_t kStateLayoutWithoutNoise = 3;
 constexpr uint32_t kStateLayoutWithoutPolarity = 2;
 constexpr uint32_t kStateLayoutWithoutOverlays = 1;
 
@@ -387,13 +389,15 @@ Status FrontEnd::StartFromCheckpoint() {
   uint32_t layout = 0;
   uint8_t segment_open = 0;
   const bool known =
-      in.Get(&layout) && (layout == kStateLayout || layout == kStateLayoutWithoutPolarity ||
-                          layout == kStateLayoutWithoutOverlays);
+      in.Get(&layout) &&
+      (layout == kStateLayout || layout == kStateLayoutWithoutNoise ||
+       layout == kStateLayoutWithoutPolarity || layout == kStateLayoutWithoutOverlays);
   if (!known || !in.Get(&segment_open) || !in.Get(&change_applied_submitted_) ||
       !segmenter_.RestoreState(&in) || !target_tracker_.RestoreState(&in) ||
       !change_tracks_.RestoreState(&in) ||
       (layout >= kStateLayoutWithoutPolarity && !overlays_.RestoreState(&in)) ||
-      (layout >= kStateLayout && !polarity_.RestoreState(&in))) {
+      (layout >= kStateLayoutWithoutNoise && !polarity_.RestoreState(&in)) ||
+      (layout >= kStateLayout && !segmenter_.RestoreNoise(&in))) {
     return InvalidArgumentError(path_ + ": cannot resume: the checkpoint's tracker state is " +
                                 (known ? "malformed" : "of another Saker"));
   }
@@ -438,6 +442,7 @@ std::vector<uint8_t> FrontEnd::SaveState() const {
   change_tracks_.SaveState(&out);
   overlays_.SaveState(&out);
   polarity_.SaveState(&out);
+  segmenter_.SaveNoise(&out);
   tracker_.SaveState(&out);
   return out.Take();
 }
@@ -597,6 +602,13 @@ void FrontEnd::Segment(const video::Frame& frame,
     frame_result->covariance = estimate->covariance;
     frame_result->inliers = static_cast<int>(estimate->inliers.size());
     segmenter_.AddFrame(ground_matches_, estimate->target_from_source, epipole);
+    const double threshold = segmenter_.residual_threshold_px();
+    if (threshold > options_.segmentation.residual_threshold_px ||
+        segmenter_.window_displacement_px() > options_.segmentation.min_window_displacement_px) {
+      VideoNoise& noise = result_.noise;
+      ++noise.feature_frames;
+      noise.residual_threshold_px = std::max(noise.residual_threshold_px, threshold);
+    }
     // At low frame rates the moving labels only keep movers out of the ground motion: the targets
     // come from change detection.
     target_tracker_.AddFrame(
@@ -641,6 +653,12 @@ void FrontEnd::ApplyChangeAnswer(const ChangeThread::Answer& answer) {
   if (answer.restart) change_tracks_.FinishAll();
   const track::ChangeFrame& c = answer.change;
   if (c.answered()) {
+    if (c.allowances_raised) {
+      VideoNoise& noise = result_.noise;
+      ++noise.change_frames;
+      noise.change_noise_grey = std::max(noise.change_noise_grey, c.noise_grey);
+      noise.change_registration_px = std::max(noise.change_registration_px, c.registration_px);
+    }
     // The overlay learns from every change, then none on it goes on to the change tracks.
     overlays_.AddChange(c, change_baseline_frames_);
     NoteOverlayMask(c.frame);
@@ -651,7 +669,9 @@ void FrontEnd::ApplyChangeAnswer(const ChangeThread::Answer& answer) {
         blobs.push_back(b);
       }
     }
-    change_tracks_.AddFrame(c.frame, blobs, c.frame_motion);
+    const double fixed_registration = options_.change.registration_px;
+    change_tracks_.AddFrame(c.frame, blobs, c.frame_motion,
+                            fixed_registration > 0 ? c.registration_px / fixed_registration : 1.0);
     // Within the target's box, and a few pixels round a single point.
     target_tracker_.RecordChange(c.frame, [&](const track::TargetObservation& o) {
       if (!c.Compared(o.position)) return track::ChangeEvidence::kNotLooked;

@@ -185,6 +185,16 @@ struct FrontEndTiming {
   int64_t frames = 0;
 };
 
+// See FrontEndResult::noise.
+struct VideoNoise {
+  int64_t feature_frames = 0;  // frames whose feature-motion thresholds were raised
+  int64_t change_frames = 0;   // change answers whose allowances were raised
+  // The largest thresholds used: stage 1's motion (pixels over SegmentationOptions::short_s),
+  // the change detector's noise (grey levels) and misregistration (pixels).
+  double residual_threshold_px = 0, change_noise_grey = 0, change_registration_px = 0;
+  bool raised() const { return feature_frames > 0 || change_frames > 0; }
+};
+
 struct FrontEndResult {
   video::VideoInfo video;
   std::vector<FrameResult> frames;
@@ -205,6 +215,10 @@ struct FrontEndResult {
   // Frames of this run whose sky and distant ground above the horizon were masked (a resumed run
   // counts from its resume).
   int64_t horizon_frames = 0;
+  // How much the video's own noise (heavy compression, sensor noise) raised the motion tests'
+  // thresholds above their fixed values (SegmentationOptions::noise_multiple,
+  // ChangeOptions::measured_noise_multiple); a resumed run counts from its resume.
+  VideoNoise noise;
   // The same pass's KLV: packets, per-frame metadata (scan.MetadataOf(frame)), warnings.
   ingest::VideoScan scan;
   FrontEndTiming timing;

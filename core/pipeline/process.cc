@@ -141,6 +141,16 @@ std::string ProcessSummary::ToText() const {
                   static_cast<long long>(horizon_frames), static_cast<long long>(frames));
     out << line;
   }
+  if (noise.raised()) {
+    std::snprintf(line, sizeof(line),
+                  "noise: the video's own noise (heavy compression?) raised the motion thresholds "
+                  "in %lld of %lld frames (features: up to %.2g px; change: %.2g grey levels, "
+                  "%.2g px of misregistration); slow and small targets may be missed\n",
+                  static_cast<long long>(std::max(noise.feature_frames, noise.change_frames)),
+                  static_cast<long long>(frames), noise.residual_threshold_px,
+                  noise.change_noise_grey, noise.change_registration_px);
+    out << line;
+  }
   if (polarity_switches > 0) {
     out << "thermal polarity: " << polarity_switches
         << (polarity_switches == 1 ? " switch" : " switches")
@@ -234,6 +244,7 @@ StatusOr<ProcessSummary> ProcessVideo(const std::string& video, const std::strin
       summary.overlay_frames = overlays.frames;
       summary.overlay_coverage = overlays.coverage;
       summary.horizon_frames = done->front.horizon_frames;
+      summary.noise = done->front.noise;
       summary.frame_rate = done->mission.source.frame_rate;
       if (!done->front.frames.empty() && done->mission.source.frame_rate > 0) {
         summary.video_duration_s =

@@ -61,6 +61,8 @@ struct ProcessSummary {
   // Frames of a low oblique view whose sky and distant ground above the horizon were masked out
   // (FrontEndResult::horizon_frames).
   int64_t horizon_frames = 0;
+  // How far the video's noise raised the motion thresholds (FrontEndResult::noise).
+  frontend::VideoNoise noise;
   std::string map_frame;  // DescribeMapFrame (open_mission.h): what the map is, and why
   double front_end_s = 0, mosaic_s = 0, activity_s = 0, tiles_s = 0, save_s = 0, total_s = 0;
   double video_duration_s = 0;

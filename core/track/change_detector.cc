@@ -74,6 +74,11 @@ Status ChangeOptions::Validate() const {
   if (processing_width < 0) {
     return InvalidArgumentError("change detection: the processing width must be >= 0");
   }
+  if (!(measured_noise_multiple >= 0 && measured_noise_multiple <= 100) ||
+      !(measured_registration_multiple >= 0 && measured_registration_multiple <= 100)) {
+    return InvalidArgumentError(
+        "change detection: the measured noise multiples must be in [0, 100]");
+  }
   if (!(noise_grey > 0 && threshold > 0 && registration_px >= 0 && min_contrast_grey >= 0)) {
     return InvalidArgumentError(
         "change detection: noise and threshold must be positive, the registration allowance and "
@@ -175,7 +180,13 @@ ChangeFrame ChangeDetector::Process(int64_t frame, const cv::Mat& grey,
       covers_.resize(before);
     }
   }
+  MeasureNoise(&history_[c], pairs_[0][0], covers_[0]);
+  SetAllowances();
   cv::Mat changed = MarkChanged(centre.grey);
+  result.noise_grey = noise_;
+  result.registration_px = allowance_;
+  result.allowances_raised = noise_ > static_cast<float>(options_.noise_grey) ||
+                             allowance_ > static_cast<float>(options_.registration_px);
   result.blobs = FindBlobs(changed);
   result.frame = centre.frame;
   result.frame_motion = centre.motion;
@@ -264,6 +275,62 @@ bool ChangeDetector::Warp(size_t index, size_t centre, Other* other) {
   return true;
 }
 
+// Sparse: on a grid of about 20 000 points (every fifth row and column at 960x540, 0.3 ms).
+void ChangeDetector::MeasureNoise(Entry* centre, const Other& other, const cv::Mat& cover) {
+  constexpr float kFlatGradient = 3, kSteepGradient = 15;  // grey levels a pixel
+  constexpr size_t kMinSamples = 100;
+  const int step = std::clamp(
+      static_cast<int>(std::sqrt(static_cast<double>(centre->grey.total()) / 20000.0)), 1, 5);
+  centre->noise = centre->registration = -1;
+  if (options_.measured_noise_multiple <= 0 && options_.measured_registration_multiple <= 0) return;
+  flat_.clear();
+  steep_.clear();
+  const cv::Mat& image = centre->grey;
+  for (int y = 1; y + 1 < image.rows; y += step) {
+    const uint8_t* c = image.ptr<uint8_t>(y);
+    const uint8_t* w = other.warped.ptr<uint8_t>(y);
+    const uint8_t* v = cover.ptr<uint8_t>(y);
+    for (int x = 1; x + 1 < image.cols; x += step) {
+      if (v[x] == 0) continue;
+      const float d = std::abs(static_cast<float>(c[x]) - other.gain * static_cast<float>(w[x]));
+      const float g = std::sqrt(GradientSquared(other.warped, x, y));
+      if (g < kFlatGradient) {
+        flat_.push_back(d);
+      } else if (g > kSteepGradient) {
+        steep_.push_back(d / g);
+      }
+    }
+  }
+  const auto spread = [](std::vector<float>* samples) {
+    const auto middle = samples->begin() + static_cast<std::ptrdiff_t>(samples->size() / 2);
+    std::nth_element(samples->begin(), middle, samples->end());
+    return 1.4826f * *middle;
+  };
+  if (flat_.size() >= kMinSamples) centre->noise = spread(&flat_);
+  if (steep_.size() >= kMinSamples) centre->registration = spread(&steep_);
+}
+
+void ChangeDetector::SetAllowances() {
+  noise_ = static_cast<float>(options_.noise_grey);
+  allowance_ = static_cast<float>(options_.registration_px);
+  // The median of the measured frames held (from the frame after the centre on nothing is
+  // measured yet); a resumed run holds the same frames, so it measures the same.
+  const auto median = [this](float Entry::*field) {
+    flat_.clear();
+    for (const Entry& e : history_) {
+      if (e.*field >= 0) flat_.push_back(e.*field);
+    }
+    if (flat_.empty()) return 0.f;
+    const auto middle = flat_.begin() + static_cast<std::ptrdiff_t>(flat_.size() / 2);
+    std::nth_element(flat_.begin(), middle, flat_.end());
+    return *middle;
+  };
+  noise_ = std::max(noise_,
+                    static_cast<float>(options_.measured_noise_multiple) * median(&Entry::noise));
+  allowance_ = std::max(allowance_, static_cast<float>(options_.measured_registration_multiple) *
+                                        median(&Entry::registration));
+}
+
 // A pixel changed when both differences exceed their noise with the same sign. The noise of a
 // difference adds the other frame's local gradient (the largest of its 3x3 neighbourhood) times
 // the registration allowance: where the ground is misregistered by d, the difference is about d
@@ -272,8 +339,7 @@ bool ChangeDetector::Warp(size_t index, size_t centre, Other* other) {
 // computed only where the sensor noise alone is exceeded: a small part of the frame. Returns the
 // mask of changed pixels; strength_ holds their signed change.
 cv::Mat ChangeDetector::MarkChanged(const cv::Mat& image) {
-  const float noise = static_cast<float>(options_.noise_grey),
-              allowance = static_cast<float>(options_.registration_px);
+  const float noise = noise_, allowance = allowance_;
   const float threshold = static_cast<float>(options_.threshold);
   const float quick = threshold * noise;
   const auto significant = [&](float d, const Other& other, int x, int y) {
@@ -447,7 +513,8 @@ double BlobTracker::LineFit::Rms() const {
 }
 
 void BlobTracker::AddFrame(int64_t frame, const std::vector<ChangeBlob>& blobs,
-                           const Eigen::Matrix3d& current_from_previous) {
+                           const Eigen::Matrix3d& current_from_previous, double noise_scale) {
+  const double min_travel = options_.min_travel_px * std::max(1.0, noise_scale);
   // Predict every track into this frame: its last hit moved by its velocity (in anchor
   // coordinates), then through the ground motion to now.
   std::vector<Eigen::Vector2d> predicted(active_.size());
@@ -490,7 +557,7 @@ void BlobTracker::AddFrame(int64_t frame, const std::vector<ChangeBlob>& blobs,
       const double span = static_cast<double>(frame - t->first_frame + 1);
       const double travel = t->velocity.norm() * static_cast<double>(frame - t->first_frame);
       t->confirmed = static_cast<double>(t->hits) / span >= options_.min_hit_fraction &&
-                     travel >= options_.min_travel_px && t->fit.Rms() <= options_.max_fit_rms_px &&
+                     travel >= min_travel && t->fit.Rms() <= options_.max_fit_rms_px &&
                      t->velocity.norm() <= max_speed_px_;
       t->target.confirmed = t->confirmed;
     }

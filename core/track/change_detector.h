@@ -67,6 +67,18 @@ struct ChangeOptions {
   // Changes this close to the edge of a warped frame are ignored (processing pixels): linear
   // interpolation there mixes in the black outside it. More hides walkers at the image's edge.
   int border_px = 2;
+  // Both allowances follow the video. A low bit rate (the codec's blocks and smoothing) makes
+  // registered frames differ by several grey levels on flat ground and by most of an edge's
+  // contrast on texture, and the allowances above, tuned on clean video, then mark the ground
+  // itself as changed. So every centre frame measures its difference with the frame a baseline
+  // before it, on a sparse grid: the sensor noise as the robust spread (1.4826 times the median
+  // absolute value) where that frame is flat (gradient below 3 grey levels a pixel), the
+  // misregistration as the spread of the difference over the gradient where it is steep (above
+  // 15). The medians of those over the frames held, times these multiples, replace `noise_grey`
+  // and `registration_px` where larger. Clean simulated video measures 1.2-1.5 grey levels and
+  // 0.12-0.13 px, so the fixed allowances stand; CRF 38 measures 2.6-3.1 and 0.5-1.0. 0: off.
+  double measured_noise_multiple = 1;
+  double measured_registration_multiple = 1.5;
   int min_area_px = 1;            // blob size, processing pixels
   int max_area_px = 80;           // larger blobs are vehicles, left to the feature tracks
   double min_contrast_grey = 12;  // the strongest change in a blob, at least
@@ -93,6 +105,10 @@ struct ChangeFrame {
   cv::Mat changed;   // CV_8U, processing size: non-zero where `frame` changed
   cv::Mat valid;     // CV_8U, processing size: non-zero where it could be compared
   double scale = 1;  // full-resolution pixels per processing pixel
+  // The allowances the answer was made with (ChangeOptions: the fixed ones, or larger where the
+  // video's measured noise asks for it).
+  double noise_grey = 0, registration_px = 0;
+  bool allowances_raised = false;  // either is above the fixed one
   bool answered() const { return frame >= 0; }
   // Whether a changed pixel lies within `radius_px` (full resolution) of `p`.
   bool ChangedNear(const Eigen::Vector2d& p, double radius_px) const;
@@ -127,6 +143,9 @@ class ChangeDetector {
     cv::Mat grey;                                                // processing size
     Eigen::Matrix3d motion = Eigen::Matrix3d::Identity();        // from the previous frame
     Eigen::Matrix3d small_motion = Eigen::Matrix3d::Identity();  // the same, processing pixels
+    // What the frame's difference with the one a baseline before it measured when it was the
+    // centre (ChangeOptions::measured_noise_multiple); negative: not measured.
+    float noise = -1, registration = -1;
   };
   struct Other {  // a frame before or after the centre, warped onto it
     cv::Mat warped, cover;
@@ -142,6 +161,10 @@ class ChangeDetector {
   void Remember(int64_t frame, const cv::Mat& grey,
                 const std::optional<Eigen::Matrix3d>& current_from_previous, size_t capacity);
   bool Warp(size_t index, size_t centre, Other* other);
+  // The centre frame's noise and misregistration (Entry::noise, registration), measured against
+  // `other`, then the allowances from the frames held.
+  void MeasureNoise(Entry* centre, const Other& other, const cv::Mat& cover);
+  void SetAllowances();
   cv::Mat MarkChanged(const cv::Mat& image);
   std::vector<ChangeBlob> FindBlobs(const cv::Mat& changed);
 
@@ -159,6 +182,8 @@ class ChangeDetector {
   cv::Mat unvisited_;            // changed pixels not yet in a component
   std::vector<cv::Point> seeds_, fill_;  // the changed pixels; those waiting to be filled
   cv::Mat strength_;                     // CV_32F signed change of the changed pixels
+  float noise_ = 0, allowance_ = 0;      // the allowances in force (SetAllowances)
+  std::vector<float> flat_, steep_;      // MeasureNoise's samples
 };
 
 // Durations in seconds, speeds in pixels a second (FrameRate), floors in frames in brackets; the
@@ -187,8 +212,11 @@ class BlobTracker {
   BlobTracker(const BlobTrackOptions& options, FrameRate rate);
 
   // The blobs of frame `frame` and the ground motion since the previous frame (full resolution).
+  // `noise_scale` (at least 1) multiplies the travel a track needs to be confirmed: the change
+  // detector's misregistration allowance over its fixed value, so that in heavily compressed
+  // video, where the ground's own differences wander, a blob track must travel further than they.
   void AddFrame(int64_t frame, const std::vector<ChangeBlob>& blobs,
-                const Eigen::Matrix3d& current_from_previous);
+                const Eigen::Matrix3d& current_from_previous, double noise_scale = 1);
   // Confirmed tracks that ended since the last call.
   std::vector<TargetTrack> TakeFinished();
   // Ends every track (end of the video or a chain break).

@@ -32,6 +32,14 @@ Status SegmentationOptions::Validate() const {
   if (!(epipolar_angle_deg >= 0 && epipolar_angle_deg <= 90)) {
     return InvalidArgumentError("segmentation: the epipolar angle must be in [0, 90] degrees");
   }
+  if (!(noise_multiple >= 0 && noise_multiple <= 100) ||
+      !(window_noise_multiple >= 0 && window_noise_multiple <= 100)) {
+    return InvalidArgumentError("segmentation: the noise multiples must be in [0, 100]");
+  }
+  if (!(noise_time_s > 0 && noise_time_s <= 600) || min_noise_features < 1) {
+    return InvalidArgumentError(
+        "segmentation: the noise time must be in (0, 600] s and at least one feature counted");
+  }
   return Status::Ok();
 }
 
@@ -50,20 +58,53 @@ const char* MotionLabelName(MotionLabel label) {
 MotionSegmenter::MotionSegmenter(const SegmentationOptions& options, FrameRate rate)
     : options_(options),
       short_frames_(std::min(rate.Frames(options.short_s, 1), 250)),
-      window_frames_(std::clamp(rate.Frames(options.window_s, 3), short_frames_, 250)) {}
+      window_frames_(std::clamp(rate.Frames(options.window_s, 3), short_frames_, 250)),
+      noise_weight_(1.0 / rate.Frames(options.noise_time_s, 1)) {}
 
 void MotionSegmenter::Reset() {
   tracks_.clear();
   moving_.clear();
 }
 
+double MotionSegmenter::residual_threshold_px() const {
+  return std::max(options_.residual_threshold_px, options_.noise_multiple * noise_short_);
+}
+
+double MotionSegmenter::window_displacement_px() const {
+  return std::max(options_.min_window_displacement_px,
+                  options_.window_noise_multiple * noise_window_);
+}
+
+namespace {
+
+// The median of `samples` (reordered); 0 when empty.
+double Median(std::vector<double>* samples) {
+  if (samples->empty()) return 0;
+  const auto middle = samples->begin() + static_cast<std::ptrdiff_t>(samples->size() / 2);
+  std::nth_element(samples->begin(), middle, samples->end());
+  return *middle;
+}
+
+// A running mean that starts at its first sample.
+void Smooth(double sample, double weight, double* mean) {
+  *mean = *mean > 0 ? *mean + weight * (sample - *mean) : sample;
+}
+
+}  // namespace
+
 void MotionSegmenter::AddFrame(const std::vector<Correspondence>& matches,
                                const Eigen::Matrix3d& current_from_previous,
                                const std::optional<Eigen::Vector3d>& epipole) {
   ++calls_;
   moving_.clear();
-  const double cos_limit = std::cos(options_.epipolar_angle_deg * M_PI / 180.0);
   const size_t window = static_cast<size_t>(window_frames_);
+  const size_t short_frames = static_cast<size_t>(short_frames_);
+
+  // Pass 1: every track's new step, its stage-1 motion and its window displacement; the samples
+  // of the feature noise from the tracks with full histories.
+  pending_.clear();
+  short_samples_.clear();
+  window_samples_.clear();
   for (const Correspondence& m : matches) {
     TrackState& state = tracks_[static_cast<int64_t>(m.id)];
     state.updated = calls_;
@@ -81,46 +122,67 @@ void MotionSegmenter::AddFrame(const std::vector<Correspondence>& matches,
       newest = state.first;
       state.first = (state.first + 1) % window;
     }
-    Step& current = state.steps[newest];
-    current = step;
+    state.steps[newest] = step;
     const size_t held = state.steps.size();
 
+    Pending p;
+    p.state = &state;
+    p.id = m.id;
+    p.newest = newest;
+    p.position = m.target;
     // Stage 1: motion relative to the ground over the last short_frames_ frames.
-    Eigen::Vector2d motion(0, 0), flow(0, 0);
-    double largest_step = 0;
-    const size_t n = std::min(held, static_cast<size_t>(short_frames_));
+    const size_t n = std::min(held, short_frames);
     for (size_t k = held - n; k < held; ++k) {
       const Step& s = state.at(k);
-      motion += s.residual;
-      flow += s.flow;
-      largest_step = std::max(largest_step, s.residual.norm());
+      p.motion += s.residual;
+      p.flow += s.flow;
+      p.largest_step = std::max(p.largest_step, s.residual.norm());
     }
+    for (size_t k = 0; k < held; ++k) {
+      p.window_sum += state.at(k).residual;
+      if (k + 1 < held) p.significant_before += state.at(k).significant;
+    }
+    if (n == short_frames) short_samples_.push_back(p.motion.norm());
+    if (held == window) window_samples_.push_back(p.window_sum.norm());
+    pending_.push_back(p);
+  }
+  if (options_.noise_multiple > 0 &&
+      short_samples_.size() >= static_cast<size_t>(options_.min_noise_features)) {
+    Smooth(Median(&short_samples_), noise_weight_, &noise_short_);
+  }
+  if (options_.window_noise_multiple > 0 &&
+      window_samples_.size() >= static_cast<size_t>(options_.min_noise_features)) {
+    Smooth(Median(&window_samples_), noise_weight_, &noise_window_);
+  }
+  const double threshold = residual_threshold_px();
+  const double displacement = window_displacement_px();
+
+  // Pass 2: the labels.
+  const double cos_limit = std::cos(options_.epipolar_angle_deg * M_PI / 180.0);
+  for (const Pending& p : pending_) {
+    TrackState& state = *p.state;
+    const size_t held = state.steps.size();
+    const Eigen::Vector2d& motion = p.motion;
     // Real motion is spread over the frames; a single jump (the tracker slipping onto another
     // corner) is not motion, however large.
-    bool significant =
-        motion.norm() > options_.residual_threshold_px && largest_step <= 0.5 * motion.norm() + 0.5;
+    bool significant = motion.norm() > threshold && p.largest_step <= 0.5 * motion.norm() + 0.5;
     if (significant && epipole.has_value()) {
       // Parallax of a point above the ground: along the line from the epipole, and small next to
       // the ground's own flow at that point.
       const Eigen::Vector3d& e = *epipole;
       const Eigen::Vector2d radial = std::abs(e.z()) > 1e-12
-                                         ? Eigen::Vector2d(m.target - e.hnormalized())
+                                         ? Eigen::Vector2d(p.position - e.hnormalized())
                                          : Eigen::Vector2d(e.x(), e.y());
-      if (radial.norm() > 1e-9 && flow.norm() > 1e-9) {
+      if (radial.norm() > 1e-9 && p.flow.norm() > 1e-9) {
         const double alignment = std::abs(radial.normalized().dot(motion.normalized()));
         significant = !(alignment >= cos_limit &&
-                        motion.norm() <= options_.max_parallax_fraction * flow.norm());
+                        motion.norm() <= options_.max_parallax_fraction * p.flow.norm());
       }
     }
-    current.significant = significant;
+    state.steps[p.newest].significant = significant;
 
     // Stage 2: consistency over the window.
-    int count = 0;
-    Eigen::Vector2d sum(0, 0);
-    for (size_t k = 0; k < held; ++k) {
-      sum += state.at(k).residual;
-      count += state.at(k).significant;
-    }
+    const int count = p.significant_before + (significant ? 1 : 0);
     const double fraction = static_cast<double>(count) / static_cast<double>(window);
     if (state.label == MotionLabel::kMoving) {
       // Released when it has mostly stopped over the window, or at once when the last few
@@ -131,14 +193,14 @@ void MotionSegmenter::AddFrame(const std::vector<Correspondence>& matches,
       if (fraction <= options_.release_fraction || recently_still)
         state.label = MotionLabel::kStationary;
     } else if (fraction >= options_.min_significant_fraction &&
-               sum.norm() >= options_.min_window_displacement_px) {
+               p.window_sum.norm() >= displacement) {
       state.label = MotionLabel::kMoving;
     } else if (held >= window / 2) {
       state.label = MotionLabel::kStationary;
     }
 
     if (state.label == MotionLabel::kMoving) {
-      moving_.push_back({m.id, m.target, sum / static_cast<double>(held)});
+      moving_.push_back({p.id, p.position, p.window_sum / static_cast<double>(held)});
     }
   }
   // Tracks not in this frame's matches have ended.
@@ -202,6 +264,22 @@ bool MotionSegmenter::RestoreState(ByteReader* in) {
     }
     tracks_.emplace(id, std::move(state));
   }
+  return true;
+}
+
+void MotionSegmenter::SaveNoise(ByteWriter* out) const {
+  out->Put<double>(noise_short_);
+  out->Put<double>(noise_window_);
+}
+
+bool MotionSegmenter::RestoreNoise(ByteReader* in) {
+  double short_px = 0, window_px = 0;
+  if (!in->Get(&short_px) || !in->Get(&window_px) || !std::isfinite(short_px) ||
+      !std::isfinite(window_px) || short_px < 0 || window_px < 0) {
+    return false;
+  }
+  noise_short_ = short_px;
+  noise_window_ = window_px;
   return true;
 }
 

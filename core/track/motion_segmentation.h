@@ -49,6 +49,17 @@ struct SegmentationOptions {
                                         // the ground flow are parallax (structures up to ~13 % of
                                         // the flying height)
   double epipolar_angle_deg = 12;       // "along the epipolar line" tolerance
+  // The thresholds follow the feature noise. Heavily compressed video (a low bit rate's blocks
+  // and smoothing) makes the tracker's corners wander over the ground by pixels where clean video
+  // gives a tenth of one, and every threshold above, tuned on clean video, is then met by the
+  // ground itself. Most features are on the ground, so the median over a frame's features of the
+  // stage-1 motion (and of the stage-2 displacement), smoothed over `noise_time_s`, measures that
+  // noise; the thresholds are at least `noise_multiple` (`window_noise_multiple`) times it. On
+  // clean video the medians are 0.2-0.3 pixels and the fixed thresholds stand. 0: off.
+  double noise_multiple = 3;
+  double window_noise_multiple = 4;
+  double noise_time_s = 1;      // the medians' running mean [1 frame]
+  int min_noise_features = 30;  // a frame with fewer full histories leaves the estimate alone
   Status Validate() const;
 };
 
@@ -82,10 +93,22 @@ class MotionSegmenter {
 
   void Reset();
 
+  // The thresholds in force after the latest frame (the fixed ones, or larger where the measured
+  // feature noise asks for it; see SegmentationOptions::noise_multiple).
+  double residual_threshold_px() const;
+  double window_displacement_px() const;
+  // The smoothed medians behind them (0 before the first estimate).
+  double short_noise_px() const { return noise_short_; }
+  double window_noise_px() const { return noise_window_; }
+
   // Every track's history and label, so that a resumed run goes on exactly from the latest frame
   // (docs/reliability.md, "Resume"). RestoreState is false when `in` is malformed.
   void SaveState(ByteWriter* out) const;
   bool RestoreState(ByteReader* in);
+  // The noise estimate, kept apart from SaveState so that older checkpoints (without it) still
+  // read: a run resumed from one starts the estimate afresh.
+  void SaveNoise(ByteWriter* out) const;
+  bool RestoreNoise(ByteReader* in);
 
  private:
   struct Step {
@@ -110,6 +133,21 @@ class MotionSegmenter {
   std::unordered_map<int64_t, TrackState> tracks_;
   int64_t calls_ = 0;
   std::vector<MovingPoint> moving_;
+  // The smoothed medians of the stage-1 motion and the stage-2 displacement (pixels; 0 unknown).
+  double noise_short_ = 0, noise_window_ = 0;
+  double noise_weight_ = 1;  // of a new frame's median in the running mean
+  // Per frame: the matched tracks' stage-1 figures between the two passes, and the samples of
+  // the medians (kept to avoid allocating every frame).
+  struct Pending {
+    TrackState* state = nullptr;
+    FeatureTrackId id{};
+    size_t newest = 0;
+    Eigen::Vector2d position{0, 0}, motion{0, 0}, flow{0, 0}, window_sum{0, 0};
+    double largest_step = 0;
+    int significant_before = 0;  // significant steps in the window other than the newest
+  };
+  std::vector<Pending> pending_;
+  std::vector<double> short_samples_, window_samples_;
 };
 
 }  // namespace saker::track

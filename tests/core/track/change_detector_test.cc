@@ -100,6 +100,66 @@ TEST(ChangeDetectorTest, StaticGroundWithGainDriftChangesNowhere) {
   EXPECT_EQ(compared, 60 - 2 * 12);
 }
 
+// Heavily compressed video: registered frames differ by a good part of every edge's contrast
+// (the codec's smoothing and blocks move texture by a pixel or so), here a random shift of up to
+// 1.5 px of each frame that the ground motion does not know. The allowances measured from the
+// frames' own differences rise, and the ground stops changing; with the fixed allowances alone
+// (tuned on clean video) it changes all over.
+TEST(ChangeDetectorTest, AllowancesFollowTheNoiseOfTheVideo) {
+  const cv::Mat ground = Ground();
+  const auto run = [&](const ChangeOptions& options, double* registration, int* raised) {
+    std::mt19937 random(3);
+    std::uniform_real_distribution<double> wander(-1.5, 1.5);
+    ChangeDetector detector(options, kRate);
+    int changed = 0;
+    *raised = 0;
+    *registration = 0;
+    for (int n = 0; n < 60; ++n) {
+      cv::Mat frame = Frame(ground, n, {}, 1.0, &random);
+      const cv::Mat shift = (cv::Mat_<double>(2, 3) << 1, 0, wander(random), 0, 1, wander(random));
+      cv::warpAffine(frame, frame, shift, frame.size(), cv::INTER_LINEAR, cv::BORDER_REFLECT);
+      const ChangeFrame result = detector.Process(
+          n, frame, n == 0 ? std::nullopt : std::optional<Eigen::Matrix3d>(CameraMotion()));
+      if (result.answered()) changed += cv::countNonZero(result.changed);
+      *raised += result.allowances_raised;
+      *registration = std::max(*registration, result.registration_px);
+    }
+    return changed;
+  };
+  double registration = 0;
+  int raised = 0;
+  const int measured = run(SmallFrameOptions(), &registration, &raised);
+  EXPECT_EQ(raised, 60 - 2 * 12);
+  EXPECT_GT(registration, 0.5);
+  ChangeOptions fixed = SmallFrameOptions();
+  fixed.measured_noise_multiple = fixed.measured_registration_multiple = 0;
+  double fixed_registration = 0;
+  int fixed_raised = 0;
+  const int unmeasured = run(fixed, &fixed_registration, &fixed_raised);
+  EXPECT_EQ(fixed_raised, 0);
+  EXPECT_DOUBLE_EQ(fixed_registration, static_cast<float>(fixed.registration_px));
+  EXPECT_GT(unmeasured, 1000);
+  EXPECT_LE(measured, unmeasured / 10)
+      << measured << " changed pixels, " << unmeasured << " with the fixed allowances";
+}
+
+// Clean video measures less noise than the fixed allowances allow for: they stand.
+TEST(ChangeDetectorTest, CleanVideoKeepsTheFixedAllowances) {
+  const cv::Mat ground = Ground();
+  std::mt19937 random(2);
+  const ChangeOptions options = SmallFrameOptions();
+  ChangeDetector detector(options, kRate);
+  for (int n = 0; n < 40; ++n) {
+    const ChangeFrame result =
+        detector.Process(n, Frame(ground, n, {}, 1.0, &random),
+                         n == 0 ? std::nullopt : std::optional<Eigen::Matrix3d>(CameraMotion()));
+    if (!result.answered()) continue;
+    EXPECT_FALSE(result.allowances_raised) << "frame " << n;
+    EXPECT_DOUBLE_EQ(result.noise_grey, static_cast<float>(options.noise_grey));
+    EXPECT_DOUBLE_EQ(result.registration_px, static_cast<float>(options.registration_px));
+  }
+}
+
 TEST(ChangeDetectorTest, AWalkerIsFoundWhereItIsAndNowhereElse) {
   const cv::Mat ground = Ground();
   std::mt19937 random(2);
@@ -362,6 +422,27 @@ TEST(BlobTrackerTest, ASteadyMoverIsConfirmedAndJitterIsNot) {
     EXPECT_TRUE(o.features.empty());
     EXPECT_EQ(o.change, ChangeEvidence::kChanged);
   }
+}
+
+// In noisy video (the detector's allowance raised) a blob track must travel further, by the same
+// factor, to be confirmed: a slow drift of the ground's own differences is not a walker.
+TEST(BlobTrackerTest, NoisyVideoAsksForMoreTravel) {
+  const auto confirmed = [](double noise_scale) {
+    BlobTracker tracker({}, kRate);
+    for (int n = 0; n < 60; ++n) {
+      const Eigen::Vector2d shift = kCameraStep * n;
+      tracker.AddFrame(n,
+                       {BlobAt(Eigen::Vector2d(100, 100) + Eigen::Vector2d(0.15, 0) * n - shift)},
+                       CameraMotion(), noise_scale);
+    }
+    tracker.FinishAll();
+    int count = 0;
+    for (const TargetTrack& t : tracker.TakeFinished()) count += t.confirmed;
+    return count;
+  };
+  EXPECT_EQ(confirmed(1), 1);    // 9 px in 60 frames: more than 4 px
+  EXPECT_EQ(confirmed(0.5), 1);  // never less than the fixed travel
+  EXPECT_EQ(confirmed(3), 0);    // less than 12 px
 }
 
 // At 1 frame a second a car moves tens of pixels between frames: a track seen once has no velocity
