@@ -92,12 +92,7 @@ int main(int argc, char** argv) {
   options.cache_dir = cache;
   options.jobs = jobs;
   if (overlay_mask != "default") options.front_end.overlays.enabled = overlay_mask == "on";
-  if (noise_thresholds == "fixed") {
-    options.front_end.segmentation.noise_multiple = 0;
-    options.front_end.segmentation.window_noise_multiple = 0;
-    options.front_end.change.measured_noise_multiple = 0;
-    options.front_end.change.measured_registration_multiple = 0;
-  }
+  if (noise_thresholds == "fixed") options.front_end.UseFixedThresholds();
   options.progress = [](const std::string& line) { std::cerr << line << std::endl; };
   const Stopwatch start;
   const std::vector<bench::CaseResult> results = bench::RunCorpus(cases, options);

@@ -3,7 +3,7 @@
 // memory.
 //
 //   saker-bench-frontend [--seconds S] [--json] [--compare-overlays] [--compare-low-frame-rate]
-//                        [--compare-colour]
+//                        [--compare-colour] [--compare-noise]
 //   saker-bench-frontend --memory-minutes M [--memory-height H] [--memory-repeat R]
 //
 // --memory-minutes measures memory instead: it simulates M minutes of video once (1280x720, or
@@ -256,6 +256,11 @@ int main(int argc, char** argv) {
                "Also run the front end with grey key frames (FrontEndOptions::key_frame_colour "
                "off: no chroma decoded) and with colour ones on the same video, for the cost of "
                "the colour mosaic in the same run");
+  bool compare_noise = false;
+  app.add_flag("--compare-noise", compare_noise,
+               "Also run the front end with the fixed motion thresholds alone "
+               "(FrontEndOptions::UseFixedThresholds) and with those that follow the measured "
+               "noise on the same video, for the cost of measuring it in the same run");
   CLI11_PARSE(app, argc, argv);
   if (memory_minutes > 0) return MeasureMemory(memory_minutes, memory_height, memory_repeat);
 
@@ -335,6 +340,13 @@ int main(int argc, char** argv) {
       saker::frontend::FrontEndOptions options;
       options.key_frame_colour = colour;
       if (!run(sim, decode_fps, options, colour ? "colour key frames" : "grey key frames")) {
+        return 1;
+      }
+    }
+    for (const bool measured : compare_noise ? std::vector{false, true} : std::vector<bool>{}) {
+      saker::frontend::FrontEndOptions options;
+      if (!measured) options.UseFixedThresholds();
+      if (!run(sim, decode_fps, options, measured ? "measured noise" : "fixed thresholds")) {
         return 1;
       }
     }

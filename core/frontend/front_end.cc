@@ -989,6 +989,11 @@ track::ChangeOptions FrontEndOptions::EffectiveChange(double fps) const {
   return effective;
 }
 
+void FrontEndOptions::UseFixedThresholds() {
+  segmentation.noise_multiple = segmentation.window_noise_multiple = 0;
+  change.measured_noise_multiple = change.measured_registration_multiple = 0;
+}
+
 track::BlobTrackOptions FrontEndOptions::EffectiveChangeTracks(double fps) const {
   return LowFrameRateFor(fps) ? low_frame_rate.blobs : change_tracks;
 }

@@ -147,6 +147,10 @@ struct FrontEndOptions {
   // The change detection and blob tracks for a video of `fps`: the mode's when it runs.
   track::ChangeOptions EffectiveChange(double fps) const;
   track::BlobTrackOptions EffectiveChangeTracks(double fps) const;
+  // The fixed motion thresholds alone, as tuned on clean video, none raised by the video's
+  // measured noise (SegmentationOptions::noise_multiple, ChangeOptions::measured_*): for
+  // measuring what the measuring gains or costs.
+  void UseFixedThresholds();
   // The most memory the decoder and the frame queues can hold for pictures of `width` x `height`,
   // bytes: the decoder's pictures (4:2:0, up to 16 references, one being decoded and one per
   // decoder thread) and the grey frames queued for the tracker and change detection or held

@@ -499,10 +499,7 @@ TEST(FrontEndRunTest, HeavilyCompressedVideoRaisesTheThresholds) {
   ASSERT_TRUE(truth.ok());
   const auto false_tracks = [&](bool measured, VideoNoise* noise) {
     FrontEndOptions front;
-    if (!measured) {
-      front.segmentation.noise_multiple = front.segmentation.window_noise_multiple = 0;
-      front.change.measured_noise_multiple = front.change.measured_registration_multiple = 0;
-    }
+    if (!measured) front.UseFixedThresholds();
     StatusOr<FrontEndResult> result = RunFrontEnd(options.output.string(), front);
     EXPECT_TRUE(result.ok()) << result.status().ToString();
     if (!result.ok()) return int64_t{-1};
