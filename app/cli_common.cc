@@ -82,6 +82,18 @@ CLI::Option* AddHorizonMaskOption(CLI::App* command, bool* enabled) {
                         "docs/front-end.md, Oblique views");
 }
 
+CLI::Option* AddNoiseThresholdsOption(CLI::App* command, bool* fixed) {
+  return command
+      ->add_option_function<std::string>(
+          "--noise-thresholds", [fixed](const std::string& text) { *fixed = text == "fixed"; },
+          "The motion thresholds: raised where the video's own measured noise (heavy "
+          "compression, sensor noise) asks for it, so that the ground does not become tracks "
+          "(measured, the default), or the fixed ones tuned on clean video alone (fixed; "
+          "docs/front-end.md, Noisy video)")
+      ->check(CLI::IsMember({"measured", "fixed"}))
+      ->type_name("measured|fixed");
+}
+
 CLI::Option* AddMinConfidenceOption(CLI::App* command, double* min_confidence,
                                     const std::string& what) {
   const CLI::Validator zero_to_one(

@@ -44,6 +44,9 @@ CLI::Option* AddAcceptBadChecksumsFlag(CLI::App* command, bool* accept);
 CLI::Option* AddOverlayMaskOption(CLI::App* command, bool* enabled);
 // `--horizon-mask on|off` (track::HorizonOptions::enabled), the same way.
 CLI::Option* AddHorizonMaskOption(CLI::App* command, bool* enabled);
+// `--noise-thresholds measured|fixed`: `*fixed` is set for `fixed`
+// (frontend::FrontEndOptions::UseFixedThresholds), shared the same way.
+CLI::Option* AddNoiseThresholdsOption(CLI::App* command, bool* fixed);
 
 // `--min-confidence X`: a number from 0 to 1 (activity/confidence.h); anything else is refused
 // with a message naming the value. `what` says what happens to the tracks below it.

@@ -21,6 +21,7 @@ struct EvaluateCommand::State {
   bool no_metadata = false;
   bool no_change = false;
   bool overlay_mask = frontend::FrontEndOptions{}.overlays.enabled;
+  bool fixed_thresholds = false;  // --noise-thresholds fixed
   bool horizon_mask = frontend::FrontEndOptions{}.horizon.enabled;
   frontend::LowFrameRateOptions::Mode low_frame_rate = frontend::LowFrameRateOptions::Mode::kAuto;
   std::string adjust = "decomposed";
@@ -76,6 +77,7 @@ EvaluateCommand::EvaluateCommand(CLI::App& app) : state_(std::make_unique<State>
                       "Run the front end without change detection (feature tracks only)");
   AddOverlayMaskOption(s.command, &s.overlay_mask);
   AddHorizonMaskOption(s.command, &s.horizon_mask);
+  AddNoiseThresholdsOption(s.command, &s.fixed_thresholds);
   AddLowFrameRateOption(s.command, &s.low_frame_rate);
 }
 
@@ -93,6 +95,7 @@ int EvaluateCommand::Run() const {
   options.front_end.change.enabled = !s.no_change;
   options.front_end.overlays.enabled = s.overlay_mask;
   options.front_end.horizon.enabled = s.horizon_mask;
+  if (s.fixed_thresholds) options.front_end.UseFixedThresholds();
   options.front_end.low_frame_rate.mode = s.low_frame_rate;
   options.evaluation = s.evaluation;
   options.mosaic.use_metadata = !s.no_metadata;

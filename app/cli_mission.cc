@@ -34,6 +34,7 @@ struct ProcessCommand::State {
   bool quiet = false;
   bool no_metadata = false;
   bool no_tiles = false;
+  bool fixed_thresholds = false;  // --noise-thresholds fixed
   std::string adjust = "decomposed";
   pipeline::ProcessOptions options;
 };
@@ -74,6 +75,7 @@ ProcessCommand::ProcessCommand(CLI::App& app) : state_(std::make_unique<State>()
   AddAcceptBadChecksumsFlag(s.command, &s.options.front_end.metadata.accept_bad_checksums);
   AddOverlayMaskOption(s.command, &s.options.front_end.overlays.enabled);
   AddHorizonMaskOption(s.command, &s.options.front_end.horizon.enabled);
+  AddNoiseThresholdsOption(s.command, &s.fixed_thresholds);
   AddLowFrameRateOption(s.command, &s.options.front_end.low_frame_rate.mode);
   AddAdjustOption(s.command, &s.adjust);
   s.command
@@ -102,6 +104,7 @@ int ProcessCommand::RunOn(const std::string& video, const std::string& mission,
                           bool replace) const {
   const State& s = *state_;
   pipeline::ProcessOptions options = s.options;
+  if (s.fixed_thresholds) options.front_end.UseFixedThresholds();
   options.replace = replace;
   options.saker_version = SAKER_VERSION;
   options.mosaic.use_metadata = !s.no_metadata;

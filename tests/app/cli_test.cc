@@ -565,6 +565,36 @@ TEST(CliProcessTest, ALowObliqueViewsSkyIsMaskedAndKeptInTheMission) {
       << run.out;
 }
 
+// Heavily compressed video raises the motion thresholds; process says so (text and JSON), and
+// --noise-thresholds fixed keeps the thresholds tuned on clean video.
+TEST(CliProcessTest, NoisyVideoRaisesTheThresholdsAndSaysSo) {
+  const std::filesystem::path dir = saker::testing::MakeTempDir("saker-cli-noise");
+  const std::string video = (dir / "crf38.ts").string();
+  const CliRun sim = RunCli("simulate --scenario straight -o '" + video +
+                            "' --width 640 --height 360 --altitude 200 --duration 4 --crf 38 "
+                            "--quiet");
+  ASSERT_EQ(sim.exit_code, 0) << sim.out;
+  const std::string mission = (dir / "crf38.saker").string();
+  CliRun run = RunCli("process --no-tiles '" + video + "' -o '" + mission + "'");
+  ASSERT_EQ(run.exit_code, 0) << run.out;
+  EXPECT_NE(run.out.find("noise: the video's own noise (heavy compression?) raised the motion "
+                         "thresholds in "),
+            std::string::npos)
+      << run.out;
+  run = RunCli("process -q --json --no-tiles --replace '" + video + "' -o '" + mission + "'");
+  ASSERT_EQ(run.exit_code, 0) << run.out;
+  EXPECT_GT(nlohmann::json::parse(run.out).at("noise_feature_frames").get<int64_t>(), 0);
+  run = RunCli("process -q --json --no-tiles --replace --noise-thresholds fixed '" + video +
+               "' -o '" + mission + "'");
+  ASSERT_EQ(run.exit_code, 0) << run.out;
+  const nlohmann::json fixed = nlohmann::json::parse(run.out);
+  EXPECT_EQ(fixed.at("noise_feature_frames").get<int64_t>(), 0);
+  EXPECT_EQ(fixed.at("noise_change_frames").get<int64_t>(), 0);
+  run = RunCli("process --noise-thresholds loud '" + video + "' -o '" + mission + "'");
+  EXPECT_EQ(run.exit_code, 2);
+  EXPECT_NE(run.out.find("loud not in {measured,fixed}"), std::string::npos) << run.out;
+}
+
 TEST(CliProcessTest, TheOverlayMaskIsOnByDefaultSaysWhatItMaskedAndCanBeTurnedOff) {
   const std::filesystem::path dir = saker::testing::MakeTempDir("saker-cli-overlay");
   const std::string video = (dir / "hud.ts").string();
