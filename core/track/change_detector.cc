@@ -472,6 +472,9 @@ Status BlobTrackOptions::Validate() const {
         "blob tracks: gate, fit RMS and speed must be positive, travel, margin, the gate's "
         "growth and the new tracks' speed >= 0");
   }
+  if (!(gate_speed_fraction >= 0 && gate_speed_fraction <= 5)) {
+    return InvalidArgumentError("blob tracks: the gate's speed fraction must be in [0, 5]");
+  }
   if (!(max_gap_s >= 0 && max_gap_s <= 3600) || !(min_duration_s >= 0 && min_duration_s <= 3600) ||
       !(min_hit_fraction > 0 && min_hit_fraction <= 1)) {
     return InvalidArgumentError(
@@ -529,7 +532,9 @@ void BlobTracker::AddFrame(int64_t frame, const std::vector<ChangeBlob>& blobs,
   std::vector<std::tuple<double, size_t, size_t>> pairs;
   for (size_t i = 0; i < active_.size(); ++i) {
     const double gap = static_cast<double>(frame - active_[i].target.last_frame() - 1);
-    double gate = options_.gate_px + gate_growth_px_ * gap;
+    // A fast mover's prediction misses by a part of its own displacement when it turns.
+    double gate = options_.gate_px + gate_growth_px_ * gap +
+                  options_.gate_speed_fraction * active_[i].velocity.norm() * (gap + 1);
     if (active_[i].hits < 2)
       gate = std::max(gate, options_.gate_px + new_track_speed_px_ * (gap + 1));
     for (size_t j = 0; j < blobs.size(); ++j) {

@@ -191,12 +191,17 @@ class ChangeDetector {
 struct BlobTrackOptions {
   double gate_px = 3;  // a blob continues a track within this of its predicted position,
   double gate_growth_px_s = 6.25;  // growing by this for each second unseen after the first frame
-  double max_gap_s = 0.4;          // time a track may go without a blob [2 frames]
-  double min_duration_s = 1;       // blobs seen this long before a track can be confirmed [3]
-  double min_hit_fraction = 0.6;   // of the frames since the track began
-  double min_travel_px = 4;        // ground-relative displacement of the straight-line fit
-  double max_fit_rms_px = 1.2;     // positions about that line, at most (steady motion)
-  double max_speed_px_s = 50;      // faster things are the feature tracks' (cars)
+  // ... and by this fraction of the track's own displacement since its last blob: between frames
+  // a second apart a car turning at a junction leaves its straight-line prediction by a good part
+  // of the 50-80 px it moved (the low-frame-rate mode sets it; at video rates a frame's
+  // displacement is a pixel or two and it would change nothing).
+  double gate_speed_fraction = 0;
+  double max_gap_s = 0.4;         // time a track may go without a blob [2 frames]
+  double min_duration_s = 1;      // blobs seen this long before a track can be confirmed [3]
+  double min_hit_fraction = 0.6;  // of the frames since the track began
+  double min_travel_px = 4;       // ground-relative displacement of the straight-line fit
+  double max_fit_rms_px = 1.2;    // positions about that line, at most (steady motion)
+  double max_speed_px_s = 50;     // faster things are the feature tracks' (cars)
   // A track seen once has no velocity yet: its next blob may lie up to this far a second from it
   // (a plausible top speed; 0: the gate of the others). The low-frame-rate mode sets it, where a
   // car moves tens of pixels between frames.
