@@ -445,16 +445,23 @@ TEST(BlobTrackerTest, NoisyVideoAsksForMoreTravel) {
   EXPECT_EQ(confirmed(3), 0);    // less than 12 px
 }
 
+// Blob tracks at 1 frame a second: a gate and a top speed for cars 60 px a second apart.
+BlobTrackOptions OneFrameASecondOptions() {
+  BlobTrackOptions options;
+  options.gate_px = 8;
+  options.max_fit_rms_px = 3;
+  options.max_speed_px_s = 250;
+  options.new_track_speed_px_s = 250;
+  return options;
+}
+
 // At 1 frame a second a car moves tens of pixels between frames: a track seen once has no velocity
 // to predict it with, so only a gate that follows a plausible top speed (new_track_speed_px_s, as
 // the low-frame-rate mode sets) lets the second sighting continue it.
 TEST(BlobTrackerTest, AtOneFrameASecondACarIsFollowedWithATopSpeedGate) {
   const FrameRate rate(1);
   const auto follow = [&](double new_track_speed_px_s) {
-    BlobTrackOptions options;
-    options.gate_px = 8;
-    options.max_fit_rms_px = 3;
-    options.max_speed_px_s = 250;
+    BlobTrackOptions options = OneFrameASecondOptions();
     options.new_track_speed_px_s = new_track_speed_px_s;
     BlobTracker tracker(options, rate);
     std::mt19937 random(3);
@@ -484,12 +491,9 @@ TEST(BlobTrackerTest, AtOneFrameASecondACarIsFollowedWithATopSpeedGate) {
 TEST(BlobTrackerTest, AtOneFrameASecondATurningCarStaysOneTrack) {
   const FrameRate rate(1);
   const auto follow = [&](double gate_speed_fraction) {
-    BlobTrackOptions options;
-    options.gate_px = 8;
+    BlobTrackOptions options = OneFrameASecondOptions();
     options.gate_growth_px_s = 20;
     options.max_fit_rms_px = 30;  // the turn is far from a line; confirmation is not the point
-    options.max_speed_px_s = 250;
-    options.new_track_speed_px_s = 250;
     options.gate_speed_fraction = gate_speed_fraction;
     BlobTracker tracker(options, rate);
     // 60 px a second on the ground, bending by 10 degrees a second (70 degrees in all).
