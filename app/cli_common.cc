@@ -130,7 +130,7 @@ CLI::Option* AddLowFrameRateOption(CLI::App* command, frontend::LowFrameRateOpti
           "Targets from change detection alone (each frame against its registered neighbours, "
           "the edges of a fast pan against the two frames on the side that sees them), tracked "
           "with a motion model and gates that follow a plausible top speed (feature tracks a "
-          "second apart do not label motion): auto (below 4 frames a second), on or off "
+          "second apart do not label motion): auto (below 8 frames a second), on or off "
           "(docs/front-end.md, Low frame rates)")
       ->check(CLI::IsMember(names))
       ->type_name("MODE")

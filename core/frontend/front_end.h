@@ -60,7 +60,10 @@ struct FrontEndCheckpoint;
 struct LowFrameRateOptions {
   enum class Mode { kAuto, kOn, kOff };
   Mode mode = Mode::kAuto;
-  double below_fps = 4;  // kAuto: the mode runs for videos of fewer frames a second than this
+  // kAuto: the mode runs for videos of fewer frames a second than this. At 5 frames a second it
+  // finds much more than the feature targets, at 10 about as much, at 25 less (tuning seeds,
+  // 2026-11-29; docs/front-end.md, Low frame rates).
+  double below_fps = 8;
   // Change blobs up to this size (processing pixels: the change detector's copy, 960 wide by
   // default) are targets: at 0.2 m a pixel a car is ~110, a lorry ~400.
   int max_blob_area_px = 600;
