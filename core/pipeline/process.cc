@@ -142,14 +142,20 @@ std::string ProcessSummary::ToText() const {
     out << line;
   }
   if (noise.raised()) {
-    std::snprintf(line, sizeof(line),
-                  "noise: the video's own noise (heavy compression?) raised the motion thresholds "
-                  "in %lld of %lld frames (features: up to %.2g px; change: %.2g grey levels, "
-                  "%.2g px of misregistration); slow and small targets may be missed\n",
-                  static_cast<long long>(std::max(noise.feature_frames, noise.change_frames)),
-                  static_cast<long long>(frames), noise.residual_threshold_px,
-                  noise.change_noise_grey, noise.change_registration_px);
-    out << line;
+    // Only the tests whose thresholds were raised (infrared raises the change noise alone).
+    std::string raised;
+    if (noise.feature_frames > 0) {
+      std::snprintf(line, sizeof(line), "features: up to %.2g px", noise.residual_threshold_px);
+      raised = line;
+    }
+    if (noise.change_frames > 0) {
+      std::snprintf(line, sizeof(line), "change: %.2g grey levels, %.2g px of misregistration",
+                    noise.change_noise_grey, noise.change_registration_px);
+      raised += (raised.empty() ? "" : "; ") + std::string(line);
+    }
+    out << "noise: the video's own noise (heavy compression?) raised the motion thresholds in "
+        << std::max(noise.feature_frames, noise.change_frames) << " of " << frames << " frames ("
+        << raised << "); slow and small targets may be missed\n";
   }
   if (polarity_switches > 0) {
     out << "thermal polarity: " << polarity_switches

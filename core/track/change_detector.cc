@@ -3,6 +3,7 @@
 #include "core/track/homography.h"
 #include "core/util/byte_io.h"
 #include "core/util/check.h"
+#include "core/util/statistics.h"
 
 #include <Eigen/Geometry>
 #include <Eigen/LU>
@@ -283,8 +284,7 @@ void ChangeDetector::MeasureNoise(Entry* centre, const Other& other, const cv::M
       static_cast<int>(std::sqrt(static_cast<double>(centre->grey.total()) / 20000.0)), 1, 5);
   centre->noise = centre->registration = -1;
   if (options_.measured_noise_multiple <= 0 && options_.measured_registration_multiple <= 0) return;
-  flat_.clear();
-  steep_.clear();
+  std::vector<double> flat, steep;
   const cv::Mat& image = centre->grey;
   for (int y = 1; y + 1 < image.rows; y += step) {
     const uint8_t* c = image.ptr<uint8_t>(y);
@@ -295,19 +295,20 @@ void ChangeDetector::MeasureNoise(Entry* centre, const Other& other, const cv::M
       const float d = std::abs(static_cast<float>(c[x]) - other.gain * static_cast<float>(w[x]));
       const float g = std::sqrt(GradientSquared(other.warped, x, y));
       if (g < kFlatGradient) {
-        flat_.push_back(d);
+        flat.push_back(d);
       } else if (g > kSteepGradient) {
-        steep_.push_back(d / g);
+        steep.push_back(d / g);
       }
     }
   }
-  const auto spread = [](std::vector<float>* samples) {
-    const auto middle = samples->begin() + static_cast<std::ptrdiff_t>(samples->size() / 2);
-    std::nth_element(samples->begin(), middle, samples->end());
-    return 1.4826f * *middle;
-  };
-  if (flat_.size() >= kMinSamples) centre->noise = spread(&flat_);
-  if (steep_.size() >= kMinSamples) centre->registration = spread(&steep_);
+  // The robust spread of a zero-mean difference: 1.4826 times its median absolute value.
+  constexpr double kMadToSigma = 1.4826;
+  if (flat.size() >= kMinSamples) {
+    centre->noise = static_cast<float>(kMadToSigma * Median(std::move(flat)));
+  }
+  if (steep.size() >= kMinSamples) {
+    centre->registration = static_cast<float>(kMadToSigma * Median(std::move(steep)));
+  }
 }
 
 void ChangeDetector::SetAllowances() {
@@ -316,14 +317,11 @@ void ChangeDetector::SetAllowances() {
   // The median of the measured frames held (from the frame after the centre on nothing is
   // measured yet); a resumed run holds the same frames, so it measures the same.
   const auto median = [this](float Entry::*field) {
-    flat_.clear();
+    std::vector<double> measured;
     for (const Entry& e : history_) {
-      if (e.*field >= 0) flat_.push_back(e.*field);
+      if (e.*field >= 0) measured.push_back(e.*field);
     }
-    if (flat_.empty()) return 0.f;
-    const auto middle = flat_.begin() + static_cast<std::ptrdiff_t>(flat_.size() / 2);
-    std::nth_element(flat_.begin(), middle, flat_.end());
-    return *middle;
+    return static_cast<float>(Median(std::move(measured)));  // 0 when none
   };
   noise_ = std::max(noise_,
                     static_cast<float>(options_.measured_noise_multiple) * median(&Entry::noise));

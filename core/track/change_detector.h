@@ -183,7 +183,6 @@ class ChangeDetector {
   std::vector<cv::Point> seeds_, fill_;  // the changed pixels; those waiting to be filled
   cv::Mat strength_;                     // CV_32F signed change of the changed pixels
   float noise_ = 0, allowance_ = 0;      // the allowances in force (SetAllowances)
-  std::vector<float> flat_, steep_;      // MeasureNoise's samples
 };
 
 // Durations in seconds, speeds in pixels a second (FrameRate), floors in frames in brackets; the

@@ -1,5 +1,7 @@
 #include "core/track/motion_segmentation.h"
 
+#include "core/util/statistics.h"
+
 #include <Eigen/Geometry>
 
 #include <algorithm>
@@ -77,14 +79,6 @@ double MotionSegmenter::window_displacement_px() const {
 
 namespace {
 
-// The median of `samples` (reordered); 0 when empty.
-double Median(std::vector<double>* samples) {
-  if (samples->empty()) return 0;
-  const auto middle = samples->begin() + static_cast<std::ptrdiff_t>(samples->size() / 2);
-  std::nth_element(samples->begin(), middle, samples->end());
-  return *middle;
-}
-
 // A running mean that starts at its first sample.
 void Smooth(double sample, double weight, double* mean) {
   *mean = *mean > 0 ? *mean + weight * (sample - *mean) : sample;
@@ -148,11 +142,11 @@ void MotionSegmenter::AddFrame(const std::vector<Correspondence>& matches,
   }
   if (options_.noise_multiple > 0 &&
       short_samples_.size() >= static_cast<size_t>(options_.min_noise_features)) {
-    Smooth(Median(&short_samples_), noise_weight_, &noise_short_);
+    Smooth(Median(short_samples_), noise_weight_, &noise_short_);
   }
   if (options_.window_noise_multiple > 0 &&
       window_samples_.size() >= static_cast<size_t>(options_.min_noise_features)) {
-    Smooth(Median(&window_samples_), noise_weight_, &noise_window_);
+    Smooth(Median(window_samples_), noise_weight_, &noise_window_);
   }
   const double threshold = residual_threshold_px();
   const double displacement = window_displacement_px();
