@@ -59,18 +59,24 @@ std::optional<HorizonLine> FindHorizon(const cv::Mat& grey, const HorizonOptions
   double best_score = 0;
   double best_y = 0, best_slope = 0, best_sky = 0, best_ground = 0;
   const int steps = static_cast<int>(std::floor(options.max_tilt_deg / kTiltStepDeg + 1e-9));
+  std::vector<int> shift(static_cast<size_t>(width));
   for (int k = -steps; k <= steps; ++k) {
     const double slope = std::tan(k * kTiltStepDeg * M_PI / 180.0);
     // Each pixel falls in the bucket of its line offset at the centre, y - slope (x - centre_x).
     const int offset = static_cast<int>(std::ceil(std::abs(slope) * centre_x)) + 1;
     const int buckets = height + 2 * offset + 1;
+    // Row y's pixel x goes to bucket y + shift[x] - 1 (the offset keeps it in 0 .. buckets - 1):
+    // the column's part of the rounding is computed once per line, not per pixel (this search
+    // took 8 % of the front end's time on a nadir view).
     std::vector<Moments> sums(static_cast<size_t>(buckets) + 1, Moments{});
+    for (int x = 0; x < width; ++x) {
+      shift[static_cast<size_t>(x)] =
+          static_cast<int>(std::floor(0.5 - slope * (x - centre_x))) + offset + 1;
+    }
     for (int y = 0; y < height; ++y) {
       const float* row = texture.ptr<float>(y);
       for (int x = 0; x < width; ++x) {
-        const double key = y - slope * (x - centre_x);
-        const int b = std::clamp(static_cast<int>(std::floor(key + 0.5)) + offset, 0, buckets - 1);
-        Moments& m = sums[static_cast<size_t>(b) + 1];
+        Moments& m = sums[static_cast<size_t>(y + shift[static_cast<size_t>(x)])];
         m[0] += 1, m[1] += row[x];
       }
     }
