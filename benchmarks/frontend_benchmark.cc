@@ -3,7 +3,7 @@
 // memory.
 //
 //   saker-bench-frontend [--seconds S] [--json] [--compare-overlays] [--compare-low-frame-rate]
-//                        [--compare-colour] [--compare-noise]
+//                        [--compare-colour] [--compare-noise] [--compare-evidence]
 //   saker-bench-frontend --memory-minutes M [--memory-height H] [--memory-repeat R]
 //
 // --memory-minutes measures memory instead: it simulates M minutes of video once (1280x720, or
@@ -30,6 +30,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <iostream>
 #include <string>
 #include <vector>
@@ -261,6 +262,11 @@ int main(int argc, char** argv) {
                "Also run the front end with the fixed motion thresholds alone "
                "(FrontEndOptions::UseFixedThresholds) and with those that follow the measured "
                "noise on the same video, for the cost of measuring it in the same run");
+  bool compare_evidence = false;
+  app.add_flag("--compare-evidence", compare_evidence,
+               "Also run the front end without the change detector's evidence pair "
+               "(ChangeOptions::evidence_baseline_s 0) and with it on the same video, for its "
+               "cost in the same run");
   CLI11_PARSE(app, argc, argv);
   if (memory_minutes > 0) return MeasureMemory(memory_minutes, memory_height, memory_repeat);
 
@@ -336,18 +342,30 @@ int main(int argc, char** argv) {
       options.overlays.enabled = overlays;
       if (!run(sim, decode_fps, options, overlays ? "overlays on" : "overlays off")) return 1;
     }
-    for (const bool colour : compare_colour ? std::vector{false, true} : std::vector<bool>{}) {
-      saker::frontend::FrontEndOptions options;
-      options.key_frame_colour = colour;
-      if (!run(sim, decode_fps, options, colour ? "colour key frames" : "grey key frames")) {
-        return 1;
-      }
-    }
-    for (const bool measured : compare_noise ? std::vector{false, true} : std::vector<bool>{}) {
-      saker::frontend::FrontEndOptions options;
-      if (!measured) options.UseFixedThresholds();
-      if (!run(sim, decode_fps, options, measured ? "measured noise" : "fixed thresholds")) {
-        return 1;
+    // The A/B comparisons asked for: the option off, then on, on the same video.
+    struct Comparison {
+      bool asked;
+      const char* off;
+      const char* on;
+      std::function<void(bool, saker::frontend::FrontEndOptions*)> set;
+    };
+    const std::vector<Comparison> comparisons = {
+        {compare_colour, "grey key frames", "colour key frames",
+         [](bool on, auto* o) { o->key_frame_colour = on; }},
+        {compare_noise, "fixed thresholds", "measured noise",
+         [](bool on, auto* o) {
+           if (!on) o->UseFixedThresholds();
+         }},
+        {compare_evidence, "no evidence pair", "evidence pair",
+         [](bool on, auto* o) {
+           if (!on) o->change.evidence_baseline_s = 0;
+         }},
+    };
+    for (const Comparison& c : comparisons) {
+      for (const bool on : c.asked ? std::vector{false, true} : std::vector<bool>{}) {
+        saker::frontend::FrontEndOptions options;
+        c.set(on, &options);
+        if (!run(sim, decode_fps, options, on ? c.on : c.off)) return 1;
       }
     }
     if (!compare_low_frame_rate) continue;

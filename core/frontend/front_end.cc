@@ -54,7 +54,8 @@ constexpr uint32_t kStateLayoutWithoutOverlays = 1;
 // its answers not yet applied there (kChangeLagFrames of them) and the image history each needs.
 int ChangeReplayFrames(const track::ChangeOptions& change, track::FrameRate rate) {
   if (!change.enabled) return 0;
-  return static_cast<int>(kChangeLagFrames) + 2 * track::ChangeDetector::LagFrames(change, rate);
+  return static_cast<int>(kChangeLagFrames) + track::ChangeDetector::HistoryFrames(change, rate) -
+         1;
 }
 
 // Decoding on a thread of its own: ingest::ScanVideo reads every frame and KLV packet of the
@@ -985,6 +986,7 @@ track::ChangeOptions FrontEndOptions::EffectiveChange(double fps) const {
   if (LowFrameRateFor(fps)) {
     effective.max_area_px = std::max(effective.max_area_px, low_frame_rate.max_blob_area_px);
     effective.one_sided_edges = low_frame_rate.one_sided_edges;
+    effective.evidence_baseline_s = 0;  // no feature targets to give evidence to
   }
   return effective;
 }

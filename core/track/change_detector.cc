@@ -68,9 +68,11 @@ float MeanGain(const cv::Mat& centre, const cv::Mat& warped, const cv::Mat& cove
 }  // namespace
 
 Status ChangeOptions::Validate() const {
-  if (!(baseline_s > 0 && baseline_s <= 60) || !(long_baseline_s >= 0 && long_baseline_s <= 60)) {
+  if (!(baseline_s > 0 && baseline_s <= 60) ||
+      !(evidence_baseline_s >= 0 && evidence_baseline_s <= 60)) {
     return InvalidArgumentError(
-        "change detection: the baseline must be in (0, 60] s and the long one in [0, 60] s");
+        "change detection: the baseline must be in (0, 60] s and the evidence baseline in [0, 60] "
+        "s");
   }
   if (processing_width < 0) {
     return InvalidArgumentError("change detection: the processing width must be >= 0");
@@ -100,22 +102,27 @@ ChangeDetector::ChangeDetector(const ChangeOptions& options, FrameRate rate) : o
   SAKER_CHECK(options_.Validate().ok()) << options_.Validate().message();
   for (const int b : BaselineFrames(options, rate)) baselines_.push_back(static_cast<size_t>(b));
   lag_ = static_cast<size_t>(LagFrames(options, rate));
+  history_frames_ = static_cast<size_t>(HistoryFrames(options, rate));
 }
 
 std::vector<int> ChangeDetector::BaselineFrames(const ChangeOptions& options, FrameRate rate) {
-  constexpr int kMaxBaselineFrames = 100;  // 201 frames held, at most
+  constexpr int kMaxBaselineFrames = 100;
   std::vector<int> frames = {std::min(rate.Frames(options.baseline_s, 1), kMaxBaselineFrames)};
-  if (options.long_baseline_s > 0) {
-    const int long_frames = std::min(rate.Frames(options.long_baseline_s, 1), kMaxBaselineFrames);
-    if (long_frames > frames[0]) frames.push_back(long_frames);
+  if (options.evidence_baseline_s > 0 && !options.one_sided_edges) {
+    const int evidence = std::min(rate.Frames(options.evidence_baseline_s, 1), kMaxBaselineFrames);
+    if (evidence > frames[0]) frames.push_back(evidence);
   }
   return frames;
 }
 
 int ChangeDetector::LagFrames(const ChangeOptions& options, FrameRate rate) {
-  const std::vector<int> baselines = BaselineFrames(options, rate);
-  return options.one_sided_edges ? std::max(baselines.back(), 2 * baselines.front())
-                                 : baselines.back();
+  const int b = BaselineFrames(options, rate).front();
+  return options.one_sided_edges ? 2 * b : b;
+}
+
+int ChangeDetector::HistoryFrames(const ChangeOptions& options, FrameRate rate) {
+  const int lag = LagFrames(options, rate);
+  return std::max(lag, BaselineFrames(options, rate).back()) + 1 + lag;
 }
 
 void ChangeDetector::Reset() { history_.clear(); }
@@ -132,36 +139,48 @@ ChangeFrame ChangeDetector::Process(int64_t frame, const cv::Mat& grey,
   if (grey.size() != full_size_) SetFrameSize(grey.size());
   if (!current_from_previous || !current_from_previous->allFinite()) history_.clear();
 
-  // The centre frame is the one lag_ back; each baseline compares it with the frames that many
-  // before and after it.
-  const std::vector<size_t>& baselines = baselines_;
-  const size_t c = lag_;
-  Remember(frame, grey, current_from_previous, 2 * c + 1);
-  if (history_.size() < 2 * c + 1) return result;
+  // The centre frame is the one lag_ back, compared with the frames a baseline before and after
+  // it; the history also holds the frames an evidence baseline before it.
+  Remember(frame, grey, current_from_previous, history_frames_);
+  if (history_.size() < 2 * lag_ + 1) return result;
+  const size_t c = history_.size() - 1 - lag_;
+  const size_t b = baselines_.front();
   const Entry& centre = history_[c];
 
-  // Per pair: the two frames, and where both cover the centre frame. The centred pairs first.
+  // Per pair: the two frames, and where both cover the centre frame. The centred pair first.
   // The answer's masks are its own (allocated here, never reused by the detector).
-  cv::Mat valid(small_size_, CV_8U, cv::Scalar(0));
+  cv::Mat valid;
   const auto compare = [&](size_t i, size_t first, size_t second) {
     if (!Warp(first, c, &pairs_[i][0]) || !Warp(second, c, &pairs_[i][1])) return false;
     cv::bitwise_and(pairs_[i][0].cover, pairs_[i][1].cover, covers_[i]);
     return true;
   };
-  pairs_.resize(baselines.size());
-  covers_.resize(baselines.size());
-  for (size_t i = 0; i < baselines.size(); ++i) {
-    if (!compare(i, c - baselines[i], c + baselines[i])) {
-      return result;  // a degenerate motion: no answer for this frame
+  pairs_.resize(1);
+  covers_.resize(1);
+  if (!compare(0, c - b, c + b)) return result;  // a degenerate motion: no answer for this frame
+  covers_[0].copyTo(valid);
+  // The evidence pair: the frame an evidence baseline before and the one a baseline after, the
+  // centred pair's, already warped (shared, not copied, as below). Where the centred pair cannot
+  // look, the evidence pair does not count as looking (`valid`).
+  evidence_pair_ = -1;
+  if (baselines_.size() == 2 && c >= baselines_.back()) {
+    pairs_.resize(2);
+    covers_.resize(2);
+    pairs_[1][1] = pairs_[0][1];
+    if (Warp(c - baselines_.back(), c, &pairs_[1][0])) {
+      cv::bitwise_and(pairs_[1][0].cover, pairs_[1][1].cover, covers_[1]);
+      evidence_pair_ = 1;
+    } else {
+      pairs_.resize(1);
+      covers_.resize(1);
     }
-    cv::bitwise_or(valid, covers_[i], valid);
   }
   // The one-sided pairs, only where the centred ones cannot look and only when that is a good part
   // of the frame; the frame two baselines away has twice the allowance.
   const double uncovered =
       1.0 - static_cast<double>(cv::countNonZero(valid)) / static_cast<double>(valid.total());
   if (options_.one_sided_edges && uncovered >= options_.one_sided_min_uncovered) {
-    const size_t b = baselines.front(), before = baselines.size(), after = before + 1;
+    const size_t before = pairs_.size(), after = before + 1;
     pairs_.resize(before + 2);
     covers_.resize(before + 2);
     // The frames a baseline away are the short centred pair's, already warped (shared, not
@@ -183,7 +202,8 @@ ChangeFrame ChangeDetector::Process(int64_t frame, const cv::Mat& grey,
   }
   MeasureNoise(&history_[c], pairs_[0][0], covers_[0]);
   SetAllowances();
-  cv::Mat changed = MarkChanged(centre.grey);
+  cv::Mat evidence_changed;
+  cv::Mat changed = MarkChanged(centre.grey, &evidence_changed);
   result.noise_grey = noise_;
   result.registration_px = allowance_;
   result.allowances_raised = noise_ > static_cast<float>(options_.noise_grey) ||
@@ -192,6 +212,7 @@ ChangeFrame ChangeDetector::Process(int64_t frame, const cv::Mat& grey,
   result.frame = centre.frame;
   result.frame_motion = centre.motion;
   result.changed = std::move(changed);
+  result.evidence_changed = std::move(evidence_changed);
   result.valid = std::move(valid);
   result.scale = scale_;
   return result;
@@ -336,7 +357,7 @@ void ChangeDetector::SetAllowances() {
 // centre frame, while the ground it walked onto is what the others show there. The gradient is
 // computed only where the sensor noise alone is exceeded: a small part of the frame. Returns the
 // mask of changed pixels; strength_ holds their signed change.
-cv::Mat ChangeDetector::MarkChanged(const cv::Mat& image) {
+cv::Mat ChangeDetector::MarkChanged(const cv::Mat& image, cv::Mat* evidence_changed) {
   const float noise = noise_, allowance = allowance_;
   const float threshold = static_cast<float>(options_.threshold);
   const float quick = threshold * noise;
@@ -346,6 +367,7 @@ cv::Mat ChangeDetector::MarkChanged(const cv::Mat& image) {
            threshold * threshold * (noise * noise + a * a * GradientSquared(other.warped, x, y));
   };
   cv::Mat changed(small_size_, CV_8U, cv::Scalar(0));
+  if (evidence_pair_ >= 0) evidence_changed->create(small_size_, CV_8U), evidence_changed->setTo(0);
   strength_.create(small_size_, CV_32F);
   strength_.setTo(0);
   // Two passes per row: a branch-free one marks the pixels whose differences agree in sign and
@@ -353,9 +375,13 @@ cv::Mat ChangeDetector::MarkChanged(const cv::Mat& image) {
   // mispredicted half the time); the gradient test then runs on those few. 2.9 -> 1.1 ms a frame
   // at 960x540, with the same answer.
   std::vector<uint8_t> candidate(static_cast<size_t>(small_size_.width));
+  const cv::Mat no_strength(1, small_size_.width, CV_32F, cv::Scalar(0));
   for (size_t i = 0; i < pairs_.size(); ++i) {
     const Other& before = pairs_[i][0];
     const Other& after = pairs_[i][1];
+    // The evidence pair's changes go to their own mask, never to the blobs.
+    const bool evidence_only = static_cast<int>(i) == evidence_pair_;
+    cv::Mat& mask = evidence_only ? *evidence_changed : changed;
     // Only where the pair compares: the whole frame for a centred pair, a band at an edge for a
     // one-sided one.
     const cv::Rect area = cv::boundingRect(covers_[i]);
@@ -364,8 +390,10 @@ cv::Mat ChangeDetector::MarkChanged(const cv::Mat& image) {
       const uint8_t* w0 = before.warped.ptr<uint8_t>(y);
       const uint8_t* w1 = after.warped.ptr<uint8_t>(y);
       const uint8_t* v = covers_[i].ptr<uint8_t>(y);
-      uint8_t* out = changed.ptr<uint8_t>(y);
-      float* s = strength_.ptr<float>(y);
+      uint8_t* out = mask.ptr<uint8_t>(y);
+      // The strongest change marked so far (none for the evidence, which has its own mask).
+      const float* s = evidence_only ? no_strength.ptr<float>(0) : strength_.ptr<float>(y);
+      float* strength = strength_.ptr<float>(y);
       for (int x = area.x; x < area.x + area.width; ++x) {
         const float d0 = static_cast<float>(c[x]) - before.gain * static_cast<float>(w0[x]);
         const float d1 = static_cast<float>(c[x]) - after.gain * static_cast<float>(w1[x]);
@@ -380,9 +408,10 @@ cv::Mat ChangeDetector::MarkChanged(const cv::Mat& image) {
         if (!significant(d0, before, x, y) || !significant(d1, after, x, y)) {
           continue;
         }
-        const float a = std::min(std::abs(d0), std::abs(d1));
         out[x] = 255;
-        s[x] = d0 > 0 ? a : -a;
+        if (evidence_only) continue;
+        const float a = std::min(std::abs(d0), std::abs(d1));
+        strength[x] = d0 > 0 ? a : -a;
       }
     }
   }
@@ -456,8 +485,11 @@ bool ChangeFrame::ChangedNear(const Eigen::Vector2d& p, double radius_px) const 
             y1 = std::min(changed.rows - 1, static_cast<int>(std::ceil(q.y() + r)));
   for (int y = y0; y <= y1; ++y) {
     const uint8_t* row = changed.ptr<uint8_t>(y);
+    const uint8_t* row_long = evidence_changed.empty() ? row : evidence_changed.ptr<uint8_t>(y);
     for (int x = x0; x <= x1; ++x) {
-      if (row[x] != 0 && (Eigen::Vector2d(x, y) - q).squaredNorm() <= r * r) return true;
+      if ((row[x] | row_long[x]) != 0 && (Eigen::Vector2d(x, y) - q).squaredNorm() <= r * r) {
+        return true;
+      }
     }
   }
   return false;

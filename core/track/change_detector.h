@@ -44,8 +44,14 @@ struct ChangeOptions {
   // A frame is compared with those this long before and after [1 frame, at most 100 frames]: the
   // default is the 12 frames tuned at 25 frames a second.
   double baseline_s = 0.48;
-  double long_baseline_s = 0;  // ... and also this long (0: no second baseline), for slower or
-                               // longer movers (a walker and its shadow)
+  // The targets' change evidence (ChangedNear) also compares the frame with the one this long
+  // before it and the one a baseline after it [1 frame, at most 100 frames; 0: off; never with
+  // `one_sided_edges`]. A walker and its shadow make one dark streak along its motion, and a
+  // streak of length L moving d a baseline leaves no pixel that differs from both frames a
+  // baseline away unless L < 2d; the frame this long before it shows the ground the streak's rear
+  // has left. The answer is not later (the frame after is the baseline's), and the pair's changes
+  // are evidence only, never blobs.
+  double evidence_baseline_s = 1.4;
   // Where the frames before and after do not both see the centre frame's ground (the edges of a
   // moving camera's view), also compare it with the two frames a baseline and two baselines
   // before it, or the two after it. Sound only for movers that leave their own outline within
@@ -102,7 +108,10 @@ struct ChangeFrame {
   std::vector<ChangeBlob> blobs;
   Eigen::Matrix3d frame_motion = Eigen::Matrix3d::Identity();  // ground motion into `frame` from
                                                                // the frame before (full resolution)
-  cv::Mat changed;   // CV_8U, processing size: non-zero where `frame` changed
+  cv::Mat changed;  // CV_8U, processing size: non-zero where `frame` changed
+  // The same from the evidence pair (ChangeOptions::evidence_baseline_s; empty without it):
+  // evidence under the targets only, never blobs.
+  cv::Mat evidence_changed;
   cv::Mat valid;     // CV_8U, processing size: non-zero where it could be compared
   double scale = 1;  // full-resolution pixels per processing pixel
   // The allowances the answer was made with (ChangeOptions: the fixed ones, or larger where the
@@ -110,7 +119,7 @@ struct ChangeFrame {
   double noise_grey = 0, registration_px = 0;
   bool allowances_raised = false;  // either is above the fixed one
   bool answered() const { return frame >= 0; }
-  // Whether a changed pixel lies within `radius_px` (full resolution) of `p`.
+  // Whether a changed pixel (of either mask) lies within `radius_px` (full resolution) of `p`.
   bool ChangedNear(const Eigen::Vector2d& p, double radius_px) const;
   // Whether `frame` could be compared at `p` (inside the overlap of the three frames).
   bool Compared(const Eigen::Vector2d& p) const;
@@ -120,19 +129,23 @@ class ChangeDetector {
  public:
   ChangeDetector(const ChangeOptions& options, FrameRate rate);
 
-  // The baselines at `rate`, in frames: the short one, then the long one when it is longer.
+  // The baselines at `rate`, in frames: the short one, then the evidence baseline when it is
+  // longer (and not with `one_sided_edges`).
   static std::vector<int> BaselineFrames(const ChangeOptions& options, FrameRate rate);
-  // How many frames the answer comes late: the longest baseline, or two short ones with
-  // `one_sided_edges`. The detector holds twice this plus one frames.
+  // How many frames the answer comes late: the baseline, or two with `one_sided_edges`.
   static int LagFrames(const ChangeOptions& options, FrameRate rate);
+  // How many frames the detector holds: the lag after the centre frame and the lag or the
+  // evidence baseline, the longer, before it.
+  static int HistoryFrames(const ChangeOptions& options, FrameRate rate);
 
   // One frame (8-bit grey, full resolution; frame indices increase). `current_from_previous` is
   // the ground motion since the previous frame in full-resolution pixels; nullopt when unknown
   // (the first frame of a chain segment): the comparison then starts again. The comparison is
   // centred: the answer belongs to the frame LagFrames() back (ChangeFrame::frame), compared with
-  // the frames each baseline before and after it (and, with `one_sided_edges`, where those do not
-  // both see it, with the two frames on the side that does); no answer (frame -1) while the
-  // segment is shorter than twice LagFrames().
+  // the frames a baseline before and after it (and, with `one_sided_edges`, where those do not
+  // both see it, with the two frames on the side that does; for the evidence, with the frame an
+  // evidence baseline before it once the segment reaches back that far); no answer (frame -1)
+  // while the segment is shorter than twice LagFrames().
   ChangeFrame Process(int64_t frame, const cv::Mat& grey,
                       const std::optional<Eigen::Matrix3d>& current_from_previous);
   void Reset();
@@ -165,15 +178,18 @@ class ChangeDetector {
   // `other`, then the allowances from the frames held.
   void MeasureNoise(Entry* centre, const Other& other, const cv::Mat& cover);
   void SetAllowances();
-  cv::Mat MarkChanged(const cv::Mat& image);
+  // Also marks `evidence_changed` from the evidence pair, when there is one.
+  cv::Mat MarkChanged(const cv::Mat& image, cv::Mat* evidence_changed);
   std::vector<ChangeBlob> FindBlobs(const cv::Mat& changed);
 
   ChangeOptions options_;
   std::vector<size_t> baselines_;  // BaselineFrames(), shortest first
-  size_t lag_ = 0;                 // LagFrames(): the centre frame's place in the history
+  size_t lag_ = 0;                 // LagFrames(): the centre frame's place from the newest
+  size_t history_frames_ = 0;      // HistoryFrames()
+  int evidence_pair_ = -1;         // the index in pairs_ of the evidence pair, or -1
   cv::Size full_size_, small_size_;
   double scale_ = 1;           // full / processing
-  std::deque<Entry> history_;  // the last 2 x lag_ + 1 frames of the segment
+  std::deque<Entry> history_;  // the segment's last frames, at most history_frames_
   // Buffers reused from frame to frame (the masks handed out are allocated per answer).
   // Per baseline: before and after; then, with one_sided_edges, the two frames before and the two
   // after.

@@ -238,6 +238,50 @@ TEST(ChangeDetectorTest, NoGhostBehindASlowLongMover) {
   EXPECT_GT(checked, 30);
 }
 
+// A walker and its shadow seen from above: one dark streak ten pixels long moving along its length
+// at 0.3 px a frame (3.6 px in the 12-frame baseline). Every pixel of it is covered in the frame
+// before or the frame after, so the centred comparison marks nothing; the evidence pair (the frame
+// 1.4 s before, where the streak's rear has left the ground it covers now, and the frame after)
+// marks its rear, as evidence only: no blob, and the answer no later.
+TEST(ChangeDetectorTest, TheEvidencePairSeesAStreakMovingAlongItself) {
+  const cv::Mat ground = Ground();
+  const auto streak = [](int n) {
+    return Mover{Eigen::Vector2d(150, 60) + Eigen::Vector2d(0, 0.3) * n, Eigen::Vector2d(1.5, 5)};
+  };
+  const auto run = [&](const ChangeOptions& options, int* answered, int* with_evidence) {
+    std::mt19937 random(5);
+    ChangeDetector detector(options, kRate);
+    *answered = *with_evidence = 0;
+    for (int n = 0; n < 90; ++n) {
+      const ChangeFrame result =
+          detector.Process(n, Frame(ground, n, {streak(n)}, 1.0, &random),
+                           n == 0 ? std::nullopt : std::optional<Eigen::Matrix3d>(CameraMotion()));
+      if (!result.answered()) continue;
+      EXPECT_EQ(result.frame, n - 12) << "the evidence pair makes no answer later";
+      EXPECT_TRUE(result.blobs.empty()) << "frame " << result.frame;
+      ++*answered;
+      const int64_t f = result.frame;
+      const Eigen::Vector2d centre =
+          streak(static_cast<int>(f)).centre - kCameraStep * static_cast<double>(f);
+      *with_evidence += result.ChangedNear(centre, 5.0);
+      EXPECT_FALSE(result.ChangedNear(centre + Eigen::Vector2d(20, 0), 5.0));
+    }
+  };
+  ChangeOptions without = SmallFrameOptions();
+  without.evidence_baseline_s = 0;
+  int answered = 0, with_evidence = 0;
+  run(without, &answered, &with_evidence);
+  EXPECT_EQ(answered, 90 - 24);
+  EXPECT_LE(with_evidence, answered / 10) << "the centred comparison cannot see it";
+  const ChangeOptions with = SmallFrameOptions();
+  ASSERT_EQ(ChangeDetector::BaselineFrames(with, kRate), (std::vector<int>{12, 35}));
+  EXPECT_EQ(ChangeDetector::HistoryFrames(with, kRate), 35 + 1 + 12);
+  run(with, &answered, &with_evidence);
+  EXPECT_EQ(answered, 90 - 24);
+  // From the frame 35 frames into the segment on, the streak is seen.
+  EXPECT_GE(with_evidence, (90 - 12 - 35) * 9 / 10);
+}
+
 // A camera that moves a sixth of its frame between frames (one frame a second): the frames before
 // and after both see only the middle two thirds. With one_sided_edges a mover on the ground that
 // only the later frames see (the leading edge) is found by comparing with the two frames after,
