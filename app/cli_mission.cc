@@ -132,13 +132,13 @@ int ProcessCommand::RunOn(const std::string& video, const std::string& mission,
                                 {"tracks_low_confidence", p.tracks_low_confidence},
                                 {"tiles", p.tiles},
                                 {"geo_referenced", p.geo_referenced},
-                                {"low_frame_rate", p.low_frame_rate},
+                                {"low_frame_rate", p.findings.low_frame_rate},
                                 {"overlay_frames", p.overlay_frames},
                                 {"overlay_coverage", p.overlay_coverage},
-                                {"polarity_switches", p.polarity_switches},
+                                {"polarity_switches", p.findings.polarity_switches},
                                 {"horizon_frames", p.horizon_frames},
-                                {"noise_feature_frames", p.noise.feature_frames},
-                                {"noise_change_frames", p.noise.change_frames},
+                                {"noise_feature_frames", p.findings.noise_feature_frames},
+                                {"noise_change_frames", p.findings.noise_change_frames},
                                 {"front_end_s", p.front_end_s},
                                 {"mosaic_s", p.mosaic_s},
                                 {"activity_s", p.activity_s},
@@ -316,9 +316,10 @@ InfoCommand::InfoCommand(CLI::App& app) : state_(std::make_unique<State>()) {
       "info",
       "What a mission holds: its video (and whether it is still where it was, which frame\n"
       "recall needs), the stages completed, frames, the screen-fixed overlay masks and the\n"
-      "frames whose sky was masked (low oblique views), key frames, links, tracks by visit and\n"
-      "confidence, the map frame and the mosaic pyramid. Opens the file read-only; never\n"
-      "reprocesses.");
+      "frames whose sky was masked (low oblique views), what else the front end found (the\n"
+      "low-frame-rate mode, thresholds raised by the video's noise, thermal polarity\n"
+      "switches), key frames, links, tracks by visit and confidence, the map frame and the\n"
+      "mosaic pyramid. Opens the file read-only; never reprocesses.");
   s.command->add_option("MISSION", s.mission, "Mission file (.saker)")->required();
   s.command->add_flag("--json", s.json, "Print as JSON");
 }
@@ -424,6 +425,15 @@ int InfoCommand::Run() const {
                           {"tiles", p.tiles}}},
                         {"cancelled", p.cancelled}};
     if (sky_kept) j["sky_frames"] = sky_frames;
+    if (const std::optional<mission::FrontEndFindings>& f = m->findings) {
+      j["findings"] = {{"low_frame_rate", f->low_frame_rate},
+                       {"polarity_switches", f->polarity_switches},
+                       {"noise_feature_frames", f->noise_feature_frames},
+                       {"noise_change_frames", f->noise_change_frames},
+                       {"noise_feature_px", f->noise_feature_px},
+                       {"noise_change_grey", f->noise_change_grey},
+                       {"noise_change_registration_px", f->noise_change_registration_px}};
+    }
     j["reviews"] = {{"confirmed", reviews.confirmed},
                     {"false", reviews.marked_false},
                     {"labelled", reviews.labelled},
@@ -495,6 +505,18 @@ int InfoCommand::Run() const {
     std::cout << sky_frames << " of " << m->frames.size()
               << " frames reach the horizon; their sky and distant ground are left out of the "
                  "mosaic\n";
+  }
+  std::cout << "  front end found: ";
+  if (!m->findings) {
+    std::cout << (p.front_end ? "not kept (written before Saker kept it)\n" : "not run yet\n");
+  } else if (const std::vector<std::string> found = pipeline::DescribeFindings(
+                 *m->findings, static_cast<int64_t>(m->frames.size()), m->source.frame_rate);
+             found.empty()) {
+    std::cout << "nothing unusual (full frame rate, thresholds not raised by noise)\n";
+  } else {
+    for (size_t i = 0; i < found.size(); ++i) {
+      std::cout << (i == 0 ? "" : "                   ") << found[i] << "\n";
+    }
   }
   std::cout << "  key frames: " << m->key_frames.size() << "; links:";
   for (const auto& [kind, n] : links) std::cout << " " << n << " " << kind;

@@ -1698,6 +1698,29 @@ void MainWindow::updateMissionFacts() {
                   ? tr("geo-referenced at %1")
                         .arg(LatLonText(m.map.origin->latitude_deg, m.map.origin->longitude_deg))
                   : QString::fromStdString(pipeline::DescribeMapFrame(m)));
+  // What the front end found about the video: masks, the low-frame-rate mode, noise, thermal
+  // polarity (the lines `saker-cli process` and `info` print).
+  QStringList found;
+  if (const mission::OverlayExtent overlays = mission::ExtentOf(m.overlays); overlays.frames > 0) {
+    found << tr("burned-in overlays masked out in %1 of %2 frames (%3 % of the image)")
+                 .arg(overlays.frames)
+                 .arg(m.frames.size())
+                 .arg(100 * overlays.coverage, 0, 'f', 1);
+  }
+  const auto sky =
+      std::count_if(m.frames.begin(), m.frames.end(),
+                    [](const mission::FrameRecord& f) { return f.sky_line.has_value(); });
+  if (sky > 0) {
+    found
+        << tr("sky above the horizon masked out in %1 of %2 frames").arg(sky).arg(m.frames.size());
+  }
+  if (m.findings) {
+    for (const std::string& line : pipeline::DescribeFindings(
+             *m.findings, static_cast<int64_t>(m.frames.size()), m.source.frame_rate)) {
+      found << FromStd(line).toHtmlEscaped();
+    }
+  }
+  if (!found.isEmpty()) html += row(tr("Front end"), found.join(QStringLiteral("<br>")));
   if (checkpoint_frame_ && !jobs_->isRunning()) {
     html += row(tr("Checkpoint"), checkpoint_complete_
                                       ? tr("front end finished")

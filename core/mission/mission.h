@@ -212,6 +212,19 @@ struct KlvSummary {
   bool bad_checksums_used = false;  // the job was told to use them (--accept-bad-checksums)
 };
 
+// What the front end found about the video itself (FrontEndResult), kept so that whoever opens
+// the mission later learns it too (saker-cli info, the GUI's mission facts); missions written
+// before 2026-11-29 have none.
+struct FrontEndFindings {
+  bool low_frame_rate = false;    // targets came from change detection alone (the video's rate)
+  int64_t polarity_switches = 0;  // a thermal camera's white-hot / black-hot switches
+  // How far the video's own noise raised the motion thresholds (frontend::VideoNoise): the frames
+  // whose feature thresholds and the change answers whose allowances were raised, and the largest
+  // thresholds used (pixels, grey levels, pixels of misregistration).
+  int64_t noise_feature_frames = 0, noise_change_frames = 0;
+  double noise_feature_px = 0, noise_change_grey = 0, noise_change_registration_px = 0;
+};
+
 // Which processing stages have completed (and been saved).
 struct Progress {
   bool front_end = false;
@@ -267,7 +280,8 @@ struct Mission {
   std::vector<LinkRecord> links;
   std::vector<ActivityTrack> tracks;
   std::optional<PyramidInfo> pyramid;
-  std::optional<KlvSummary> klv;  // set by the front end stage
+  std::optional<KlvSummary> klv;             // set by the front end stage
+  std::optional<FrontEndFindings> findings;  // set by the front end stage
   Progress progress;
   // The analyst's: reviews sorted by track id (none empty), bookmarks by id. Processing never
   // writes them (MissionStore::SaveReviews does).

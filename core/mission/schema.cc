@@ -193,6 +193,16 @@ constexpr const char* kKeyKlvPackets = "klv_packets";
 constexpr const char* kKeyKlvChecksumFailures = "klv_checksum_failures";
 constexpr const char* kKeyKlvBadChecksumsUsed = "klv_bad_checksums_used";
 
+constexpr const char* kKeyLowFrameRate = "findings_low_frame_rate";
+constexpr const char* kKeyPolaritySwitches = "findings_polarity_switches";
+constexpr const char* kKeyNoiseFeatureFrames = "findings_noise_feature_frames";
+constexpr const char* kKeyNoiseChangeFrames = "findings_noise_change_frames";
+constexpr const char* kKeyNoiseFeaturePx = "findings_noise_feature_px";
+constexpr const char* kKeyNoiseChangeGrey = "findings_noise_change_grey";
+constexpr const char* kKeyNoiseChangeRegistration = "findings_noise_change_registration_px";
+constexpr std::initializer_list<const char*> kFindingsKeys = {
+    kKeyLowFrameRate,   kKeyPolaritySwitches, kKeyNoiseFeatureFrames,     kKeyNoiseChangeFrames,
+    kKeyNoiseFeaturePx, kKeyNoiseChangeGrey,  kKeyNoiseChangeRegistration};
 constexpr std::initializer_list<const char*> kOriginKeys = {kKeyOriginLatitude, kKeyOriginLongitude,
                                                             kKeyOriginHeight};
 constexpr std::initializer_list<const char*> kKlvKeys = {kKeyKlvPackets, kKeyKlvChecksumFailures,
@@ -401,6 +411,15 @@ Status WriteHeader(const sqlite::Database& db, const Mission& m) {
     SAKER_RETURN_IF_ERROR(put_int(kKeyKlvPackets, m.klv->packets));
     SAKER_RETURN_IF_ERROR(put_int(kKeyKlvChecksumFailures, m.klv->checksum_failures));
     SAKER_RETURN_IF_ERROR(put_int(kKeyKlvBadChecksumsUsed, m.klv->bad_checksums_used ? 1 : 0));
+  }
+  if (const std::optional<FrontEndFindings>& f = m.findings) {
+    SAKER_RETURN_IF_ERROR(put_int(kKeyLowFrameRate, f->low_frame_rate ? 1 : 0));
+    SAKER_RETURN_IF_ERROR(put_int(kKeyPolaritySwitches, f->polarity_switches));
+    SAKER_RETURN_IF_ERROR(put_int(kKeyNoiseFeatureFrames, f->noise_feature_frames));
+    SAKER_RETURN_IF_ERROR(put_int(kKeyNoiseChangeFrames, f->noise_change_frames));
+    SAKER_RETURN_IF_ERROR(put_real(kKeyNoiseFeaturePx, f->noise_feature_px));
+    SAKER_RETURN_IF_ERROR(put_real(kKeyNoiseChangeGrey, f->noise_change_grey));
+    SAKER_RETURN_IF_ERROR(put_real(kKeyNoiseChangeRegistration, f->noise_change_registration_px));
   }
   SAKER_RETURN_IF_ERROR(put_int(kKeyFrontEnd, m.progress.front_end));
   SAKER_RETURN_IF_ERROR(put_int(kKeyMosaic, m.progress.mosaic));
@@ -749,6 +768,18 @@ Status LoadMeta(const sqlite::Database& db, Mission* m) {
     klv.bad_checksums_used = meta.Bool(kKeyKlvBadChecksumsUsed);
     m->klv = klv;
   }
+  if (meta.HasGroup(kFindingsKeys, "front end findings")) {
+    constexpr int64_t kMaxCount = std::numeric_limits<int64_t>::max();
+    FrontEndFindings f;
+    f.low_frame_rate = meta.Bool(kKeyLowFrameRate);
+    f.polarity_switches = meta.Int(kKeyPolaritySwitches, 0, kMaxCount);
+    f.noise_feature_frames = meta.Int(kKeyNoiseFeatureFrames, 0, kMaxCount);
+    f.noise_change_frames = meta.Int(kKeyNoiseChangeFrames, 0, kMaxCount);
+    f.noise_feature_px = meta.Real(kKeyNoiseFeaturePx);
+    f.noise_change_grey = meta.Real(kKeyNoiseChangeGrey);
+    f.noise_change_registration_px = meta.Real(kKeyNoiseChangeRegistration);
+    m->findings = f;
+  }
   m->progress.front_end = meta.Bool(kKeyFrontEnd);
   m->progress.mosaic = meta.Bool(kKeyMosaic);
   m->progress.activity = meta.Bool(kKeyActivity);
@@ -1053,6 +1084,12 @@ std::string HeaderProblem(const Mission& mission) {
              std::to_string(kMaxPyramidLevels) + "]";
     }
     if (p.width < 0 || p.height < 0) return "the pyramid size is negative";
+  }
+  if (const std::optional<FrontEndFindings>& f = mission.findings) {
+    for (const double v :
+         {f->noise_feature_px, f->noise_change_grey, f->noise_change_registration_px}) {
+      if (!(std::isfinite(v) && v >= 0)) return "a noise threshold of the findings is not >= 0";
+    }
   }
   return {};
 }

@@ -125,4 +125,41 @@ std::string DescribeKlv(const mission::Mission& mission) {
   return text;
 }
 
+std::vector<std::string> DescribeFindings(const mission::FrontEndFindings& f, int64_t frames,
+                                          double frame_rate) {
+  std::vector<std::string> lines;
+  char line[256];
+  if (f.low_frame_rate) {
+    std::snprintf(line, sizeof(line),
+                  "targets: from change detection alone (low-frame-rate mode, video at %.3g frames "
+                  "a second)",
+                  frame_rate);
+    lines.emplace_back(line);
+  }
+  if (f.noise_feature_frames > 0 || f.noise_change_frames > 0) {
+    // Only the tests whose thresholds were raised (infrared raises the change noise alone).
+    std::string raised;
+    if (f.noise_feature_frames > 0) {
+      std::snprintf(line, sizeof(line), "features: up to %.2g px", f.noise_feature_px);
+      raised = line;
+    }
+    if (f.noise_change_frames > 0) {
+      std::snprintf(line, sizeof(line), "change: %.2g grey levels, %.2g px of misregistration",
+                    f.noise_change_grey, f.noise_change_registration_px);
+      raised += (raised.empty() ? "" : "; ") + std::string(line);
+    }
+    lines.push_back(
+        "noise: the video's own noise (heavy compression?) raised the motion "
+        "thresholds in " +
+        std::to_string(std::max(f.noise_feature_frames, f.noise_change_frames)) + " of " +
+        std::to_string(frames) + " frames (" + raised + "); slow and small targets may be missed");
+  }
+  if (f.polarity_switches > 0) {
+    lines.push_back("thermal polarity: " + std::to_string(f.polarity_switches) +
+                    (f.polarity_switches == 1 ? " switch" : " switches") +
+                    " (white-hot / black-hot), the frames after inverted back: no chain break");
+  }
+  return lines;
+}
+
 }  // namespace saker::pipeline

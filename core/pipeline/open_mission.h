@@ -63,6 +63,13 @@ std::string DescribeMapFrame(const mission::Mission& mission);
 // empty for missions written before Saker counted it.
 std::string DescribeKlv(const mission::Mission& mission);
 
+// What the front end found about a video of `frames` frames at `frame_rate` (FrontEndFindings), a
+// line each for a person, only what applies: the low-frame-rate mode, thresholds raised by the
+// video's noise, a thermal camera's polarity switches. The process summary, `saker-cli info` and
+// the GUI's mission facts say the same.
+std::vector<std::string> DescribeFindings(const mission::FrontEndFindings& findings, int64_t frames,
+                                          double frame_rate);
+
 // Opens the mission file at `path` read-only (a snapshot: nothing is left beside it; a mission on
 // read-only storage opens too) and locates its video: at the recorded path, at the
 // remembered place, then beside the mission file under the recorded name. Errors (the file is

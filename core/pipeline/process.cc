@@ -118,13 +118,6 @@ std::string ProcessSummary::ToText() const {
   out << line;
   out << (geo_referenced ? "geo-referenced (metadata)" : "not geo-referenced; map: " + map_frame)
       << "\n";
-  if (low_frame_rate) {
-    std::snprintf(line, sizeof(line),
-                  "targets: from change detection alone (low-frame-rate mode, video at %.3g frames "
-                  "a second)\n",
-                  frame_rate);
-    out << line;
-  }
   if (overlay_frames > 0) {
     std::snprintf(line, sizeof(line),
                   "overlays: screen-fixed overlays masked out in %lld of %lld frames (%.1f %% of "
@@ -141,26 +134,8 @@ std::string ProcessSummary::ToText() const {
                   static_cast<long long>(horizon_frames), static_cast<long long>(frames));
     out << line;
   }
-  if (noise.raised()) {
-    // Only the tests whose thresholds were raised (infrared raises the change noise alone).
-    std::string raised;
-    if (noise.feature_frames > 0) {
-      std::snprintf(line, sizeof(line), "features: up to %.2g px", noise.residual_threshold_px);
-      raised = line;
-    }
-    if (noise.change_frames > 0) {
-      std::snprintf(line, sizeof(line), "change: %.2g grey levels, %.2g px of misregistration",
-                    noise.change_noise_grey, noise.change_registration_px);
-      raised += (raised.empty() ? "" : "; ") + std::string(line);
-    }
-    out << "noise: the video's own noise (heavy compression?) raised the motion thresholds in "
-        << std::max(noise.feature_frames, noise.change_frames) << " of " << frames << " frames ("
-        << raised << "); slow and small targets may be missed\n";
-  }
-  if (polarity_switches > 0) {
-    out << "thermal polarity: " << polarity_switches
-        << (polarity_switches == 1 ? " switch" : " switches")
-        << " (white-hot / black-hot), the frames after inverted back: no chain break\n";
+  for (const std::string& found : DescribeFindings(findings, frames, frame_rate)) {
+    out << found << "\n";
   }
   if (tracks_implausible > 0 || tracks_low_confidence > 0) {
     out << "not reported: " << tracks_implausible << " tracks with an impossible ground speed, "
@@ -244,13 +219,11 @@ StatusOr<ProcessSummary> ProcessVideo(const std::string& video, const std::strin
   hooks.on_done = [&](Stage stage, MissionRun* done) -> Status {
     if (stage == Stage::kFrontEnd) {
       checkpoint.reset();  // the result holds what it had
-      summary.low_frame_rate = done->front.low_frame_rate;
-      summary.polarity_switches = static_cast<int64_t>(done->front.polarity_switches.size());
       const mission::OverlayExtent overlays = mission::ExtentOf(done->mission.overlays);
       summary.overlay_frames = overlays.frames;
       summary.overlay_coverage = overlays.coverage;
       summary.horizon_frames = done->front.horizon_frames;
-      summary.noise = done->front.noise;
+      if (done->mission.findings) summary.findings = *done->mission.findings;
       summary.frame_rate = done->mission.source.frame_rate;
       if (!done->front.frames.empty() && done->mission.source.frame_rate > 0) {
         summary.video_duration_s =

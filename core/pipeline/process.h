@@ -49,20 +49,17 @@ struct ProcessSummary {
   int64_t tracks_low_confidence = 0;  // not reported: below activity.confidence.min_confidence
   int64_t tiles = 0;
   bool geo_referenced = false;
-  // The front end ran in its low-frame-rate mode (targets from change detection alone), for video
-  // of `frame_rate` frames a second.
-  bool low_frame_rate = false;
-  double frame_rate = 0;
+  double frame_rate = 0;  // the video's, frames a second
   // Screen-fixed overlays (burned-in text, logos) masked out: in this many frames, covering this
   // mean fraction of the image in them (0 and 0: none found, or the mask was off).
   int64_t overlay_frames = 0;
   double overlay_coverage = 0;
-  int64_t polarity_switches = 0;  // a thermal camera's, inverted back (FrontEndResult)
   // Frames of a low oblique view whose sky and distant ground above the horizon were masked out
   // (FrontEndResult::horizon_frames).
   int64_t horizon_frames = 0;
-  // How far the video's noise raised the motion thresholds (FrontEndResult::noise).
-  frontend::VideoNoise noise;
+  // What else the front end found about the video (the low-frame-rate mode, thresholds raised by
+  // its noise, thermal polarity switches), as the mission keeps it.
+  mission::FrontEndFindings findings;
   std::string map_frame;  // DescribeMapFrame (open_mission.h): what the map is, and why
   double front_end_s = 0, mosaic_s = 0, activity_s = 0, tiles_s = 0, save_s = 0, total_s = 0;
   double video_duration_s = 0;

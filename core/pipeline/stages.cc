@@ -65,6 +65,13 @@ StatusOr<bool> FrontEndStage(std::unique_ptr<video::VideoReader> reader,
   m.klv = mission::KlvSummary{static_cast<int64_t>(run->front.scan.packets.size()),
                               run->front.scan.ChecksumFailures(),
                               options.front_end.metadata.accept_bad_checksums};
+  const frontend::FrontEndResult& front = run->front;
+  const frontend::VideoNoise& noise = front.noise;
+  m.findings = mission::FrontEndFindings{
+      front.low_frame_rate,        static_cast<int64_t>(front.polarity_switches.size()),
+      noise.feature_frames,        noise.change_frames,
+      noise.residual_threshold_px, noise.change_noise_grey,
+      noise.change_registration_px};
   m.frames = FrameRecords(run->front, nullptr, nullptr);
   m.overlays = OverlayRecords(run->front);
   m.progress.front_end = true;

@@ -517,7 +517,7 @@ namespace {
 
 // Video below 4 frames a second is processed in the low-frame-rate mode, and the summary says so
 // (text and JSON); `--low-frame-rate off` turns it off, and a mode that is not one is refused.
-TEST(CliProcessTest, LowFrameRateModeIsChosenBelowFourFramesASecond) {
+TEST(CliProcessTest, LowFrameRateModeIsChosenBelowEightFramesASecond) {
   const std::filesystem::path dir = saker::testing::MakeTempDir("saker-cli-low-rate");
   const std::string video = (dir / "two-fps.ts").string();
   const CliRun sim =
@@ -529,6 +529,15 @@ TEST(CliProcessTest, LowFrameRateModeIsChosenBelowFourFramesASecond) {
   ASSERT_EQ(run.exit_code, 0) << run.out;
   EXPECT_NE(run.out.find("low-frame-rate mode, video at 2 frames a second"), std::string::npos)
       << run.out;
+  // The mission keeps it: info says it too.
+  run = RunCli("info '" + mission + "'");
+  ASSERT_EQ(run.exit_code, 0) << run.out;
+  EXPECT_NE(run.out.find("front end found: targets: from change detection alone"),
+            std::string::npos)
+      << run.out;
+  run = RunCli("info --json '" + mission + "'");
+  ASSERT_EQ(run.exit_code, 0) << run.out;
+  EXPECT_TRUE(nlohmann::json::parse(run.out).at("findings").at("low_frame_rate").get<bool>());
   run = RunCli("process -q --json --no-tiles --replace --low-frame-rate off '" + video + "' -o '" +
                mission + "'");
   ASSERT_EQ(run.exit_code, 0) << run.out;

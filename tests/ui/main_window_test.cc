@@ -1098,6 +1098,39 @@ TEST(MainWindowTest, AMissionWhoseVideoHasGoneOpensAndOffersToLocateIt) {
   EXPECT_EQ(again.videoPath().toStdString(), fs::absolute(m->video).string());
 }
 
+// What the front end found about the video is in the mission facts: kept in the mission, so a
+// mission opened later says it as well as one just processed; a clean video's says nothing.
+TEST(MainWindowTest, TheMissionFactsSayWhatTheFrontEndFound) {
+  const TestMission* m = SmallMission();
+  ASSERT_NE(m, nullptr);
+  const auto facts_of = [](MainWindow& window) {
+    auto* facts = window.findChild<QLabel*>("missionFacts");
+    return facts != nullptr ? facts->text() : QString();
+  };
+  {
+    MainWindow window;
+    window.show();
+    ASSERT_TRUE(OpenAndWait(window, *m));
+    ASSERT_TRUE(window.mission()->findings.has_value()) << "processing keeps the findings";
+    EXPECT_FALSE(facts_of(window).contains("noise")) << facts_of(window).toStdString();
+  }
+  const fs::path path = saker::testing::MakeTempDir("saker-ui-findings") / "noisy.saker";
+  ASSERT_NO_FATAL_FAILURE(SaveChangedCopy(m->loaded, path, [](mission::Mission& copy) {
+    mission::FrontEndFindings& f = copy.findings.emplace();
+    f.noise_feature_frames = 40;
+    f.noise_feature_px = 2.5;
+    f.polarity_switches = 1;
+  }));
+  MainWindow window;
+  QSignalSpy opened(&window, &MainWindow::missionOpened);
+  window.openMission(QString::fromStdString(path.string()));
+  ASSERT_TRUE(opened.wait(30000));
+  const QString facts = facts_of(window);
+  EXPECT_TRUE(facts.contains("Front end")) << facts.toStdString();
+  EXPECT_TRUE(facts.contains("raised the motion thresholds in 40 of")) << facts.toStdString();
+  EXPECT_TRUE(facts.contains("thermal polarity: 1 switch")) << facts.toStdString();
+}
+
 // A mission that does not open leaves the one shown open, with its title and facts.
 TEST(MainWindowTest, AFailedOpenKeepsTheOpenMissionAndItsTitle) {
   const TestMission* m = SmallMission();

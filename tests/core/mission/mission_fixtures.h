@@ -208,6 +208,15 @@ inline bool MissionsEqual(const Mission& a, const Mission& b, std::string* why) 
            x.bad_checksums_used == y.bad_checksums_used;
   };
   if (!SameOptional(a.klv, b.klv, same_klv)) return differ("klv");
+  const auto same_findings = [](const FrontEndFindings& x, const FrontEndFindings& y) {
+    return x.low_frame_rate == y.low_frame_rate && x.polarity_switches == y.polarity_switches &&
+           x.noise_feature_frames == y.noise_feature_frames &&
+           x.noise_change_frames == y.noise_change_frames &&
+           SameDouble(x.noise_feature_px, y.noise_feature_px) &&
+           SameDouble(x.noise_change_grey, y.noise_change_grey) &&
+           SameDouble(x.noise_change_registration_px, y.noise_change_registration_px);
+  };
+  if (!SameOptional(a.findings, b.findings, same_findings)) return differ("findings");
   const Progress& pa = a.progress;
   const Progress& pb = b.progress;
   if (pa.front_end != pb.front_end || pa.mosaic != pb.mosaic || pa.activity != pb.activity ||
@@ -247,6 +256,7 @@ inline Mission MakeFullMission() {
   m.map.geo_referenced = true;
   m.map.origin = geo::Wgs84{51.501234567, -1.254321, 123.45};
   m.klv = KlvSummary{5400, 3, true};
+  m.findings = FrontEndFindings{true, 2, 410, 388, 3.25, 4.5, 0.75};
 
   const int64_t indices[] = {0, 1, 2, 5, 9, 1000000007};
   for (int i = 0; i < 6; ++i) {

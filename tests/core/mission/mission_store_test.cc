@@ -492,6 +492,7 @@ TEST_F(MissionStoreTest, SecondMissionWithOtherOptionalsRoundTrips) {
   m.options_json.clear();
   m.source.fingerprint.clear();
   m.links.clear();
+  m.findings.reset();  // a mission from before they were kept
   const fs::path path = File("other.saker");
   WriteMissionFile(path, m);
   auto loaded = LoadFile(path);
@@ -705,8 +706,10 @@ TEST_F(MissionStoreTest, SaveRefusesWhatTheFileCannotHoldAndKeepsTheFile) {
   bad_kind.links[1].kind = static_cast<LinkKind>(17);
   Mission bad_pyramid = good;
   bad_pyramid.pyramid->levels = 1000;
-  for (const Mission* bad :
-       {&duplicate, &origin_without_geo, &geo_without_origin, &bad_kind, &bad_pyramid}) {
+  Mission bad_findings = good;
+  bad_findings.findings->noise_change_grey = -1;
+  for (const Mission* bad : {&duplicate, &origin_without_geo, &geo_without_origin, &bad_kind,
+                             &bad_pyramid, &bad_findings}) {
     const Status status = store->Save(*bad);
     EXPECT_EQ(status.code(), StatusCode::kInvalidArgument) << status.ToString();
     EXPECT_NE(status.message().find(path.string()), std::string::npos) << status.message();
