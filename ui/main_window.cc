@@ -1698,29 +1698,26 @@ void MainWindow::updateMissionFacts() {
                   ? tr("geo-referenced at %1")
                         .arg(LatLonText(m.map.origin->latitude_deg, m.map.origin->longitude_deg))
                   : QString::fromStdString(pipeline::DescribeMapFrame(m)));
-  // What the front end found about the video: masks, the low-frame-rate mode, noise, thermal
-  // polarity (the lines `saker-cli process` and `info` print).
-  QStringList found;
+  // What the front end found about the video, in a few words (masks, the low-frame-rate mode,
+  // noise, thermal polarity); the sentences `saker-cli process` and `info` print are the tooltip.
+  QStringList found, said;
   if (const mission::OverlayExtent overlays = mission::ExtentOf(m.overlays); overlays.frames > 0) {
-    found << tr("burned-in overlays masked out in %1 of %2 frames (%3 % of the image)")
-                 .arg(overlays.frames)
-                 .arg(m.frames.size())
-                 .arg(100 * overlays.coverage, 0, 'f', 1);
+    found << tr("overlays masked in %1 of %2 frames").arg(overlays.frames).arg(m.frames.size());
   }
-  const auto sky =
-      std::count_if(m.frames.begin(), m.frames.end(),
-                    [](const mission::FrameRecord& f) { return f.sky_line.has_value(); });
-  if (sky > 0) {
-    found
-        << tr("sky above the horizon masked out in %1 of %2 frames").arg(sky).arg(m.frames.size());
-  }
+  const auto sky = std::count_if(m.frames.begin(), m.frames.end(),
+                                 [](const auto& f) { return f.sky_line.has_value(); });
+  if (sky > 0) found << tr("sky masked in %1 of %2 frames").arg(sky).arg(m.frames.size());
   if (m.findings) {
-    for (const std::string& line : pipeline::DescribeFindings(
-             *m.findings, static_cast<int64_t>(m.frames.size()), m.source.frame_rate)) {
+    const auto frames = static_cast<int64_t>(m.frames.size());
+    for (const std::string& line :
+         pipeline::BriefFindings(*m.findings, frames, m.source.frame_rate))
       found << FromStd(line).toHtmlEscaped();
-    }
+    for (const std::string& line :
+         pipeline::DescribeFindings(*m.findings, frames, m.source.frame_rate))
+      said << FromStd(line);
   }
   if (!found.isEmpty()) html += row(tr("Front end"), found.join(QStringLiteral("<br>")));
+  facts_->setToolTip(said.join(QStringLiteral("\n\n")));
   if (checkpoint_frame_ && !jobs_->isRunning()) {
     html += row(tr("Checkpoint"), checkpoint_complete_
                                       ? tr("front end finished")

@@ -162,4 +162,23 @@ std::vector<std::string> DescribeFindings(const mission::FrontEndFindings& f, in
   return lines;
 }
 
+std::vector<std::string> BriefFindings(const mission::FrontEndFindings& f, int64_t frames,
+                                       double frame_rate) {
+  std::vector<std::string> lines;
+  char line[128];
+  if (f.low_frame_rate) {
+    std::snprintf(line, sizeof(line), "low-frame-rate mode (%.3g fps)", frame_rate);
+    lines.emplace_back(line);
+  }
+  if (const int64_t raised = std::max(f.noise_feature_frames, f.noise_change_frames); raised > 0) {
+    lines.push_back("noise raised the thresholds in " + std::to_string(raised) + " of " +
+                    std::to_string(frames) + " frames");
+  }
+  if (f.polarity_switches > 0) {
+    lines.push_back(std::to_string(f.polarity_switches) + " thermal polarity switch" +
+                    (f.polarity_switches == 1 ? "" : "es"));
+  }
+  return lines;
+}
+
 }  // namespace saker::pipeline

@@ -69,6 +69,10 @@ std::string DescribeKlv(const mission::Mission& mission);
 // the GUI's mission facts say the same.
 std::vector<std::string> DescribeFindings(const mission::FrontEndFindings& findings, int64_t frames,
                                           double frame_rate);
+// The same in a few words each, for a narrow panel: "low-frame-rate mode (2 fps)", "noise raised
+// the thresholds in 352 of 362 frames", "1 thermal polarity switch".
+std::vector<std::string> BriefFindings(const mission::FrontEndFindings& findings, int64_t frames,
+                                       double frame_rate);
 
 // Opens the mission file at `path` read-only (a snapshot: nothing is left beside it; a mission on
 // read-only storage opens too) and locates its video: at the recorded path, at the

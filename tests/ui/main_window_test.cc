@@ -1127,8 +1127,12 @@ TEST(MainWindowTest, TheMissionFactsSayWhatTheFrontEndFound) {
   ASSERT_TRUE(opened.wait(30000));
   const QString facts = facts_of(window);
   EXPECT_TRUE(facts.contains("Front end")) << facts.toStdString();
-  EXPECT_TRUE(facts.contains("raised the motion thresholds in 40 of")) << facts.toStdString();
-  EXPECT_TRUE(facts.contains("thermal polarity: 1 switch")) << facts.toStdString();
+  EXPECT_TRUE(facts.contains("noise raised the thresholds in 40 of")) << facts.toStdString();
+  EXPECT_TRUE(facts.contains("1 thermal polarity switch")) << facts.toStdString();
+  // The whole sentences, as saker-cli says them, are the tooltip.
+  const QString said = window.findChild<QLabel*>("missionFacts")->toolTip();
+  EXPECT_TRUE(said.contains("raised the motion thresholds in 40 of")) << said.toStdString();
+  EXPECT_TRUE(said.contains("slow and small targets may be missed")) << said.toStdString();
 }
 
 // A mission that does not open leaves the one shown open, with its title and facts.
