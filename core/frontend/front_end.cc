@@ -530,8 +530,17 @@ Status FrontEnd::ProcessFrame(const video::Frame& frame) {
   last_motion_.reset();
   if (estimate) last_motion_ = estimate->target_from_source;
   if (estimate) {
-    // Every match, those on the mask too: an overlay's corners keep it.
-    overlays_.AddFeatures(tracker_.matches(), estimate->target_from_source, frame.grey.size());
+    // Every match, those on the mask too: an overlay's corners keep it. Not those in the sky the
+    // horizon mask leaves out: clouds that keep still in the image are not burned in.
+    if (horizon_.line()) {
+      std::vector<track::Correspondence> below;
+      for (const track::Correspondence& m : tracker_.matches()) {
+        if (!horizon_.Masks(m.target)) below.push_back(m);
+      }
+      overlays_.AddFeatures(below, estimate->target_from_source, frame.grey.size());
+    } else {
+      overlays_.AddFeatures(tracker_.matches(), estimate->target_from_source, frame.grey.size());
+    }
   }
   // Without change detection the features are the only evidence, and the mask is handed out at
   // once (with it, at the change answers' fixed lag).
@@ -660,8 +669,23 @@ void FrontEnd::ApplyChangeAnswer(const ChangeThread::Answer& answer) {
       noise.change_noise_grey = std::max(noise.change_noise_grey, c.noise_grey);
       noise.change_registration_px = std::max(noise.change_registration_px, c.registration_px);
     }
-    // The overlay learns from every change, then none on it goes on to the change tracks.
-    overlays_.AddChange(c, change_baseline_frames_);
+    // The overlay learns from every change (not in the sky the horizon mask leaves out: there a
+    // smooth sky changes nowhere, as an overlay would not), then none on it goes on to the change
+    // tracks.
+    if (const auto sky = horizon_lines_.find(c.frame); sky != horizon_lines_.end()) {
+      track::ChangeFrame below = c;
+      below.valid = c.valid.clone();
+      for (int y = 0; y < below.valid.rows; ++y) {
+        uint8_t* row = below.valid.ptr<uint8_t>(y);
+        for (int x = 0; x < below.valid.cols; ++x) {
+          const Eigen::Vector2d p((x + 0.5) * c.scale - 0.5, (y + 0.5) * c.scale - 0.5);
+          if (p.y() < sky->second.YAt(p.x()) + horizon_.margin_px()) row[x] = 0;
+        }
+      }
+      overlays_.AddChange(below, change_baseline_frames_);
+    } else {
+      overlays_.AddChange(c, change_baseline_frames_);
+    }
     NoteOverlayMask(c.frame);
     std::vector<track::ChangeBlob> blobs;
     blobs.reserve(c.blobs.size());
