@@ -209,7 +209,9 @@ class FrontEnd {
   // Masks the sky above `horizon` in frame `index`: for its targets, the count, and its frame
   // result (`current`, the frame being processed; else the one in the result, when it is there).
   void MaskSky(int64_t index, const track::HorizonLine& horizon, FrameResult* current);
-  // Whether `p` of frame `frame` was masked by that frame's horizon.
+  // The edge of frame `frame`'s sky mask (its horizon moved down by the margin), if it has one,
+  // and whether `p` of that frame lies above it.
+  std::optional<track::HorizonLine> SkyEdge(int64_t frame) const;
   bool AboveHorizon(int64_t frame, const Eigen::Vector2d& p) const;
   bool MostlyAboveHorizon(const track::TargetTrack& target) const;
   void SelectGroundMatches();
@@ -530,17 +532,9 @@ Status FrontEnd::ProcessFrame(const video::Frame& frame) {
   last_motion_.reset();
   if (estimate) last_motion_ = estimate->target_from_source;
   if (estimate) {
-    // Every match, those on the mask too: an overlay's corners keep it. Not those in the sky the
-    // horizon mask leaves out: clouds that keep still in the image are not burned in.
-    if (horizon_.line()) {
-      std::vector<track::Correspondence> below;
-      for (const track::Correspondence& m : tracker_.matches()) {
-        if (!horizon_.Masks(m.target)) below.push_back(m);
-      }
-      overlays_.AddFeatures(below, estimate->target_from_source, frame.grey.size());
-    } else {
-      overlays_.AddFeatures(tracker_.matches(), estimate->target_from_source, frame.grey.size());
-    }
+    // Every match, those on the mask too: an overlay's corners keep it (not in the sky).
+    overlays_.AddFeatures(tracker_.matches(), estimate->target_from_source, frame.grey.size(),
+                          SkyEdge(frame.index));
   }
   // Without change detection the features are the only evidence, and the mask is handed out at
   // once (with it, at the change answers' fixed lag).
@@ -669,23 +663,9 @@ void FrontEnd::ApplyChangeAnswer(const ChangeThread::Answer& answer) {
       noise.change_noise_grey = std::max(noise.change_noise_grey, c.noise_grey);
       noise.change_registration_px = std::max(noise.change_registration_px, c.registration_px);
     }
-    // The overlay learns from every change (not in the sky the horizon mask leaves out: there a
-    // smooth sky changes nowhere, as an overlay would not), then none on it goes on to the change
-    // tracks.
-    if (const auto sky = horizon_lines_.find(c.frame); sky != horizon_lines_.end()) {
-      track::ChangeFrame below = c;
-      below.valid = c.valid.clone();
-      for (int y = 0; y < below.valid.rows; ++y) {
-        uint8_t* row = below.valid.ptr<uint8_t>(y);
-        for (int x = 0; x < below.valid.cols; ++x) {
-          const Eigen::Vector2d p((x + 0.5) * c.scale - 0.5, (y + 0.5) * c.scale - 0.5);
-          if (p.y() < sky->second.YAt(p.x()) + horizon_.margin_px()) row[x] = 0;
-        }
-      }
-      overlays_.AddChange(below, change_baseline_frames_);
-    } else {
-      overlays_.AddChange(c, change_baseline_frames_);
-    }
+    // The overlay learns from every change (not in the sky), then none on it goes on to the
+    // change tracks.
+    overlays_.AddChange(c, change_baseline_frames_, SkyEdge(c.frame));
     NoteOverlayMask(c.frame);
     std::vector<track::ChangeBlob> blobs;
     blobs.reserve(c.blobs.size());
@@ -713,16 +693,23 @@ void FrontEnd::ApplyChangeAnswer(const ChangeThread::Answer& answer) {
   result_.timing.change_tracks_ms += watch.ElapsedMs();
 }
 
-bool FrontEnd::AboveHorizon(int64_t frame, const Eigen::Vector2d& p) const {
+std::optional<track::HorizonLine> FrontEnd::SkyEdge(int64_t frame) const {
   const auto it = horizon_lines_.find(frame);
-  return it != horizon_lines_.end() && p.y() < it->second.YAt(p.x()) + horizon_.margin_px();
+  if (it == horizon_lines_.end()) return std::nullopt;
+  const track::HorizonLine& horizon = it->second;
+  return track::HorizonLine{horizon.centre_x, horizon.y_at_centre + horizon_.margin_px(),
+                            horizon.slope};
+}
+
+bool FrontEnd::AboveHorizon(int64_t frame, const Eigen::Vector2d& p) const {
+  const std::optional<track::HorizonLine> edge = SkyEdge(frame);
+  return edge && p.y() < edge->YAt(p.x());
 }
 
 void FrontEnd::MaskSky(int64_t index, const track::HorizonLine& horizon, FrameResult* current) {
   if (!horizon_lines_.emplace(index, horizon).second) return;
   if (index >= start_.through_frame) ++result_.horizon_frames;
-  const track::HorizonLine edge{horizon.centre_x, horizon.y_at_centre + horizon_.margin_px(),
-                                horizon.slope};
+  const track::HorizonLine edge = *SkyEdge(index);
   if (current != nullptr) {
     current->sky_line = edge;
     return;

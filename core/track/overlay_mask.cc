@@ -177,10 +177,12 @@ void OverlayDetector::Add(int x, int y, bool changed) {
 
 void OverlayDetector::AddFeatures(const std::vector<Correspondence>& matches,
                                   const Eigen::Matrix3d& current_from_previous,
-                                  const cv::Size& frame_size) {
+                                  const cv::Size& frame_size,
+                                  const std::optional<HorizonLine>& sky) {
   if (!options_.enabled || frame_size.width <= 0 || frame_size.height <= 0) return;
   if (frame_size != full_size_) Resize(frame_size);
   for (const Correspondence& m : matches) {
+    if (sky && m.target.y() < sky->YAt(m.target.x())) continue;
     const Eigen::Vector3d g = current_from_previous * m.source.homogeneous();
     if (!(std::abs(g.z()) > 1e-9)) continue;
     const Eigen::Vector2d ground = g.hnormalized();
@@ -197,7 +199,8 @@ void OverlayDetector::AddFeatures(const std::vector<Correspondence>& matches,
   UpdateMask();
 }
 
-void OverlayDetector::AddChange(const ChangeFrame& change, int baseline_frames) {
+void OverlayDetector::AddChange(const ChangeFrame& change, int baseline_frames,
+                                const std::optional<HorizonLine>& sky) {
   if (!options_.enabled || !change.answered() || change.changed.empty()) return;
   const cv::Size full(static_cast<int>(std::lround(change.changed.cols * change.scale)),
                       static_cast<int>(std::lround(change.changed.rows * change.scale)));
@@ -223,6 +226,7 @@ void OverlayDetector::AddChange(const ChangeFrame& change, int baseline_frames) 
       // The ground's motion at the cell over one frame (the baseline's, spread over its frames):
       // over a hovering camera nothing is learnt.
       const double px = (x + 0.5) * cell - 0.5;
+      if (sky && py < sky->YAt(px)) continue;
       const double w = h(2, 0) * px + h(2, 1) * py + h(2, 2);
       if (!(std::abs(w) > 1e-9)) continue;
       const double dx = (h(0, 0) * px + h(0, 1) * py + h(0, 2)) / w - px;

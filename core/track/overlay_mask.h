@@ -28,6 +28,7 @@
 // it in most of their frames (docs/front-end.md, "Overlays").
 
 #include "core/track/change_detector.h"
+#include "core/track/horizon.h"
 #include "core/track/target_tracks.h"
 #include "core/track/types.h"
 #include "core/util/byte_io.h"
@@ -38,6 +39,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <vector>
 
 namespace saker::track {
@@ -108,12 +110,15 @@ class OverlayDetector {
   OverlayDetector(const OverlayOptions& options, FrameRate rate);
 
   // One answer of the change detector, whose frames are `baseline_frames` apart. Unanswered ones
-  // are ignored.
-  void AddChange(const ChangeFrame& change, int baseline_frames);
+  // are ignored. `sky`: the edge of the frame's sky mask (a low oblique view's horizon), above
+  // which nothing is learnt: still clouds keep their place in the image as an overlay would.
+  void AddChange(const ChangeFrame& change, int baseline_frames,
+                 const std::optional<HorizonLine>& sky = std::nullopt);
   // The feature matches of a frame of `frame_size` pixels and the ground motion into it from the
-  // previous frame.
+  // previous frame; `sky` as for AddChange.
   void AddFeatures(const std::vector<Correspondence>& matches,
-                   const Eigen::Matrix3d& current_from_previous, const cv::Size& frame_size);
+                   const Eigen::Matrix3d& current_from_previous, const cv::Size& frame_size,
+                   const std::optional<HorizonLine>& sky = std::nullopt);
 
   // The current mask (cells of `options.cell_px`; empty before any evidence).
   const OverlayMask& mask() const { return mask_; }

@@ -39,6 +39,29 @@ int WindowFrames(const track::OverlayOptions& o) {
   return track::FrameRate(25).Frames(o.window_s, o.min_window_frames);
 }
 
+// Above the sky mask's edge nothing is learnt: the same change in place that becomes an overlay
+// below the edge (burned-in text) does not above it (still clouds over a low oblique view).
+TEST(OverlayDetectorTest, NothingIsLearntAboveTheSkyEdge) {
+  track::OverlayOptions options;
+  options.enabled = true;
+  const track::HorizonLine sky{160, 100, 0};  // the sky mask's edge: row 100, level
+  const auto run = [&](const std::optional<track::HorizonLine>& edge) {
+    track::OverlayDetector detector(options, track::FrameRate(25));
+    for (int64_t f = 0; f < WindowFrames(options); ++f) {
+      track::ChangeFrame c = Answer(f, cv::Rect(16, 40, 64, 16), 1);  // above the edge
+      c.changed(cv::Rect(16, 180, 64, 16)).setTo(255);                // below it
+      detector.AddChange(c, 12, edge);
+    }
+    return detector;
+  };
+  const track::OverlayDetector without = run(std::nullopt);
+  EXPECT_TRUE(without.Contains({40, 48}));
+  EXPECT_TRUE(without.Contains({40, 188}));
+  const track::OverlayDetector with = run(sky);
+  EXPECT_FALSE(with.Contains({40, 48}));
+  EXPECT_TRUE(with.Contains({40, 188}));
+}
+
 TEST(OverlayDetectorTest, ScreenFixedChangeBecomesOverlayAndMoversDoNot) {
   track::OverlayOptions options;
   options.enabled = true;
