@@ -509,13 +509,13 @@ int InfoCommand::Run() const {
   std::cout << "  front end found: ";
   if (!m->findings) {
     std::cout << (p.front_end ? "not kept (written before Saker kept it)\n" : "not run yet\n");
-  } else if (const std::vector<std::string> found = pipeline::DescribeFindings(
+  } else if (const std::vector<pipeline::Finding> found = pipeline::DescribeFindings(
                  *m->findings, static_cast<int64_t>(m->frames.size()), m->source.frame_rate);
              found.empty()) {
     std::cout << "nothing unusual (full frame rate, thresholds not raised by noise)\n";
   } else {
     for (size_t i = 0; i < found.size(); ++i) {
-      std::cout << (i == 0 ? "" : "                   ") << found[i] << "\n";
+      std::cout << (i == 0 ? "" : "                   ") << found[i].sentence << "\n";
     }
   }
   std::cout << "  key frames: " << m->key_frames.size() << "; links:";

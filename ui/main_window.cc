@@ -1708,13 +1708,11 @@ void MainWindow::updateMissionFacts() {
                                  [](const auto& f) { return f.sky_line.has_value(); });
   if (sky > 0) found << tr("sky masked in %1 of %2 frames").arg(sky).arg(m.frames.size());
   if (m.findings) {
-    const auto frames = static_cast<int64_t>(m.frames.size());
-    for (const std::string& line :
-         pipeline::BriefFindings(*m.findings, frames, m.source.frame_rate))
-      found << FromStd(line).toHtmlEscaped();
-    for (const std::string& line :
-         pipeline::DescribeFindings(*m.findings, frames, m.source.frame_rate))
-      said << FromStd(line);
+    for (const pipeline::Finding& f : pipeline::DescribeFindings(
+             *m.findings, static_cast<int64_t>(m.frames.size()), m.source.frame_rate)) {
+      found << FromStd(f.brief).toHtmlEscaped();
+      said << FromStd(f.sentence);
+    }
   }
   if (!found.isEmpty()) html += row(tr("Front end"), found.join(QStringLiteral("<br>")));
   facts_->setToolTip(said.join(QStringLiteral("\n\n")));

@@ -125,60 +125,44 @@ std::string DescribeKlv(const mission::Mission& mission) {
   return text;
 }
 
-std::vector<std::string> DescribeFindings(const mission::FrontEndFindings& f, int64_t frames,
-                                          double frame_rate) {
-  std::vector<std::string> lines;
-  char line[256];
+std::vector<Finding> DescribeFindings(const mission::FrontEndFindings& f, int64_t frames,
+                                      double frame_rate) {
+  std::vector<Finding> found;
+  char rate[32];
+  std::snprintf(rate, sizeof(rate), "%.3g", frame_rate);
   if (f.low_frame_rate) {
-    std::snprintf(line, sizeof(line),
-                  "targets: from change detection alone (low-frame-rate mode, video at %.3g frames "
-                  "a second)",
-                  frame_rate);
-    lines.emplace_back(line);
+    found.push_back({"targets: from change detection alone (low-frame-rate mode, video at " +
+                         std::string(rate) + " frames a second)",
+                     "low-frame-rate mode (" + std::string(rate) + " fps)"});
   }
-  if (f.noise_feature_frames > 0 || f.noise_change_frames > 0) {
+  if (const int64_t raised = std::max(f.noise_feature_frames, f.noise_change_frames); raised > 0) {
     // Only the tests whose thresholds were raised (infrared raises the change noise alone).
-    std::string raised;
+    char line[160];
+    std::string which;
     if (f.noise_feature_frames > 0) {
       std::snprintf(line, sizeof(line), "features: up to %.2g px", f.noise_feature_px);
-      raised = line;
+      which = line;
     }
     if (f.noise_change_frames > 0) {
       std::snprintf(line, sizeof(line), "change: %.2g grey levels, %.2g px of misregistration",
                     f.noise_change_grey, f.noise_change_registration_px);
-      raised += (raised.empty() ? "" : "; ") + std::string(line);
+      which += (which.empty() ? "" : "; ") + std::string(line);
     }
-    lines.push_back(
-        "noise: the video's own noise (heavy compression?) raised the motion "
-        "thresholds in " +
-        std::to_string(std::max(f.noise_feature_frames, f.noise_change_frames)) + " of " +
-        std::to_string(frames) + " frames (" + raised + "); slow and small targets may be missed");
+    const std::string in = std::to_string(raised) + " of " + std::to_string(frames) + " frames";
+    found.push_back(
+        {"noise: the video's own noise (heavy compression?) raised the motion "
+         "thresholds in " +
+             in + " (" + which + "); slow and small targets may be missed",
+         "noise raised the thresholds in " + in});
   }
   if (f.polarity_switches > 0) {
-    lines.push_back("thermal polarity: " + std::to_string(f.polarity_switches) +
-                    (f.polarity_switches == 1 ? " switch" : " switches") +
-                    " (white-hot / black-hot), the frames after inverted back: no chain break");
+    const std::string n = std::to_string(f.polarity_switches);
+    const bool one = f.polarity_switches == 1;
+    found.push_back({"thermal polarity: " + n + (one ? " switch" : " switches") +
+                         " (white-hot / black-hot), the frames after inverted back: no chain break",
+                     n + " thermal polarity switch" + (one ? "" : "es")});
   }
-  return lines;
-}
-
-std::vector<std::string> BriefFindings(const mission::FrontEndFindings& f, int64_t frames,
-                                       double frame_rate) {
-  std::vector<std::string> lines;
-  char line[128];
-  if (f.low_frame_rate) {
-    std::snprintf(line, sizeof(line), "low-frame-rate mode (%.3g fps)", frame_rate);
-    lines.emplace_back(line);
-  }
-  if (const int64_t raised = std::max(f.noise_feature_frames, f.noise_change_frames); raised > 0) {
-    lines.push_back("noise raised the thresholds in " + std::to_string(raised) + " of " +
-                    std::to_string(frames) + " frames");
-  }
-  if (f.polarity_switches > 0) {
-    lines.push_back(std::to_string(f.polarity_switches) + " thermal polarity switch" +
-                    (f.polarity_switches == 1 ? "" : "es"));
-  }
-  return lines;
+  return found;
 }
 
 }  // namespace saker::pipeline

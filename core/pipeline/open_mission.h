@@ -63,16 +63,18 @@ std::string DescribeMapFrame(const mission::Mission& mission);
 // empty for missions written before Saker counted it.
 std::string DescribeKlv(const mission::Mission& mission);
 
-// What the front end found about a video of `frames` frames at `frame_rate` (FrontEndFindings), a
-// line each for a person, only what applies: the low-frame-rate mode, thresholds raised by the
-// video's noise, a thermal camera's polarity switches. The process summary, `saker-cli info` and
-// the GUI's mission facts say the same.
-std::vector<std::string> DescribeFindings(const mission::FrontEndFindings& findings, int64_t frames,
-                                          double frame_rate);
-// The same in a few words each, for a narrow panel: "low-frame-rate mode (2 fps)", "noise raised
-// the thresholds in 352 of 362 frames", "1 thermal polarity switch".
-std::vector<std::string> BriefFindings(const mission::FrontEndFindings& findings, int64_t frames,
-                                       double frame_rate);
+// One thing the front end found about a video: a sentence for the process summary and
+// `saker-cli info`, and the same in a few words for a narrow panel (the GUI's mission facts).
+struct Finding {
+  std::string sentence;  // "noise: the video's own noise (heavy compression?) raised ..."
+  std::string brief;     // "noise raised the thresholds in 352 of 362 frames"
+};
+
+// What the front end found about a video of `frames` frames at `frame_rate` (FrontEndFindings),
+// only what applies: the low-frame-rate mode, thresholds raised by the video's noise, a thermal
+// camera's polarity switches.
+std::vector<Finding> DescribeFindings(const mission::FrontEndFindings& findings, int64_t frames,
+                                      double frame_rate);
 
 // Opens the mission file at `path` read-only (a snapshot: nothing is left beside it; a mission on
 // read-only storage opens too) and locates its video: at the recorded path, at the

@@ -134,8 +134,8 @@ std::string ProcessSummary::ToText() const {
                   static_cast<long long>(horizon_frames), static_cast<long long>(frames));
     out << line;
   }
-  for (const std::string& found : DescribeFindings(findings, frames, frame_rate)) {
-    out << found << "\n";
+  for (const Finding& found : DescribeFindings(findings, frames, frame_rate)) {
+    out << found.sentence << "\n";
   }
   if (tracks_implausible > 0 || tracks_low_confidence > 0) {
     out << "not reported: " << tracks_implausible << " tracks with an impossible ground speed, "
