@@ -144,9 +144,11 @@ class FrameCanvas : public QWidget {
   }
   // The observation to mark, in video frame pixels; nullopt hides the mark. Zoomed in, the view
   // follows the mark unless the user has panned since the observation changed.
-  void setMark(std::optional<QPointF> point, QRectF box) {
+  // `interpolated`: the object was not seen in this frame (the mark is dashed).
+  void setMark(std::optional<QPointF> point, QRectF box, bool interpolated = false) {
     mark_ = point;
     box_ = box;
+    mark_interpolated_ = interpolated;
     if (mark_ && zoom_ > 1 && !panned_) centre_ = *mark_;
     update();
   }
@@ -464,7 +466,8 @@ class FrameCanvas : public QWidget {
     painter.setPen(QPen(QColor(255, 255, 255, 220), 3.5, Qt::SolidLine, Qt::FlatCap));
     painter.drawRect(box);
     painter.drawPath(cross);
-    painter.setPen(QPen(QColor(230, 20, 20), 1.75, Qt::SolidLine, Qt::FlatCap));
+    painter.setPen(QPen(QColor(230, 20, 20), 1.75,
+                        mark_interpolated_ ? Qt::DashLine : Qt::SolidLine, Qt::FlatCap));
     painter.drawRect(box);
     painter.drawPath(cross);
     painter.restore();
@@ -477,6 +480,7 @@ class FrameCanvas : public QWidget {
   QImage image_;
   std::optional<QPointF> mark_;
   QRectF box_;
+  bool mark_interpolated_ = false;
   QString placeholder_;
   QString hint_;
   double zoom_ = 1;
@@ -1105,7 +1109,8 @@ void FramePanel::updateMark() {
   copy_chip_button_->setEnabled(true);
   canvas_->setMark(QPointF(point->image.x(), point->image.y()),
                    QRectF(QPointF(point->box_min.x(), point->box_min.y()),
-                          QPointF(point->box_max.x(), point->box_max.y())));
+                          QPointF(point->box_max.x(), point->box_max.y())),
+                   point->interpolated);
   // North in the frame: the image direction of a step north on the map from the target.
   std::optional<double> north;
   const mission::FrameRecord* record = mission::FrameRecordOf(*mission_, displayed_frame_);
@@ -1150,7 +1155,9 @@ void FramePanel::updateInfo() {
     return;
   }
   const mission::ActivityTrack& track = mission_->tracks[current_->first];
-  track_value_->setText(tr("%1 (observation %2 of %3)")
+  track_value_->setText((point->interpolated
+                             ? tr("%1 (observation %2 of %3, interpolated: not seen here)")
+                             : tr("%1 (observation %2 of %3)"))
                             .arg(track.id)
                             .arg(current_->second + 1)
                             .arg(track.points.size()));

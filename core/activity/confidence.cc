@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <iterator>
 #include <utility>
 #include <vector>
 
@@ -133,7 +134,12 @@ ConfidenceFactors AssessTrack(const mission::ActivityTrack& track, const TrackEv
   }
   const double duration = track.end_s - track.start_s;
   f.seen = duration > 0 ? 1 - std::exp(-duration / options.seen_scale_s) : 0;
-  if (!MotionFactors(track.points, options.fit_window_s, &f.jitter, &f.steadiness)) {
+  // Interpolated points lie on a line by construction: the motion is judged on the seen ones.
+  std::vector<TrackPoint> seen;
+  seen.reserve(track.points.size());
+  std::copy_if(track.points.begin(), track.points.end(), std::back_inserter(seen),
+               [](const TrackPoint& p) { return !p.interpolated; });
+  if (!MotionFactors(seen, options.fit_window_s, &f.jitter, &f.steadiness)) {
     f.jitter = 0.5;  // unmeasured: no evidence either way
     f.steadiness = 1;
   }

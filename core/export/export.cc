@@ -173,6 +173,7 @@ Json GeoJsonFeature(const mission::ActivityTrack& track, const ReviewFields& rev
          {JsonNumber(p.box_min.x()), JsonNumber(p.box_min.y()), JsonNumber(p.box_max.x()),
           JsonNumber(p.box_max.y())}},
         {"map", {JsonNumber(p.map.x()), JsonNumber(p.map.y())}},
+        {"interpolated", p.interpolated},
     });
   }
   Json properties = {
@@ -704,7 +705,8 @@ Status ExportCsv(const mission::Mission& mission, const std::string& path) {
     static constexpr const char* kHeader =
         "video,track_id,visit,start_s,end_s,duration_s,length,speed,speed_mps,heading_deg,"
         "point_count,point_index,frame,time_s,image_x,image_y,box_min_x,box_min_y,box_max_x,"
-        "box_max_y,map_x,map_y,latitude_deg,longitude_deg,confidence,verdict,label,note\r\n";
+        "box_max_y,map_x,map_y,latitude_deg,longitude_deg,confidence,verdict,label,note,"
+        "interpolated\r\n";
     const std::string video = CsvField(VideoName(mission));
     std::string out = kHeader;
     for (const auto& track : mission.tracks) {
@@ -734,7 +736,7 @@ Status ExportCsv(const mission::Mission& mission, const std::string& path) {
         out += "," + (lon_lat ? FormatNumber(lon_lat->x()) : "");
         out += "," + (track.confidence ? FormatNumber(*track.confidence) : "");
         out += review_fields;
-        out += "\r\n";
+        out += p.interpolated ? ",1\r\n" : ",0\r\n";
       }
     }
     return ReplaceFileContents(path, out);

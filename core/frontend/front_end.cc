@@ -145,13 +145,12 @@ std::optional<Eigen::Vector3d> ParallaxEpipole(const std::vector<track::Correspo
 // The targets of the feature tracks, less those the image does not support, and those of change
 // detection; pieces of one object joined (a walker's across long gaps on the ground, followed
 // through the frame-to-frame homographies), echoes of cars dropped (after the joining, so that a
-// car's own change track has become part of it), and numbered 1, 2, ... in order of appearance.
-std::vector<track::TargetTrack> CombineTargets(std::vector<track::TargetTrack> by_features,
-                                               std::vector<track::TargetTrack> by_change,
-                                               const std::vector<FrameResult>& frames,
-                                               const FrontEndOptions& options,
-                                               track::FrameRate rate,
-                                               const track::SceneContinuity& scenes) {
+// car's own change track has become part of it), short gaps filled (not in the low-frame-rate
+// mode), and numbered 1, 2, ... in order of appearance.
+std::vector<track::TargetTrack> CombineTargets(
+    std::vector<track::TargetTrack> by_features, std::vector<track::TargetTrack> by_change,
+    const std::vector<FrameResult>& frames, const FrontEndOptions& options, track::FrameRate rate,
+    const track::SceneContinuity& scenes, bool low_frame_rate) {
   std::vector<track::TargetTrack> all;
   for (track::TargetTrack& t : by_features) {
     if (track::SupportedByChange(t, options.min_change_support)) all.push_back(std::move(t));
@@ -167,6 +166,11 @@ std::vector<track::TargetTrack> CombineTargets(std::vector<track::TargetTrack> b
   all = track::LinkFragments(std::move(all), options.EffectiveTargets(), rate, &ground, &scenes);
   all = track::DropShadows(std::move(all), options.EffectiveTargets(), rate);
   all = track::DropChangeEchoes(std::move(all), options.change_echoes, rate);
+  // Not in the low-frame-rate mode: a frame or two unseen there is a second or more, and on the
+  // tuning seeds filling those cost precision and found nothing (docs/front-end.md, Gaps filled).
+  track::TargetTrackOptions fill = options.EffectiveTargets();
+  if (low_frame_rate) fill.fill_gap_s = 0;
+  all = track::FillGaps(std::move(all), fill, rate, ground);
   for (size_t i = 0; i < all.size(); ++i)
     all[i].id = static_cast<track::TargetTrackId>(static_cast<int64_t>(i) + 1);
   return all;
@@ -933,7 +937,7 @@ void FrontEnd::FinishTargets() {
     std::erase_if(targets_by_change_, on_overlay);
   }
   result_.targets = CombineTargets(std::move(result_.targets), std::move(targets_by_change_),
-                                   result_.frames, options_, rate_, scenes_);
+                                   result_.frames, options_, rate_, scenes_, low_frame_rate_);
 }
 
 // The options and the checkpoint of a run on `path`.

@@ -27,7 +27,7 @@ namespace saker::mission {
 // processing checkpoints, version 4 the tracks' confidence, version 5 the screen-fixed overlay
 // masks, version 6 the frames' sky lines, version 7 the analyst's track reviews and bookmarks; an
 // older file is read as it is and upgraded in place when it is opened for writing.
-inline constexpr int kSchemaVersion = 7;
+inline constexpr int kSchemaVersion = 8;
 
 using Covariance8 = Eigen::Matrix<double, 8, 8>;
 
@@ -132,6 +132,9 @@ struct TrackPoint {
   Eigen::Vector2d box_min{0, 0};
   Eigen::Vector2d box_max{0, 0};
   Eigen::Vector2d map{0, 0};  // map frame
+  // Not seen in this frame: placed between the observations on either side of a short gap
+  // (track::FillGaps). Schema 8; false in older files.
+  bool interpolated = false;
 };
 
 // A moving target's track with its activity attributes (docs/activity.md).

@@ -109,6 +109,7 @@ CREATE TABLE track_points (
   box_max_y REAL,
   map_x REAL,
   map_y REAL,
+  interpolated INTEGER NOT NULL DEFAULT 0 CHECK (interpolated IN (0, 1)),
   PRIMARY KEY (track_ordinal, ordinal)
 ) WITHOUT ROWID;
 CREATE TABLE tiles (
@@ -616,8 +617,8 @@ Status WriteTracks(const sqlite::Database& db, const std::vector<ActivityTrack>&
       sqlite::Statement point_stmt,
       db.Prepare(
           "INSERT INTO track_points (track_ordinal, ordinal, frame, time_s, image_x, image_y, "
-          "box_min_x, box_min_y, box_max_x, box_max_y, map_x, map_y) "
-          "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12)",
+          "box_min_x, box_min_y, box_max_x, box_max_y, map_x, map_y, interpolated) "
+          "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13)",
           "saving table track_points"));
   for (size_t i = 0; i < tracks.size(); ++i) {
     const ActivityTrack& t = tracks[i];
@@ -649,6 +650,7 @@ Status WriteTracks(const sqlite::Database& db, const std::vector<ActivityTrack>&
       pb.Double(10, p.box_max.y());
       pb.Double(11, p.map.x());
       pb.Double(12, p.map.y());
+      pb.Int64(13, p.interpolated ? 1 : 0);
       SAKER_RETURN_IF_ERROR(db.Run(point_stmt.get(), pb, "saving table track_points"));
     }
   }
@@ -1016,14 +1018,19 @@ Status LoadTracks(const sqlite::Database& db, int schema, std::vector<ActivityTr
     p.box_min = Eigen::Vector2d(row.Real(6), row.Real(7));
     p.box_max = Eigen::Vector2d(row.Real(8), row.Real(9));
     p.map = Eigen::Vector2d(row.Real(10), row.Real(11));
+    p.interpolated = row.Bool(12);
     SAKER_RETURN_IF_ERROR(row.status());
     points.push_back(p);
     return Status::Ok();
   };
-  SAKER_RETURN_IF_ERROR(db.ForEachRow(
-      "SELECT track_ordinal, ordinal, frame, time_s, image_x, image_y, box_min_x, box_min_y, "
-      "box_max_x, box_max_y, map_x, map_y FROM track_points ORDER BY track_ordinal, ordinal",
-      "loading table track_points", "track_points", read_point));
+  // Points written before schema 8 were all seen.
+  const std::string sql = std::string(
+                              "SELECT track_ordinal, ordinal, frame, time_s, image_x, image_y, "
+                              "box_min_x, box_min_y, box_max_x, box_max_y, map_x, map_y, ") +
+                          (schema >= 8 ? "interpolated " : "0 ") +
+                          "FROM track_points ORDER BY track_ordinal, ordinal";
+  SAKER_RETURN_IF_ERROR(
+      db.ForEachRow(sql.c_str(), "loading table track_points", "track_points", read_point));
   for (size_t i = 0; i < tracks->size(); ++i) {
     if (static_cast<int64_t>((*tracks)[i].points.size()) != point_counts[i]) {
       return InvalidDataError(db.path() + ": table track_points: track " + std::to_string(i) +
@@ -1229,6 +1236,7 @@ Status Create(const sqlite::Database& db) {
 // Version 4 -> 5: the overlay masks' table, empty (older files did not keep them).
 // Version 5 -> 6: the frames' sky lines, NULL (no sky masked: older files did not keep them).
 // Version 6 -> 7: the analyst's track reviews and bookmarks, empty.
+// Version 7 -> 8: the track points' interpolated flag, 0 (every point of an older file was seen).
 Status Upgrade(const sqlite::Database& db, int schema) {
   sqlite::Transaction transaction(db);
   SAKER_RETURN_IF_ERROR(transaction.Begin(/*write=*/true));
@@ -1258,6 +1266,12 @@ Status Upgrade(const sqlite::Database& db, int schema) {
   }
   if (schema < 7) {
     SAKER_RETURN_IF_ERROR(db.Exec(kReviewsSql, "upgrading the mission to schema 7"));
+  }
+  if (schema < 8) {
+    SAKER_RETURN_IF_ERROR(
+        db.Exec("ALTER TABLE track_points ADD COLUMN interpolated INTEGER NOT NULL DEFAULT 0 "
+                "CHECK (interpolated IN (0, 1))",
+                "upgrading the mission to schema 8"));
   }
   const std::string version = std::to_string(kSchemaVersion);
   const std::string sql = "UPDATE meta SET value = " + version + " WHERE key = '" +

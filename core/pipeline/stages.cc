@@ -334,6 +334,7 @@ std::vector<mission::ActivityTrack> TrackRecords(const frontend::FrontEndResult&
       p.image = o.position;
       p.box_min = o.box_min;
       p.box_max = o.box_max;
+      p.interpolated = o.interpolated;
       t.points.push_back(p);
     }
     if (!t.points.empty()) tracks.push_back(std::move(t));
@@ -347,6 +348,7 @@ std::unordered_map<int64_t, activity::TrackEvidence> TrackEvidenceOf(
   for (const track::TargetTrack& target : front.targets) {
     activity::TrackEvidence& e = evidence[static_cast<int64_t>(target.id)];
     for (const track::TargetObservation& o : target.observations) {
+      if (o.interpolated) continue;  // no evidence
       ++e.observations;
       e.feature_sightings += static_cast<int64_t>(o.features.size());
       e.looked += o.change != track::ChangeEvidence::kNotLooked;

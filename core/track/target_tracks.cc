@@ -142,12 +142,13 @@ Status TargetTrackOptions::Validate() const {
   if (!(box_margin_px >= 0)) return InvalidArgumentError("targets: box margin must be >= 0");
   if (!(link_gap_s >= 0 && link_gap_s <= 3600) ||
       !(ground_link_gap_s >= 0 && ground_link_gap_s <= 3600) ||
-      !(duplicate_overlap_s >= 0 && duplicate_overlap_s <= 3600) || !(shadow_fraction >= 0) ||
+      !(duplicate_overlap_s >= 0 && duplicate_overlap_s <= 3600) ||
+      !(fill_gap_s >= 0 && fill_gap_s <= 3600) || !(shadow_fraction >= 0) ||
       !(gate_growth_px_s >= 0) || !(ground_link_growth_px_s >= 0) ||
       !(ground_link_max_speed_px_s >= 0)) {
     return InvalidArgumentError(
-        "targets: link gaps and overlaps must be in [0, 3600] s, the gates' growth, the ground "
-        "link speed and the shadow fraction >= 0");
+        "targets: link and fill gaps and overlaps must be in [0, 3600] s, the gates' growth, "
+        "the ground link speed and the shadow fraction >= 0");
   }
   return Status::Ok();
 }
@@ -163,7 +164,8 @@ TargetTrackTiming::TargetTrackTiming(const TargetTrackOptions& options, FrameRat
       duplicate_overlap_frames(rate.Frames(options.duplicate_overlap_s, 2)),
       ground_link_max_speed_px(rate.PerFrame(options.ground_link_max_speed_px_s)),
       ground_link_gap_frames(rate.Frames(options.ground_link_gap_s, 2)),
-      ground_link_growth_px(rate.PerFrame(options.ground_link_growth_px_s)) {}
+      ground_link_growth_px(rate.PerFrame(options.ground_link_growth_px_s)),
+      fill_gap_frames(options.fill_gap_s > 0 ? rate.Frames(options.fill_gap_s, 1) : 0) {}
 
 TargetTracker::TargetTracker(const TargetTrackOptions& options, FrameRate rate)
     : options_(options), timing_(options, rate) {}
@@ -565,6 +567,44 @@ std::vector<TargetTrack> LinkFragments(std::vector<TargetTrack> tracks,
   }
   std::sort(tracks.begin(), tracks.end(),
             [](const TargetTrack& a, const TargetTrack& b) { return a.id < b.id; });
+  return tracks;
+}
+
+std::vector<TargetTrack> FillGaps(std::vector<TargetTrack> tracks,
+                                  const TargetTrackOptions& options, FrameRate rate,
+                                  const GroundMotion& ground) {
+  const TargetTrackTiming timing(options, rate);
+  if (timing.fill_gap_frames <= 0) return tracks;
+  for (TargetTrack& track : tracks) {
+    std::vector<TargetObservation> filled;
+    filled.reserve(track.observations.size());
+    for (size_t k = 0; k < track.observations.size(); ++k) {
+      const TargetObservation& b = track.observations[k];
+      const TargetObservation* a = k > 0 ? &track.observations[k - 1] : nullptr;
+      const int64_t unseen = a != nullptr ? b.frame - a->frame - 1 : 0;
+      // b where it was, in a's frame: the ground's motion carries it.
+      const std::optional<Eigen::Vector2d> b_in_a = unseen > 0 && unseen <= timing.fill_gap_frames
+                                                        ? ground.Map(b.position, b.frame, a->frame)
+                                                        : std::nullopt;
+      for (int64_t f = b_in_a ? a->frame + 1 : b.frame; f < b.frame; ++f) {
+        const double w = static_cast<double>(f - a->frame) / static_cast<double>(unseen + 1);
+        const std::optional<Eigen::Vector2d> p =
+            ground.Map((1 - w) * a->position + w * *b_in_a, a->frame, f);
+        if (!p) continue;
+        const TargetObservation& nearer = w <= 0.5 ? *a : b;
+        TargetObservation o;
+        o.frame = f;
+        o.position = *p;
+        o.box_min = *p + (nearer.box_min - nearer.position);
+        o.box_max = *p + (nearer.box_max - nearer.position);
+        o.velocity = (1 - w) * a->velocity + w * b.velocity;
+        o.interpolated = true;
+        filled.push_back(std::move(o));
+      }
+      filled.push_back(b);
+    }
+    track.observations = std::move(filled);
+  }
   return tracks;
 }
 

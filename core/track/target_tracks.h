@@ -60,6 +60,9 @@ struct TargetTrackOptions {
   double ground_link_max_speed_px_s = 25;
   double ground_link_gap_s = 8;
   double ground_link_growth_px_s = 6.25;
+  // FillGaps: a track's frames unseen for up to fill_gap_s between two of its observations are
+  // given interpolated ones [1 frame; 0: none].
+  double fill_gap_s = 1;
   // Change evidence (RecordChange) comes some frames late. When set, a target that ends waits
   // until RecordChange has reached its last frame, or EndChangeEvidence() says that no more will
   // come, before it is finished: it leaves with the evidence of every frame that gets one.
@@ -81,6 +84,7 @@ struct TargetTrackTiming {
   double ground_link_max_speed_px = 0;
   int ground_link_gap_frames = 0;
   double ground_link_growth_px = 0;  // per frame of gap
+  int fill_gap_frames = 0;           // 0: FillGaps fills nothing
 };
 
 // What the change detector (change_detector.h) saw at an observation.
@@ -98,6 +102,9 @@ struct TargetObservation {
   Eigen::Vector2d velocity{0, 0};        // ground-relative, pixels per frame
   std::vector<FeatureTrackId> features;  // none for a track found by change detection
   ChangeEvidence change = ChangeEvidence::kNotLooked;
+  // Not seen: placed between the observations on either side of a short gap (FillGaps). It has no
+  // features and no change evidence, and is no evidence for the track.
+  bool interpolated = false;
 };
 
 struct TargetTrack {
@@ -221,6 +228,11 @@ class GroundMotion {
 // continues another across a scene cut (SceneContinuity): the pieces are in two scenes. Two tracks
 // that run side by side (within group_distance_px) for at least duplicate_overlap_s are one. Ids of
 // the earlier pieces are kept; the result is ordered by id. `rate` is the video's.
+std::vector<TargetTrack> LinkFragments(std::vector<TargetTrack> tracks,
+                                       const TargetTrackOptions& options, FrameRate rate,
+                                       const GroundMotion* ground = nullptr,
+                                       const SceneContinuity* scenes = nullptr);
+
 // Drops the second tracks of slow objects already followed, once the pieces are joined. A slow
 // track (mean ground speed at most ground_link_max_speed_px_s: a walker's) is beside another slow
 // track in a frame when they lie within the distance pieces of one object keep (as for
@@ -233,9 +245,17 @@ class GroundMotion {
 std::vector<TargetTrack> DropShadows(std::vector<TargetTrack> tracks,
                                      const TargetTrackOptions& options, FrameRate rate);
 
-std::vector<TargetTrack> LinkFragments(std::vector<TargetTrack> tracks,
-                                       const TargetTrackOptions& options, FrameRate rate,
-                                       const GroundMotion* ground = nullptr,
-                                       const SceneContinuity* scenes = nullptr);
+// Fills the short gaps of each track, once the tracks are final: a frame between two observations
+// at most fill_gap_s apart (in one chain segment of `ground`) gets an observation placed as if the
+// object had moved at constant velocity over the ground between them (the later observation
+// carried into the earlier frame by the ground's motion, the point between them carried into the
+// frame), its box as large as the nearer one's, marked `interpolated`. A track followed through a
+// short occlusion or a few frames where its corners or its change fell below the thresholds is
+// one track through them, as an analyst sees it, rather than a dotted one. Gaps across a chain
+// break, and the longer gaps LinkFragments bridged (where the object may have stopped or turned),
+// are left unseen.
+std::vector<TargetTrack> FillGaps(std::vector<TargetTrack> tracks,
+                                  const TargetTrackOptions& options, FrameRate rate,
+                                  const GroundMotion& ground);
 
 }  // namespace saker::track

@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <functional>
@@ -207,6 +208,45 @@ TEST(Confidence, SupportFromFeaturesOrChange) {
   TrackEvidence unlooked = Evidence(t, 4, 0);
   unlooked.looked = 0;
   EXPECT_DOUBLE_EQ(AssessTrack(t, unlooked, options).confidence, features);
+}
+
+// Interpolated points (track::FillGaps) lie on a line by construction: the motion factors are
+// those of the seen points, however many were filled in between.
+TEST(Confidence, InterpolatedPointsAreNoEvidenceOfSteadyMotion) {
+  const Mission mission = MakeMission(25);
+  std::vector<ActivityTrack> tracks = {
+      Observe(mission, 1, 2, 6, Straight({5, -20}, {1.2, 0}), 0.4, 11)};
+  ASSERT_TRUE(
+      Assess(mission, &tracks, [](const ActivityTrack& t) { return Evidence(t, 2, 0.8); }).ok());
+  ASSERT_EQ(tracks.size(), 1u);
+  // Four points in five not seen (gaps of 0.16 s): once left out, once filled in on the line
+  // between the seen points on either side.
+  ActivityTrack seen = tracks[0], filled = tracks[0];
+  seen.points.clear();
+  const size_t n = filled.points.size();
+  for (size_t i = 0; i < n; ++i) {
+    const size_t before = i / 5 * 5, after = std::min(before + 5, n - 1);
+    if (i == before || i == n - 1) {
+      seen.points.push_back(filled.points[i]);
+      continue;
+    }
+    const double w = static_cast<double>(i - before) / static_cast<double>(after - before);
+    filled.points[i].map = (1 - w) * tracks[0].points[before].map + w * tracks[0].points[after].map;
+    filled.points[i].interpolated = true;
+  }
+  const TrackEvidence evidence = Evidence(seen, 2, 0.8);
+  const ConfidenceFactors with_filled = AssessTrack(filled, evidence, {});
+  const ConfidenceFactors seen_only = AssessTrack(seen, evidence, {});
+  EXPECT_DOUBLE_EQ(with_filled.jitter, seen_only.jitter);
+  EXPECT_DOUBLE_EQ(with_filled.steadiness, seen_only.steadiness);
+  EXPECT_DOUBLE_EQ(with_filled.confidence, seen_only.confidence);
+  // Taken as seen, the points on the line would make the track look steadier than it was.
+  ActivityTrack counted = filled;
+  for (TrackPoint& p : counted.points) p.interpolated = false;
+  const ConfidenceFactors as_seen = AssessTrack(counted, evidence, {});
+  std::printf("jitter: seen %.3f, filled points taken as seen %.3f\n", seen_only.jitter,
+              as_seen.jitter);
+  EXPECT_GT(as_seen.jitter, seen_only.jitter + 0.02);
 }
 
 TEST(Confidence, MinimumConfidenceDropsAndCounts) {

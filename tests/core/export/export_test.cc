@@ -44,6 +44,7 @@ mission::ActivityTrack MakeTrack(int64_t id, int visit, const std::vector<Eigen:
     point.box_min = point.image - Eigen::Vector2d(4, 3);
     point.box_max = point.image + Eigen::Vector2d(4, 3);
     point.map = map[i];
+    point.interpolated = i == 1;  // the second point was not seen
     track.points.push_back(point);
   }
   track.start_s = track.points.empty() ? 0 : track.points.front().time_s;
@@ -155,6 +156,9 @@ TEST(GeoJsonExportTest, GeoReferencedFeaturesHaveWgs84LonLatAndAttributes) {
     EXPECT_DOUBLE_EQ(last["box"][3].get<double>(), point.box_max.y());
     EXPECT_DOUBLE_EQ(last["map"][0].get<double>(), point.map.x());
     EXPECT_DOUBLE_EQ(last["map"][1].get<double>(), point.map.y());
+    for (size_t i = 0; i < track.points.size(); ++i) {
+      EXPECT_EQ(properties["points"][i]["interpolated"].get<bool>(), track.points[i].interpolated);
+    }
   }
   EXPECT_EQ(json["saker"]["video"], kVideoName);
   EXPECT_TRUE(json["saker"]["geo_referenced"].get<bool>());
@@ -397,7 +401,7 @@ TEST(CsvExportTest, OneRowPerObservationWithQuotedFields) {
       "length",     "speed",     "speed_mps", "heading_deg", "point_count",  "point_index",
       "frame",      "time_s",    "image_x",   "image_y",     "box_min_x",    "box_min_y",
       "box_max_x",  "box_max_y", "map_x",     "map_y",       "latitude_deg", "longitude_deg",
-      "confidence", "verdict",   "label",     "note"};
+      "confidence", "verdict",   "label",     "note",        "interpolated"};
   EXPECT_EQ(header, columns);
   for (size_t r = 1; r < rows.size(); ++r) {
     ASSERT_EQ(rows[r].size(), header.size()) << "row " << r;
@@ -417,6 +421,8 @@ TEST(CsvExportTest, OneRowPerObservationWithQuotedFields) {
   EXPECT_DOUBLE_EQ(std::stod(row[column["map_x"]]), point.map.x());
   EXPECT_DOUBLE_EQ(std::stod(row[column["speed_mps"]]), 3.25);
   EXPECT_DOUBLE_EQ(std::stod(row[column["confidence"]]), 0.75);
+  EXPECT_EQ(row[column["interpolated"]], "0");
+  EXPECT_EQ(rows[2][column["interpolated"]], "1");  // track 1's second point
   const geo::Wgs84 expected = Plane().LatLonFromMap(point.map);
   EXPECT_NEAR(std::stod(row[column["latitude_deg"]]), expected.latitude_deg, 1e-12);
   EXPECT_NEAR(std::stod(row[column["longitude_deg"]]), expected.longitude_deg, 1e-12);

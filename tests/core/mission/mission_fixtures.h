@@ -166,6 +166,7 @@ inline bool MissionsEqual(const Mission& a, const Mission& b, std::string* why) 
         return differ("box");
       }
       if (!SameMatrix(pa.map, pb.map)) return differ("map");
+      if (pa.interpolated != pb.interpolated) return differ("interpolated");
     }
     out.str("");
   }
@@ -328,6 +329,7 @@ inline Mission MakeFullMission() {
       p.box_min = Eigen::Vector2d(95.5 + j, 190.75);
       p.box_max = Eigen::Vector2d(105.5 + j, 210.125);
       p.map = Eigen::Vector2d(-345.678 + 2.5 * j, 987.654 - 0.5 * j);
+      p.interpolated = j == 2;
       t.points.push_back(p);
     }
     t.start_s = 4.0 + i;

@@ -134,6 +134,7 @@ TEST_F(MissionStoreTest, SchemaOneFileIsReadAndUpgradedForWriting) {
           "ALTER TABLE frames DROP COLUMN pts; ALTER TABLE frames DROP COLUMN key_frame; "
           "ALTER TABLE frames DROP COLUMN sky_y0; ALTER TABLE frames DROP COLUMN sky_slope; "
           "DROP TABLE track_reviews; DROP TABLE bookmarks; "
+          "ALTER TABLE track_points DROP COLUMN interpolated; "
           "UPDATE meta SET value = 1 WHERE key = 'schema_version'; PRAGMA user_version = 1");
   {
     auto store = MissionStore::Open(path.string());
@@ -167,6 +168,7 @@ TEST_F(MissionStoreTest, SchemaTwoFileHasNoCheckpointUntilUpgraded) {
           "DROP TABLE overlays; DROP TABLE checkpoint; ALTER TABLE tracks DROP COLUMN confidence; "
           "ALTER TABLE frames DROP COLUMN sky_y0; ALTER TABLE frames DROP COLUMN sky_slope; "
           "DROP TABLE track_reviews; DROP TABLE bookmarks; "
+          "ALTER TABLE track_points DROP COLUMN interpolated; "
           "UPDATE meta SET value = 2 WHERE key = 'schema_version'; PRAGMA user_version = 2");
   {
     auto store = MissionStore::Open(path.string());
@@ -194,9 +196,12 @@ TEST_F(MissionStoreTest, SchemaTwoFileHasNoCheckpointUntilUpgraded) {
   EXPECT_EQ(m->schema_version, kSchemaVersion);
   // Upgraded, not saved again: the tracks' confidence is unknown (schema 4 adds it empty), and
   // there is no overlay mask (schema 5 adds the table empty) nor sky line (schema 6 adds the
-  // columns empty).
+  // columns empty), and every track point was seen (schema 8 adds the flag as 0).
   Mission upgraded = full;
-  for (ActivityTrack& t : upgraded.tracks) t.confidence.reset();
+  for (ActivityTrack& t : upgraded.tracks) {
+    t.confidence.reset();
+    for (TrackPoint& p : t.points) p.interpolated = false;
+  }
   upgraded.overlays.clear();
   for (FrameRecord& f : upgraded.frames) f.sky_line.reset();
   EXPECT_SAME_MISSION(*m, upgraded);
@@ -212,6 +217,7 @@ TEST_F(MissionStoreTest, SchemaThreeFileHasUnknownConfidenceUntilUpgraded) {
           "DROP TABLE overlays; ALTER TABLE tracks DROP COLUMN confidence; "
           "ALTER TABLE frames DROP COLUMN sky_y0; ALTER TABLE frames DROP COLUMN sky_slope; "
           "DROP TABLE track_reviews; DROP TABLE bookmarks; "
+          "ALTER TABLE track_points DROP COLUMN interpolated; "
           "UPDATE meta SET value = 3 WHERE key = 'schema_version'; PRAGMA user_version = 3");
   {
     auto store = MissionStore::Open(path.string());
@@ -248,6 +254,7 @@ TEST_F(MissionStoreTest, SchemaFourFileHasNoOverlayMaskUntilSaved) {
           "DROP TABLE overlays; "
           "ALTER TABLE frames DROP COLUMN sky_y0; ALTER TABLE frames DROP COLUMN sky_slope; "
           "DROP TABLE track_reviews; DROP TABLE bookmarks; "
+          "ALTER TABLE track_points DROP COLUMN interpolated; "
           "UPDATE meta SET value = 4 WHERE key = 'schema_version'; PRAGMA user_version = 4");
   {
     auto m = LoadFile(path);
@@ -281,6 +288,7 @@ TEST_F(MissionStoreTest, SchemaFiveFileHasNoSkyLineUntilSaved) {
   ExecSql(path,
           "ALTER TABLE frames DROP COLUMN sky_y0; ALTER TABLE frames DROP COLUMN sky_slope; "
           "DROP TABLE track_reviews; DROP TABLE bookmarks; "
+          "ALTER TABLE track_points DROP COLUMN interpolated; "
           "UPDATE meta SET value = 5 WHERE key = 'schema_version'; PRAGMA user_version = 5");
   const auto no_sky = [](const Mission& m) {
     return std::none_of(m.frames.begin(), m.frames.end(),
@@ -669,6 +677,7 @@ TEST_F(MissionStoreTest, SchemaSixFileHasNoReviewsUntilUpgraded) {
   WriteMissionFile(path, m);
   ExecSql(path,
           "DROP TABLE track_reviews; DROP TABLE bookmarks; "
+          "ALTER TABLE track_points DROP COLUMN interpolated; "
           "UPDATE meta SET value = 6 WHERE key = 'schema_version'; PRAGMA user_version = 6");
   {
     auto store = MissionStore::Open(path.string());
@@ -687,6 +696,39 @@ TEST_F(MissionStoreTest, SchemaSixFileHasNoReviewsUntilUpgraded) {
   EXPECT_EQ(loaded->schema_version, kSchemaVersion);
   ASSERT_EQ(loaded->reviews.size(), 1u);
   EXPECT_EQ(loaded->reviews[0].note, "a shadow");
+}
+
+// A mission of schema 7 (before interpolated track points): every point read as seen; upgraded
+// when opened for writing, after which the flags are kept.
+TEST_F(MissionStoreTest, SchemaSevenFileHasOnlySeenPointsUntilUpgraded) {
+  const fs::path path = File("v7.saker");
+  const Mission full = MakeFullMission();
+  WriteMissionFile(path, full);
+  ExecSql(path,
+          "ALTER TABLE track_points DROP COLUMN interpolated; "
+          "UPDATE meta SET value = 7 WHERE key = 'schema_version'; PRAGMA user_version = 7");
+  {
+    auto store = MissionStore::Open(path.string());
+    ASSERT_TRUE(store.ok()) << store.status().ToString();
+    auto loaded = store.value()->Load();
+    ASSERT_TRUE(loaded.ok()) << loaded.status().ToString();
+    EXPECT_EQ(loaded->schema_version, 7);
+    ASSERT_EQ(loaded->tracks.size(), full.tracks.size());
+    for (const ActivityTrack& t : loaded->tracks) {
+      for (const TrackPoint& p : t.points) EXPECT_FALSE(p.interpolated);
+    }
+  }
+  {
+    auto store = MissionStore::Open(path.string(), OpenMode::kReadWrite);
+    ASSERT_TRUE(store.ok()) << store.status().ToString();
+    ASSERT_TRUE((*store)->Save(full).ok());
+  }
+  auto store = MissionStore::Open(path.string());
+  ASSERT_TRUE(store.ok()) << store.status().ToString();
+  auto loaded = (*store)->Load();
+  ASSERT_TRUE(loaded.ok()) << loaded.status().ToString();
+  EXPECT_EQ(loaded->schema_version, kSchemaVersion);
+  EXPECT_SAME_MISSION(*loaded, full);
 }
 
 TEST_F(MissionStoreTest, SaveRefusesWhatTheFileCannotHoldAndKeepsTheFile) {

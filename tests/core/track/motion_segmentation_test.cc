@@ -438,6 +438,57 @@ TEST(LinkFragmentsTest, OnTheGroundAStoppedWalkerIsJoinedAcrossALongGap) {
   EXPECT_EQ(LinkFragments(tracks, options, kRate, &broken).size(), 3u);
 }
 
+// A walker (0.3 px per frame on the ground, the camera panning 1 px per frame) unseen for 10
+// frames, then for 30: the short gap is filled on the ground (the image position moves by the
+// walker's step less the pan), with boxes and velocities and no features, the long one is left.
+// Nothing is filled across a chain break, or with fill_gap_s 0.
+TEST(FillGapsTest, FillsShortGapsAlongTheGroundAndNoOther) {
+  TargetTrack walker = Track(1, 0, 60, {400, 300}, {-0.7, 0}, {0.3, 0});
+  std::erase_if(walker.observations, [](const TargetObservation& o) {
+    return (o.frame > 10 && o.frame < 21) || (o.frame > 25 && o.frame < 56);
+  });
+  ASSERT_EQ(walker.observations.size(), 61u - 10u - 30u);
+  for (TargetObservation& x : walker.observations) {
+    x.box_min = x.position - Eigen::Vector2d(3, 4);
+    x.box_max = x.position + Eigen::Vector2d(3, 4);
+  }
+  const TargetTrackOptions options;  // fill_gap_s 1: 25 frames at 25 fps
+  const GroundMotion ground = Panning(100);
+  const std::vector<TargetTrack> filled = FillGaps({walker}, options, kRate, ground);
+  ASSERT_EQ(filled.size(), 1u);
+  const std::vector<TargetObservation>& o = filled[0].observations;
+  ASSERT_EQ(o.size(), 61u - 30u);
+  for (size_t k = 0; k + 1 < o.size(); ++k) EXPECT_LT(o[k].frame, o[k + 1].frame);
+  int interpolated = 0;
+  for (const TargetObservation& x : o) {
+    EXPECT_NEAR(x.position.x(), 400 - 0.7 * static_cast<double>(x.frame), 1e-9) << x.frame;
+    EXPECT_NEAR(x.position.y(), 300, 1e-9);
+    EXPECT_NEAR((x.box_min - (x.position - Eigen::Vector2d(3, 4))).norm(), 0, 1e-9);
+    EXPECT_NEAR((x.box_max - (x.position + Eigen::Vector2d(3, 4))).norm(), 0, 1e-9);
+    EXPECT_EQ(x.interpolated, x.frame > 10 && x.frame < 21) << x.frame;
+    if (x.interpolated) {
+      EXPECT_TRUE(x.features.empty());
+      EXPECT_EQ(x.change, ChangeEvidence::kNotLooked);
+      EXPECT_NEAR(x.velocity.x(), 0.3, 1e-9);
+      ++interpolated;
+    }
+  }
+  EXPECT_EQ(interpolated, 10);
+  // A longer gap is filled when the option allows it (30 unseen frames, 1.2 s).
+  TargetTrackOptions longer = options;
+  longer.fill_gap_s = 1.3;
+  EXPECT_EQ(FillGaps({walker}, longer, kRate, ground)[0].observations.size(), 61u);
+  // Across a chain break (frame 15), or with filling off, the gap stays.
+  EXPECT_EQ(
+      FillGaps({walker}, options, kRate, Panning(100, /*chain_break=*/15))[0].observations.size(),
+      21u);
+  TargetTrackOptions off = options;
+  off.fill_gap_s = 0;
+  EXPECT_EQ(FillGaps({walker}, off, kRate, ground)[0].observations.size(), 21u);
+  off.fill_gap_s = -1;
+  EXPECT_FALSE(off.Validate().ok());
+}
+
 // A walker's second track that follows it, drifts and then follows the walker it passes is
 // dropped: it runs beside one of them in most of its frames. The two walkers' own tracks, a third
 // walker 20 px away and a car passing stay; of two tracks side by side throughout (one walker
