@@ -470,11 +470,15 @@ std::vector<TargetTrack> LinkFragments(std::vector<TargetTrack> tracks,
   const auto first = [&](size_t i) { return tracks[i].observations.front().frame; };
   const auto last = [&](size_t i) { return tracks[i].observations.back().frame; };
 
-  // Whether tracks a < b ran side by side for a while (a track's two halves, a car seen twice).
+  // Whether tracks a < b ran side by side for a while (a track's two halves, a car seen twice),
+  // or b took over from a: started beside a in a's last frames (fewer than a duplicate needs) and
+  // went on after a ended.
   const auto duplicates = [&](size_t a, size_t b) {
     if (first(b) > last(a) || first(a) > last(b)) return false;  // no frame in common
     const auto [distance, frames] = SideBySide(tracks[a], tracks[b]);
-    return frames >= timing.duplicate_overlap_frames &&
+    const bool handover = first(a) < first(b) && last(a) < last(b) &&
+                          last(a) - first(b) < timing.duplicate_overlap_frames;
+    return (frames >= timing.duplicate_overlap_frames || (handover && frames > 0)) &&
            distance <= PiecesApart(options, timing, speed[a], speed[b]);
   };
   // Folds track `from` into track `into` (into < from) and removes it.

@@ -226,8 +226,11 @@ class GroundMotion {
 // ground_link_gap_s (across a chain break, the image test applies). Cars keep the image test:
 // along a road the path of a lost car reaches the car ahead of it. With `scenes`, no track
 // continues another across a scene cut (SceneContinuity): the pieces are in two scenes. Two tracks
-// that run side by side (within group_distance_px) for at least duplicate_overlap_s are one. Ids of
-// the earlier pieces are kept; the result is ordered by id. `rate` is the video's.
+// that run side by side (within the distance pieces of one object keep: group_distance_px, less
+// for slow things) for at least duplicate_overlap_s are one, and so is a track that took over from
+// another: started beside it in its last frames (overlapping by less than duplicate_overlap_s)
+// and went on after it ended. Ids of the earlier pieces are kept; the result is ordered by id.
+// `rate` is the video's.
 std::vector<TargetTrack> LinkFragments(std::vector<TargetTrack> tracks,
                                        const TargetTrackOptions& options, FrameRate rate,
                                        const GroundMotion* ground = nullptr,

@@ -385,6 +385,37 @@ TEST(LinkFragmentsTest, JoinsContinuationsAndDuplicatesButNotPassersBy) {
   EXPECT_EQ(linked[3].id, TargetTrackId{6});
 }
 
+// A walker's track ends 3 frames after another started beside it (fewer than a duplicate needs):
+// the second took over and the two are one. Two walkers whose tracks pass within a few pixels
+// for 3 frames, both going on, stay two, and so does a track beside another's last frames that
+// ends before it.
+TEST(LinkFragmentsTest, ATrackThatTookOverFromAnotherContinuesIt) {
+  const TargetTrackOptions options;  // duplicates: 5 frames side by side at 25 fps
+  std::vector<TargetTrack> tracks;
+  tracks.push_back(Track(1, 0, 100, {100, 100}, {0.3, 0}, {0.3, 0}));  // ends at (130, 100)
+  tracks.push_back(Track(2, 98, 200, {129.4 + 2, 101}, {0.3, 0}, {0.3, 0}));
+  // Crossing: they meet at frame 50, each going on for 50 frames.
+  tracks.push_back(Track(3, 0, 100, {300, 300}, {0.3, 0}, {0.3, 0}));
+  tracks.push_back(Track(4, 0, 100, {315, 285}, {0, 0.3}, {0, 0.3}));
+  // Beside track 1's last frames (and ending before it): no take-over; a second look.
+  tracks.push_back(Track(5, 97, 99, {129.1 + 40, 100}, {0.3, 0}, {0.3, 0}));
+  const std::vector<TargetTrack> linked = LinkFragments(tracks, options, kRate);
+  ASSERT_EQ(linked.size(), 4u);
+  EXPECT_EQ(linked[0].id, TargetTrackId{1});
+  EXPECT_EQ(linked[0].observations.front().frame, 0);
+  EXPECT_EQ(linked[0].observations.back().frame, 200);
+  EXPECT_EQ(linked[0].observations.size(), 201u);  // the 3 common frames once
+  EXPECT_EQ(linked[1].id, TargetTrackId{3});
+  EXPECT_EQ(linked[2].id, TargetTrackId{4});
+  EXPECT_EQ(linked[3].id, TargetTrackId{5});
+  // Starting 10 frames before track 1 ended, beside it for all 10, track 2 is a duplicate (one
+  // track too); 40 px away it is someone else.
+  tracks[1] = Track(2, 91, 200, {127.3 + 2, 101}, {0.3, 0}, {0.3, 0});
+  EXPECT_EQ(LinkFragments(tracks, options, kRate).size(), 4u);
+  tracks[1] = Track(2, 98, 200, {129.4, 101 + 40}, {0.3, 0}, {0.3, 0});
+  EXPECT_EQ(LinkFragments(tracks, options, kRate).size(), 5u);
+}
+
 // The camera pans: the ground moves 1 px per frame to the left in the image.
 GroundMotion Panning(int64_t frames, int64_t chain_break = -1) {
   Eigen::Matrix3d current_from_previous = Eigen::Matrix3d::Identity();
