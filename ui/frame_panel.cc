@@ -154,6 +154,7 @@ class FrameCanvas : public QWidget {
   }
   void observationChanged() { panned_ = false; }
   const std::optional<QPointF>& mark() const { return mark_; }
+  bool markInterpolated() const { return mark_interpolated_; }
   // The overlay mask to draw over the frame: one pixel a cell of `cell_px` video frame pixels
   // (the mask's colour and transparency are the image's); a null image draws none.
   void setOverlay(const QImage& cells, int cell_px) {
@@ -819,6 +820,10 @@ QPointF FramePanel::markImagePosition() const {
 
 bool FramePanel::markVisible() const { return canvas_->mark().has_value(); }
 
+bool FramePanel::markInterpolated() const {
+  return canvas_->mark().has_value() && canvas_->markInterpolated();
+}
+
 bool FramePanel::videoAvailable() const { return video_available_; }
 
 QString FramePanel::videoPath() const { return video_path_; }
@@ -1140,6 +1145,7 @@ void FramePanel::updateInfo() {
                           speed_value_, heading_value_, confidence_value_}) {
       label->setText(QStringLiteral("–"));
     }
+    track_value_->setToolTip(QString());
     // A frame shown for its time (the time line, a place): its time, number and UTC.
     if (const mission::FrameRecord* record =
             mission_ && displayed_frame_ >= 0 ? mission::FrameRecordOf(*mission_, displayed_frame_)
@@ -1155,12 +1161,16 @@ void FramePanel::updateInfo() {
     return;
   }
   const mission::ActivityTrack& track = mission_->tracks[current_->first];
-  track_value_->setText((point->interpolated
-                             ? tr("%1 (observation %2 of %3, interpolated: not seen here)")
-                             : tr("%1 (observation %2 of %3)"))
+  track_value_->setText((point->interpolated ? tr("%1 (observation %2 of %3, interpolated)")
+                                             : tr("%1 (observation %2 of %3)"))
                             .arg(track.id)
                             .arg(current_->second + 1)
                             .arg(track.points.size()));
+  track_value_->setToolTip(point->interpolated
+                               ? tr("Not seen in this frame: placed between the observations "
+                                    "before and after it, over the ground (a gap of at most a "
+                                    "second in the track).")
+                               : QString());
   visit_value_->setText(QString::number(track.visit));
   if (track.speed_mps) {
     speed_value_->setText(tr("%1 m/s (%2 km/h)")

@@ -73,6 +73,8 @@ class FramePanel : public QWidget {
   // when no mark is drawn (no observation in the displayed frame).
   QPointF markImagePosition() const;
   bool markVisible() const;
+  // Whether the mark drawn is of an interpolated observation (dashed: not seen in this frame).
+  bool markInterpolated() const;
   bool videoAvailable() const;
   QString videoPath() const;    // the path frames are decoded from (or looked for)
   double lastRecallMs() const;  // showObservation call to frame painted; NaN before the first

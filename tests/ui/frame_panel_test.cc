@@ -212,6 +212,41 @@ TEST(FramePanelTest, ShowsTheObservedFrameWithTheMarkOnTheTarget) {
   MaybeScreenshot(panel, "observation");
 }
 
+// An observation the object was not seen at (track::FillGaps) is marked dashed and says so; the
+// seen one beside it is not. The small mission's longest track with one of its points flagged,
+// should it have none of its own.
+TEST(FramePanelTest, AnInterpolatedObservationIsMarkedAsNotSeen) {
+  const TestMission* test = SmallMission();
+  ASSERT_NE(test, nullptr);
+  auto mission = std::make_shared<mission::Mission>(test->loaded);
+  const size_t track_index = LongestTrack(*mission);
+  auto& points = mission->tracks[track_index].points;
+  ASSERT_GE(points.size(), 3u);
+  const auto own = std::find_if(points.begin() + 1, points.end() - 1,
+                                [](const mission::TrackPoint& p) { return p.interpolated; });
+  const size_t filled =
+      own != points.end() - 1 ? static_cast<size_t>(own - points.begin()) : points.size() / 2;
+  points[filled].interpolated = true;
+  points[filled - 1].interpolated = false;
+  FramePanel panel;
+  panel.resize(640, 520);
+  panel.show();
+  panel.setMission(mission, VideoOf(*test));
+  ASSERT_TRUE(WaitWarm(panel));
+  ASSERT_TRUE(ShowAndWait(panel, track_index, filled - 1));
+  ASSERT_TRUE(panel.markVisible());
+  EXPECT_FALSE(panel.markInterpolated());
+  EXPECT_FALSE(panel.findChild<QLabel*>("trackValue")->text().contains("interpolated"));
+  ASSERT_TRUE(ShowAndWait(panel, track_index, filled));
+  ASSERT_TRUE(panel.markVisible());
+  EXPECT_TRUE(panel.markInterpolated());
+  EXPECT_DOUBLE_EQ(panel.markImagePosition().x(), points[filled].image.x());
+  const QLabel* track_value = panel.findChild<QLabel*>("trackValue");
+  EXPECT_TRUE(track_value->text().endsWith("interpolated)")) << track_value->text().toStdString();
+  EXPECT_TRUE(track_value->toolTip().startsWith("Not seen in this frame"));
+  MaybeScreenshot(panel, "interpolated");
+}
+
 // Where frame pixel (x, y) of a frame of `frame` size is drawn on the panel's canvas (the frame
 // fitted and centred, pixel centres at integers).
 QPoint OnCanvas(const QWidget& canvas, const QSize& frame, double x, double y) {
