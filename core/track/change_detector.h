@@ -215,7 +215,11 @@ struct BlobTrackOptions {
   double min_duration_s = 1;      // blobs seen this long before a track can be confirmed [3]
   double min_hit_fraction = 0.6;  // of the frames since the track began
   double min_travel_px = 4;       // ground-relative displacement of the straight-line fit
-  double max_fit_rms_px = 1.2;    // positions about that line, at most (steady motion)
+  // Positions about that line, at most (steady motion). A car's blob (the ground it uncovers as
+  // well as the car) changes shape as it goes, and a car turning at a junction or a walker
+  // turning a corner leaves the line over the track's life: at 1.2 px, pieces of such tracks
+  // were refused while a blob lay on the object in every frame (docs/front-end.md).
+  double max_fit_rms_px = 3;
   double max_speed_px_s = 50;     // faster things are the feature tracks' (cars)
   // A track seen once has no velocity yet: its next blob may lie up to this far a second from it
   // (a plausible top speed; 0: the gate of the others). The low-frame-rate mode sets it, where a
