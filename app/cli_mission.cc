@@ -351,10 +351,11 @@ int InfoCommand::Run() const {
       break;
   }
   std::map<int, int> visits;
-  int64_t observations = 0;
+  int64_t observations = 0, interpolated = 0;
   for (const mission::ActivityTrack& t : m->tracks) {
     ++visits[t.visit];
     observations += static_cast<int64_t>(t.points.size());
+    for (const mission::TrackPoint& p : t.points) interpolated += p.interpolated;
   }
   const activity::ConfidenceSpread confidence = activity::SpreadOf(m->tracks);
   int64_t placed = 0;
@@ -408,6 +409,7 @@ int InfoCommand::Run() const {
                         {"links", links},
                         {"tracks", m->tracks.size()},
                         {"observations", observations},
+                        {"interpolated_observations", interpolated},
                         {"tracks_by_visit", visit_json},
                         {"tracks_by_confidence",
                          {{"below_0_5", confidence.low},
@@ -520,7 +522,9 @@ int InfoCommand::Run() const {
   }
   std::cout << "  key frames: " << m->key_frames.size() << "; links:";
   for (const auto& [kind, n] : links) std::cout << " " << n << " " << kind;
-  std::cout << "\n  tracks: " << m->tracks.size() << " (" << observations << " observations)";
+  std::cout << "\n  tracks: " << m->tracks.size() << " (" << observations << " observations";
+  if (interpolated > 0) std::cout << ", " << interpolated << " of them interpolated across gaps";
+  std::cout << ")";
   for (const auto& [v, n] : visits) std::cout << "; visit " << v << ": " << n;
   if (!m->tracks.empty()) {
     std::cout << "\n  track confidence: " << confidence.high << " at 0.8 or more, "

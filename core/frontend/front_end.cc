@@ -1021,6 +1021,8 @@ track::BlobTrackOptions LowFrameRateOptions::LowFrameRateBlobs() {
   blobs.gate_growth_px_s = 20;
   blobs.gate_speed_fraction = 0.45;
   blobs.min_travel_px = 8;
+  blobs.max_fit_rms_px = 3;
+  blobs.noisy_fit_rms_px = 3;  // not narrowed by noise (1 fps raises it in most frames)
   blobs.max_speed_px_s = 250;  // 50 m/s at 0.2 m a pixel
   blobs.new_track_speed_px_s = 250;
   return blobs;

@@ -496,8 +496,9 @@ bool ChangeFrame::ChangedNear(const Eigen::Vector2d& p, double radius_px) const 
 }
 
 Status BlobTrackOptions::Validate() const {
-  if (!(gate_px > 0 && min_travel_px >= 0 && max_fit_rms_px > 0 && max_speed_px_s > 0 &&
-        box_margin_px >= 0 && gate_growth_px_s >= 0 && new_track_speed_px_s >= 0)) {
+  if (!(gate_px > 0 && min_travel_px >= 0 && max_fit_rms_px > 0 && noisy_fit_rms_px > 0 &&
+        max_speed_px_s > 0 && box_margin_px >= 0 && gate_growth_px_s >= 0 &&
+        new_track_speed_px_s >= 0)) {
     return InvalidArgumentError(
         "blob tracks: gate, fit RMS and speed must be positive, travel, margin, the gate's "
         "growth and the new tracks' speed >= 0");
@@ -548,6 +549,9 @@ double BlobTracker::LineFit::Rms() const {
 void BlobTracker::AddFrame(int64_t frame, const std::vector<ChangeBlob>& blobs,
                            const Eigen::Matrix3d& current_from_previous, double noise_scale) {
   const double min_travel = options_.min_travel_px * std::max(1.0, noise_scale);
+  const double max_fit_rms = std::min(
+      options_.max_fit_rms_px,
+      std::max(options_.noisy_fit_rms_px, options_.max_fit_rms_px / std::max(1.0, noise_scale)));
   // Predict every track into this frame: its last hit moved by its velocity (in anchor
   // coordinates), then through the ground motion to now.
   std::vector<Eigen::Vector2d> predicted(active_.size());
@@ -592,7 +596,7 @@ void BlobTracker::AddFrame(int64_t frame, const std::vector<ChangeBlob>& blobs,
       const double span = static_cast<double>(frame - t->first_frame + 1);
       const double travel = t->velocity.norm() * static_cast<double>(frame - t->first_frame);
       t->confirmed = static_cast<double>(t->hits) / span >= options_.min_hit_fraction &&
-                     travel >= min_travel && t->fit.Rms() <= options_.max_fit_rms_px &&
+                     travel >= min_travel && t->fit.Rms() <= max_fit_rms &&
                      t->velocity.norm() <= max_speed_px_;
       t->target.confirmed = t->confirmed;
     }

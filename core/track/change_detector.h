@@ -220,7 +220,11 @@ struct BlobTrackOptions {
   // turning a corner leaves the line over the track's life: at 1.2 px, pieces of such tracks
   // were refused while a blob lay on the object in every frame (docs/front-end.md).
   double max_fit_rms_px = 3;
-  double max_speed_px_s = 50;     // faster things are the feature tracks' (cars)
+  // ... and in noisy video (AddFrame's noise_scale above 1) that divided by the noise scale, as the
+  // travel is multiplied by it, down to this: heavily compressed video's drifting road markings
+  // pass a looser line (docs/front-end.md).
+  double noisy_fit_rms_px = 1.2;
+  double max_speed_px_s = 50;  // faster things are the feature tracks' (cars)
   // A track seen once has no velocity yet: its next blob may lie up to this far a second from it
   // (a plausible top speed; 0: the gate of the others). The low-frame-rate mode sets it, where a
   // car moves tens of pixels between frames.
@@ -236,9 +240,10 @@ class BlobTracker {
   BlobTracker(const BlobTrackOptions& options, FrameRate rate);
 
   // The blobs of frame `frame` and the ground motion since the previous frame (full resolution).
-  // `noise_scale` (at least 1) multiplies the travel a track needs to be confirmed: the change
-  // detector's misregistration allowance over its fixed value, so that in heavily compressed
-  // video, where the ground's own differences wander, a blob track must travel further than they.
+  // `noise_scale` (at least 1) multiplies the travel a track needs to be confirmed and divides the
+  // line allowance (to no less than noisy_fit_rms_px): the change detector's misregistration
+  // allowance over its fixed value, so that in heavily compressed video, where the ground's own
+  // differences wander, a blob track must travel further than they, and more steadily.
   void AddFrame(int64_t frame, const std::vector<ChangeBlob>& blobs,
                 const Eigen::Matrix3d& current_from_previous, double noise_scale = 1);
   // Confirmed tracks that ended since the last call.

@@ -369,6 +369,26 @@ TEST(CliMissionTest, MinConfidenceFiltersProcessAndExportAndRefusesBadValues) {
   CliRun info = RunCli("info '" + mission + "'");
   EXPECT_NE(info.out.find("track confidence: "), std::string::npos) << info.out;
 
+  // `info` counts the observations interpolated across gaps; the CSV's last column marks the same.
+  const CliRun csv = RunCli("export '" + mission + "' --csv - 2>/dev/null; exit $?");
+  ASSERT_EQ(csv.exit_code, 0) << csv.out;
+  const CliRun counts = RunCli("info --json '" + mission + "'");
+  const nlohmann::json listed = nlohmann::json::parse(counts.out, nullptr, false);
+  ASSERT_FALSE(listed.is_discarded()) << counts.out;
+  int64_t rows = -1, marked = 0;  // less the header
+  for (size_t at = 0; at < csv.out.size();) {
+    const size_t end = csv.out.find("\r\n", at);
+    if (end == std::string::npos) break;
+    ++rows;
+    marked += rows > 0 && csv.out.compare(end - 2, 2, ",1") == 0;
+    at = end + 2;
+  }
+  EXPECT_GT(rows, 0);
+  EXPECT_EQ(rows, listed["observations"].get<int64_t>());
+  EXPECT_EQ(marked, listed["interpolated_observations"].get<int64_t>());
+  std::printf("%lld of %lld observations interpolated\n", static_cast<long long>(marked),
+              static_cast<long long>(rows));
+
   // The analyst marks a track false (as the workstation does): exports leave it out unless
   // --include-false, and carry the verdicts; `info` counts them.
   int64_t judged = 0;

@@ -524,6 +524,35 @@ TEST(BlobTrackerTest, NoisyVideoAsksForMoreTravel) {
   EXPECT_EQ(confirmed(3), 0);    // less than 12 px
 }
 
+// ... and a steadier line: a track scattering 2 px (RMS) about its line passes on clean video and
+// not where the noise tripled the detector's allowance (drifting road markings in heavily
+// compressed video), however far it went; the line allowance never goes below
+// noisy_fit_rms_px.
+TEST(BlobTrackerTest, NoisyVideoAsksForASteadierLine) {
+  const auto confirmed = [](double noise_scale, double noisy_fit_rms_px) {
+    BlobTrackOptions options;
+    options.gate_px = 8;  // the scatter is not what is tested
+    options.noisy_fit_rms_px = noisy_fit_rms_px;
+    BlobTracker tracker(options, kRate);
+    for (int n = 0; n < 60; ++n) {
+      const Eigen::Vector2d shift = kCameraStep * n;
+      // 1 px a frame, 2 px off the line to either side in turn (2 px RMS).
+      const Eigen::Vector2d off(0, n % 2 == 0 ? 2 : -2);
+      tracker.AddFrame(
+          n, {BlobAt(Eigen::Vector2d(100, 100) + Eigen::Vector2d(1, 0) * n + off - shift)},
+          CameraMotion(), noise_scale);
+    }
+    tracker.FinishAll();
+    int count = 0;
+    for (const TargetTrack& t : tracker.TakeFinished()) count += t.confirmed;
+    return count;
+  };
+  EXPECT_EQ(confirmed(1, 1.2), 1);
+  EXPECT_EQ(confirmed(3, 1.2), 0);    // 3 / 3 = 1 px, raised to 1.2: below 2
+  EXPECT_EQ(confirmed(3, 2.5), 1);    // never below 2.5
+  EXPECT_EQ(confirmed(1.2, 1.2), 1);  // 2.5 px
+}
+
 // Blob tracks at 1 frame a second: a gate and a top speed for cars 60 px a second apart.
 BlobTrackOptions OneFrameASecondOptions() {
   BlobTrackOptions options;
