@@ -492,20 +492,24 @@ class FrameCanvas : public QWidget {
 
 // A value of the observation's attributes. Its text does not size the panel: playback changes it
 // at every frame, and the panel keeps the width it was given. A text wider than the label is
-// elided, and given in full in the tooltip.
+// elided, and given in full in the tooltip, followed by the value's note (setNote), if any.
 class ValueLabel : public QLabel {
  public:
   explicit ValueLabel(QWidget* parent) : QLabel(parent) {
     setSizePolicy(QSizePolicy::Ignored, QSizePolicy::Preferred);
     setTextInteractionFlags(Qt::TextSelectableByMouse);
   }
+  // A word on the value, shown as its tooltip (after the full text when that is elided).
+  void setNote(const QString& note) {
+    note_ = note;
+    updateTip();
+  }
 
  protected:
   void paintEvent(QPaintEvent* event) override {
     const QRect area = contentsRect();
     const QFontMetrics metrics(font());
-    const bool fits = metrics.horizontalAdvance(text()) <= area.width();
-    setToolTip(fits ? QString() : text());
+    const bool fits = updateTip();
     if (fits) {
       QLabel::paintEvent(event);
       return;
@@ -515,6 +519,18 @@ class ValueLabel : public QLabel {
     painter.drawText(area, Qt::AlignLeft | Qt::AlignVCenter,
                      metrics.elidedText(text(), Qt::ElideRight, area.width()));
   }
+
+ private:
+  // Sets the tooltip; whether the text fits the label.
+  bool updateTip() {
+    const bool fits = QFontMetrics(font()).horizontalAdvance(text()) <= contentsRect().width();
+    const QString full = fits ? QString() : text();
+    setToolTip(note_.isEmpty() ? full
+                               : (full.isEmpty() ? note_ : full + QStringLiteral("\n\n") + note_));
+    return fits;
+  }
+
+  QString note_;
 };
 
 FramePanel::FramePanel(QWidget* parent)
@@ -1145,7 +1161,7 @@ void FramePanel::updateInfo() {
                           speed_value_, heading_value_, confidence_value_}) {
       label->setText(QStringLiteral("–"));
     }
-    track_value_->setToolTip(QString());
+    static_cast<ValueLabel*>(track_value_)->setNote(QString());
     // A frame shown for its time (the time line, a place): its time, number and UTC.
     if (const mission::FrameRecord* record =
             mission_ && displayed_frame_ >= 0 ? mission::FrameRecordOf(*mission_, displayed_frame_)
@@ -1166,11 +1182,11 @@ void FramePanel::updateInfo() {
                             .arg(track.id)
                             .arg(current_->second + 1)
                             .arg(track.points.size()));
-  track_value_->setToolTip(point->interpolated
-                               ? tr("Not seen in this frame: placed between the observations "
-                                    "before and after it, over the ground (a gap of at most a "
-                                    "second in the track).")
-                               : QString());
+  static_cast<ValueLabel*>(track_value_)
+      ->setNote(point->interpolated
+                    ? tr("Not seen in this frame: placed between the observations before and "
+                         "after it, over the ground (a gap of at most a second in the track).")
+                    : QString());
   visit_value_->setText(QString::number(track.visit));
   if (track.speed_mps) {
     speed_value_->setText(tr("%1 m/s (%2 km/h)")
