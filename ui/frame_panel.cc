@@ -1177,7 +1177,7 @@ void FramePanel::updateInfo() {
     return;
   }
   const mission::ActivityTrack& track = mission_->tracks[current_->first];
-  track_value_->setText((point->interpolated ? tr("%1 (observation %2 of %3, interpolated)")
+  track_value_->setText((point->interpolated ? tr("%1 (interpolated: observation %2 of %3)")
                                              : tr("%1 (observation %2 of %3)"))
                             .arg(track.id)
                             .arg(current_->second + 1)

@@ -242,7 +242,8 @@ TEST(FramePanelTest, AnInterpolatedObservationIsMarkedAsNotSeen) {
   EXPECT_TRUE(panel.markInterpolated());
   EXPECT_DOUBLE_EQ(panel.markImagePosition().x(), points[filled].image.x());
   QLabel* track_value = panel.findChild<QLabel*>("trackValue");
-  EXPECT_TRUE(track_value->text().endsWith("interpolated)")) << track_value->text().toStdString();
+  EXPECT_TRUE(track_value->text().contains("(interpolated: observation"))
+      << track_value->text().toStdString();
   // The note survives painting (the label sets its tooltip as it paints).
   track_value->repaint();
   EXPECT_TRUE(track_value->toolTip().contains("Not seen in this frame"))
