@@ -281,6 +281,8 @@ std::string KmlPlacemark(const mission::ActivityTrack& track, const ReviewFields
   KmlData("box_max_y", KmlList(track, [](const Point& p) { return p.box_max.y(); }), out);
   KmlData("map_x", KmlList(track, [](const Point& p) { return p.map.x(); }), out);
   KmlData("map_y", KmlList(track, [](const Point& p) { return p.map.y(); }), out);
+  KmlData("interpolated", KmlList(track, [](const Point& p) { return p.interpolated ? 1.0 : 0.0; }),
+          out);
   out += "</ExtendedData>";
 
   const std::vector<Eigen::Vector2d> lon_lat = TrackPositions(track, positions);

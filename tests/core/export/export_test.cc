@@ -297,6 +297,9 @@ TEST(KmlExportTest, MarkupInNamesIsEscapedAndStylesFollowVisits) {
   EXPECT_NE(text.find("<styleUrl>#visit-2</styleUrl>"), std::string::npos);
   EXPECT_NE(text.find("<Data name=\"speed_mps\"><value>3.25</value></Data>"), std::string::npos);
   EXPECT_NE(text.find("<Data name=\"confidence\"><value>0.75</value></Data>"), std::string::npos);
+  // Track 1's second point was not seen.
+  EXPECT_NE(text.find("<Data name=\"interpolated\"><value>0,1,0,0</value></Data>"),
+            std::string::npos);
   // Still well-formed: a strict reader (expat, in GDAL's KML driver) finds all placemarks.
   GDALAllRegister();
   if (GDALGetDriverByName("KML") == nullptr) GTEST_SKIP() << "no KML driver in this GDAL";
