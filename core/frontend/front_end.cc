@@ -147,10 +147,12 @@ std::optional<Eigen::Vector3d> ParallaxEpipole(const std::vector<track::Correspo
 // through the frame-to-frame homographies), echoes of cars dropped (after the joining, so that a
 // car's own change track has become part of it), short gaps filled (not in the low-frame-rate
 // mode), and numbered 1, 2, ... in order of appearance.
-std::vector<track::TargetTrack> CombineTargets(
-    std::vector<track::TargetTrack> by_features, std::vector<track::TargetTrack> by_change,
-    const std::vector<FrameResult>& frames, const FrontEndOptions& options, track::FrameRate rate,
-    const track::SceneContinuity& scenes, bool low_frame_rate) {
+std::vector<track::TargetTrack> CombineTargets(std::vector<track::TargetTrack> by_features,
+                                               std::vector<track::TargetTrack> by_change,
+                                               const std::vector<FrameResult>& frames,
+                                               const FrontEndOptions& options,
+                                               track::FrameRate rate,
+                                               const track::SceneContinuity& scenes) {
   std::vector<track::TargetTrack> all;
   for (track::TargetTrack& t : by_features) {
     if (track::SupportedByChange(t, options.min_change_support)) all.push_back(std::move(t));
@@ -163,14 +165,11 @@ std::vector<track::TargetTrack> CombineTargets(
     all[i].id = static_cast<track::TargetTrackId>(static_cast<int64_t>(i) + 1);
   track::GroundMotion ground;
   for (const FrameResult& f : frames) ground.Add(f.index, f.homography_ok, f.current_from_previous);
-  all = track::LinkFragments(std::move(all), options.EffectiveTargets(), rate, &ground, &scenes);
-  all = track::DropShadows(std::move(all), options.EffectiveTargets(), rate);
+  const track::TargetTrackOptions targets = options.EffectiveTargets(rate.fps());
+  all = track::LinkFragments(std::move(all), targets, rate, &ground, &scenes);
+  all = track::DropShadows(std::move(all), targets, rate);
   all = track::DropChangeEchoes(std::move(all), options.change_echoes, rate);
-  // Not in the low-frame-rate mode: a frame or two unseen there is a second or more, and on the
-  // tuning seeds filling those cost precision and found nothing (docs/front-end.md, Gaps filled).
-  track::TargetTrackOptions fill = options.EffectiveTargets();
-  if (low_frame_rate) fill.fill_gap_s = 0;
-  all = track::FillGaps(std::move(all), fill, rate, ground);
+  all = track::FillGaps(std::move(all), targets, rate, ground);
   for (size_t i = 0; i < all.size(); ++i)
     all[i].id = static_cast<track::TargetTrackId>(static_cast<int64_t>(i) + 1);
   return all;
@@ -306,7 +305,7 @@ FrontEnd::FrontEnd(std::unique_ptr<video::VideoReader> reader, const FrontEndOpt
       chain_seam_(resume),
       tracker_(options.EffectiveTracker(), rate_),
       segmenter_(options.segmentation, rate_),
-      target_tracker_(options.EffectiveTargets(), rate_),
+      target_tracker_(options.EffectiveTargets(rate_.fps()), rate_),
       chain_(options.key_frames),
       change_tracks_(options.EffectiveChangeTracks(rate_.fps()), rate_),
       overlays_(options.overlays, rate_),
@@ -314,7 +313,7 @@ FrontEnd::FrontEnd(std::unique_ptr<video::VideoReader> reader, const FrontEndOpt
       change_through_(start_.change_through_frame) {
   overlay_min_frames_ = rate_.Frames(options.overlays.window_s, 1);
   if (start_.resuming && !start_.complete && !start_.exact) {
-    target_seam_.emplace(*resume, start_.warm_from, options.EffectiveTargets(), rate_);
+    target_seam_.emplace(*resume, start_.warm_from, options.EffectiveTargets(rate_.fps()), rate_);
   }
   result_.video = reader_->info();
   result_.low_frame_rate = low_frame_rate_;
@@ -937,7 +936,7 @@ void FrontEnd::FinishTargets() {
     std::erase_if(targets_by_change_, on_overlay);
   }
   result_.targets = CombineTargets(std::move(result_.targets), std::move(targets_by_change_),
-                                   result_.frames, options_, rate_, scenes_, low_frame_rate_);
+                                   result_.frames, options_, rate_, scenes_);
 }
 
 // The options and the checkpoint of a run on `path`.
@@ -1060,9 +1059,12 @@ std::optional<LowFrameRateOptions::Mode> ParseLowFrameRateMode(const std::string
   return std::nullopt;
 }
 
-track::TargetTrackOptions FrontEndOptions::EffectiveTargets() const {
+track::TargetTrackOptions FrontEndOptions::EffectiveTargets(double fps) const {
   track::TargetTrackOptions effective = targets;
   effective.wait_for_change = change.enabled;
+  // A frame or two unseen in the low-frame-rate mode is a second or more: on the tuning seeds
+  // filling those cost precision and found nothing (docs/front-end.md, "Gaps filled").
+  if (LowFrameRateFor(fps)) effective.fill_gap_s = 0;
   return effective;
 }
 

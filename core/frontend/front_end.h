@@ -140,10 +140,11 @@ struct FrontEndOptions {
   // the caller. The reader decodes grey frames only, with `decoder_threads`. The feature tracker
   // keeps live tracks only, each with its latest two positions (all the front end looks at); a
   // target that ends waits for the change evidence of its last frames when change detection is on
-  // (that evidence comes late, docs/front-end.md "Threads").
+  // (that evidence comes late, docs/front-end.md "Threads"); for a video of `fps` frames a second
+  // in the low-frame-rate mode, no gap is filled.
   video::ReaderOptions EffectiveReader() const;
   track::TrackerOptions EffectiveTracker() const;
-  track::TargetTrackOptions EffectiveTargets() const;
+  track::TargetTrackOptions EffectiveTargets(double fps) const;
   // Whether the low-frame-rate mode runs for a video of `fps` frames a second (a rate the video
   // does not give counts as 25); it needs change detection.
   bool LowFrameRateFor(double fps) const;

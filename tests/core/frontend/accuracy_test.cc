@@ -88,6 +88,12 @@ TEST(FrontEndAccuracyTest, OneFrameASecondFindsMoversInTheLowFrameRateMode) {
     const StatusOr<FrontEndResult> result = RunFrontEnd(options.output.string(), front_end);
     EXPECT_TRUE(result.ok()) << result.status().ToString();
     EXPECT_EQ(result->low_frame_rate, mode != LowFrameRateOptions::Mode::kOff);
+    // The mode fills no gap (a frame unseen is a second here; docs/front-end.md, "Gaps filled").
+    for (const track::TargetTrack& t : result->targets) {
+      for (const track::TargetObservation& o : t.observations) {
+        EXPECT_FALSE(result->low_frame_rate && o.interpolated) << "frame " << o.frame;
+      }
+    }
     // Scored in seconds as the accuracy corpus scores (docs/accuracy.md, "Scoring in seconds"): a
     // sighting is 1 s of movement (at least 3 frames), ended by 2 s out of view.
     eval::FrontEndEvaluationOptions scoring;
