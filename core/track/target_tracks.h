@@ -248,9 +248,9 @@ std::vector<TargetTrack> LinkFragments(std::vector<TargetTrack> tracks,
 std::vector<TargetTrack> DropShadows(std::vector<TargetTrack> tracks,
                                      const TargetTrackOptions& options, FrameRate rate);
 
-// Fills the short gaps of each track, once the tracks are final: a frame between two observations
-// at most fill_gap_s apart (in one chain segment of `ground`) gets an observation placed as if the
-// object had moved at constant velocity over the ground between them (the later observation
+// Fills the short gaps of each track, once the tracks are final: each frame of a gap of at most
+// fill_gap_s unseen between two observations (in one chain segment of `ground`) gets one placed as
+// if the object had moved at constant velocity over the ground between them (the later observation
 // carried into the earlier frame by the ground's motion, the point between them carried into the
 // frame), its box as large as the nearer one's, marked `interpolated`. A track followed through a
 // short occlusion or a few frames where its corners or its change fell below the thresholds is
