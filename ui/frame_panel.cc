@@ -1161,7 +1161,7 @@ void FramePanel::updateInfo() {
                           speed_value_, heading_value_, confidence_value_}) {
       label->setText(QStringLiteral("–"));
     }
-    static_cast<ValueLabel*>(track_value_)->setNote(QString());
+    track_value_->setNote(QString());
     // A frame shown for its time (the time line, a place): its time, number and UTC.
     if (const mission::FrameRecord* record =
             mission_ && displayed_frame_ >= 0 ? mission::FrameRecordOf(*mission_, displayed_frame_)
@@ -1182,11 +1182,11 @@ void FramePanel::updateInfo() {
                             .arg(track.id)
                             .arg(current_->second + 1)
                             .arg(track.points.size()));
-  static_cast<ValueLabel*>(track_value_)
-      ->setNote(point->interpolated
-                    ? tr("Not seen in this frame: placed between the observations before and "
-                         "after it, over the ground (a gap of at most a second in the track).")
-                    : QString());
+  track_value_->setNote(
+      point->interpolated
+          ? tr("Not seen in this frame: placed between the observations before and "
+               "after it, over the ground (a gap of at most a second in the track).")
+          : QString());
   visit_value_->setText(QString::number(track.visit));
   if (track.speed_mps) {
     speed_value_->setText(tr("%1 m/s (%2 km/h)")

@@ -39,6 +39,7 @@ class QToolButton;
 namespace saker::ui {
 
 class FrameCanvas;
+class ValueLabel;
 class FrameRecall;
 
 class FramePanel : public QWidget {
@@ -149,14 +150,15 @@ class FramePanel : public QWidget {
   QLabel* missing_label_ = nullptr;
   QPushButton* locate_button_ = nullptr;
   QLabel* error_label_ = nullptr;
-  QLabel* track_value_ = nullptr;
-  QLabel* visit_value_ = nullptr;
-  QLabel* time_value_ = nullptr;
-  QLabel* frame_value_ = nullptr;
-  QLabel* utc_value_ = nullptr;
-  QLabel* speed_value_ = nullptr;
-  QLabel* heading_value_ = nullptr;
-  QLabel* confidence_value_ = nullptr;
+  // The observation's attributes; the track's note says when the observation is interpolated.
+  ValueLabel* track_value_ = nullptr;
+  ValueLabel* visit_value_ = nullptr;
+  ValueLabel* time_value_ = nullptr;
+  ValueLabel* frame_value_ = nullptr;
+  ValueLabel* utc_value_ = nullptr;
+  ValueLabel* speed_value_ = nullptr;
+  ValueLabel* heading_value_ = nullptr;
+  ValueLabel* confidence_value_ = nullptr;
   QToolButton* save_frame_button_ = nullptr;
   QToolButton* copy_chip_button_ = nullptr;
   QAction* previous_action_ = nullptr;
