@@ -144,9 +144,9 @@ std::optional<Eigen::Vector3d> ParallaxEpipole(const std::vector<track::Correspo
 
 // The targets of the feature tracks, less those the image does not support, and those of change
 // detection; pieces of one object joined (a walker's across long gaps on the ground, followed
-// through the frame-to-frame homographies), echoes of cars dropped (after the joining, so that a
-// car's own change track has become part of it), short gaps filled (not in the low-frame-rate
-// mode), and numbered 1, 2, ... in order of appearance.
+// through the frame-to-frame homographies), pieces and echoes of cars dropped (after the joining,
+// so that a car's own pieces have become part of its track), short gaps filled (not in the
+// low-frame-rate mode), and numbered 1, 2, ... in order of appearance.
 std::vector<track::TargetTrack> CombineTargets(std::vector<track::TargetTrack> by_features,
                                                std::vector<track::TargetTrack> by_change,
                                                const std::vector<FrameResult>& frames,
@@ -168,6 +168,7 @@ std::vector<track::TargetTrack> CombineTargets(std::vector<track::TargetTrack> b
   const track::TargetTrackOptions targets = options.EffectiveTargets(rate.fps());
   all = track::LinkFragments(std::move(all), targets, rate, &ground, &scenes);
   all = track::DropShadows(std::move(all), targets, rate);
+  all = track::DropCarPieces(std::move(all), options.change_echoes, rate);
   all = track::DropChangeEchoes(std::move(all), options.change_echoes, rate);
   all = track::FillGaps(std::move(all), targets, rate, ground);
   for (size_t i = 0; i < all.size(); ++i)
@@ -928,7 +929,8 @@ void FrontEnd::FinishTargets() {
     const track::OverlayOptions& o = options_.overlays;
     const auto on_overlay = [&](const track::TargetTrack& t) {
       const bool fixed =
-          track::ScreenFixed(t, o.fixed_radius_px, o.fixed_min_ground_px, ground_shift);
+          track::ScreenFixed(t, o.fixed_radius_px, o.fixed_share, o.fixed_ground_fraction,
+                             o.fixed_min_ground_px, ground_shift);
       return track::OnOverlayMasks(t, result_.overlays, breaks, o.max_target_fraction,
                                    fixed ? o.fixed_near_cells : 0);
     };
@@ -998,7 +1000,6 @@ bool FrontEndOptions::LowFrameRateFor(double fps) const {
 track::ChangeOptions FrontEndOptions::EffectiveChange(double fps) const {
   track::ChangeOptions effective = change;
   if (LowFrameRateFor(fps)) {
-    effective.max_area_px = std::max(effective.max_area_px, low_frame_rate.max_blob_area_px);
     effective.one_sided_edges = low_frame_rate.one_sided_edges;
     effective.evidence_baseline_s = 0;  // no feature targets to give evidence to
   }
@@ -1022,7 +1023,6 @@ track::BlobTrackOptions LowFrameRateOptions::LowFrameRateBlobs() {
   blobs.min_travel_px = 8;
   blobs.max_fit_rms_px = 3;
   blobs.noisy_fit_rms_px = 3;  // not narrowed by noise (1 fps raises it in most frames)
-  blobs.max_speed_px_s = 250;  // 50 m/s at 0.2 m a pixel
   blobs.new_track_speed_px_s = 250;
   return blobs;
 }
@@ -1032,9 +1032,6 @@ Status LowFrameRateOptions::Validate() const {
     return InvalidArgumentError(
         "low frame rates: the rate below which the mode runs must be in "
         "(0, 120] frames a second");
-  }
-  if (max_blob_area_px < 1) {
-    return InvalidArgumentError("low frame rates: the largest blob must be >= 1 pixel");
   }
   return blobs.Validate();
 }

@@ -64,9 +64,6 @@ struct LowFrameRateOptions {
   // finds much more than the feature targets, at 10 about as much, at 25 less (tuning seeds,
   // 2026-11-29; docs/front-end.md, Low frame rates).
   double below_fps = 8;
-  // Change blobs up to this size (processing pixels: the change detector's copy, 960 wide by
-  // default) are targets: at 0.2 m a pixel a car is ~110, a lorry ~400.
-  int max_blob_area_px = 600;
   // The edges of the view, which the frames before and after do not both see, are compared with
   // the two frames before or the two after (ChangeOptions::one_sided_edges).
   bool one_sided_edges = true;

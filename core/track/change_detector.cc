@@ -12,7 +12,9 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <functional>
 #include <limits>
+#include <optional>
 #include <tuple>
 
 namespace saker::track {
@@ -652,10 +654,11 @@ bool SupportedByChange(const TargetTrack& track, double min_fraction) {
 }
 
 Status ChangeEchoOptions::Validate() const {
-  if (!(distance_px > 0 && velocity_px_s > 0 && min_mover_speed_px_s >= 0 && min_fraction > 0 &&
-        min_fraction <= 1)) {
+  if (!(distance_px > 0 && piece_distance_px > 0 && velocity_px_s > 0 &&
+        min_mover_speed_px_s >= 0 && min_fraction > 0 && piece_min_fraction > 0 &&
+        piece_min_fraction <= 1 && min_fraction <= 1)) {
     return InvalidArgumentError(
-        "change echoes: distance and velocity must be positive, the mover's speed >= 0 and the "
+        "change echoes: distances and velocity must be positive, the mover's speed >= 0 and the "
         "fraction in (0, 1]");
   }
   return Status::Ok();
@@ -670,52 +673,75 @@ bool FoundByChangeOnly(const TargetTrack& track) {
   return true;
 }
 
-// The frames of `echo` where `mover` is seen near it and moving alike (both in frame order).
-size_t FramesAlongside(const TargetTrack& echo, const TargetTrack& mover,
-                       const ChangeEchoOptions& options, double velocity_px) {
-  size_t alongside = 0;
-  ForCommonFrames(echo, mover, [&](const TargetObservation& e, const TargetObservation& m) {
-    alongside += (m.position - e.position).norm() < options.distance_px &&
-                 (m.velocity - e.velocity).norm() < velocity_px;
-  });
-  return alongside;
+// `tracks` less those that ride along movers (tracks of at least `min_mover_speed_px_s`): on at
+// least `min_fraction` of a track's frames, one of the movers `near(track, mover)` returns a
+// distance for is within that distance of it, moving alike.
+std::vector<TargetTrack> DropAlongside(
+    std::vector<TargetTrack> tracks, const ChangeEchoOptions& options, FrameRate rate,
+    double min_fraction, double velocity_px_s,
+    const std::function<std::optional<double>(const TargetTrack&, const TargetTrack&)>& near) {
+  if (!options.enabled) return tracks;
+  const double velocity_px = rate.PerFrame(velocity_px_s);  // per frame, as tracks keep it
+  std::vector<const TargetTrack*> movers;
+  for (const TargetTrack& t : tracks) {
+    if (!t.observations.empty() && MeanSpeed(t) >= rate.PerFrame(options.min_mover_speed_px_s)) {
+      movers.push_back(&t);
+    }
+  }
+  std::vector<bool> dropped(tracks.size(), false);
+  for (size_t i = 0; i < tracks.size(); ++i) {
+    const TargetTrack& t = tracks[i];
+    if (t.observations.empty()) continue;
+    std::vector<bool> along(t.observations.size(), false);
+    for (const TargetTrack* m : movers) {
+      if (m == &t || m->observations.back().frame < t.observations.front().frame ||
+          m->observations.front().frame > t.observations.back().frame) {
+        continue;
+      }
+      const std::optional<double> distance_px = near(t, *m);
+      if (!distance_px) continue;
+      ForCommonFrames(t, *m, [&](const TargetObservation& e, const TargetObservation& o) {
+        if ((o.position - e.position).norm() < *distance_px &&
+            (o.velocity - e.velocity).norm() < velocity_px) {
+          along[static_cast<size_t>(&e - t.observations.data())] = true;
+        }
+      });
+    }
+    const auto count = static_cast<double>(std::count(along.begin(), along.end(), true));
+    dropped[i] = count >= min_fraction * static_cast<double>(along.size());
+  }
+  std::vector<TargetTrack> kept;
+  kept.reserve(tracks.size());
+  for (size_t i = 0; i < tracks.size(); ++i) {
+    if (!dropped[i]) kept.push_back(std::move(tracks[i]));
+  }
+  return kept;
 }
 
 }  // namespace
 
 std::vector<TargetTrack> DropChangeEchoes(std::vector<TargetTrack> tracks,
                                           const ChangeEchoOptions& options, FrameRate rate) {
-  if (!options.enabled) return tracks;
-  const double velocity_px = rate.PerFrame(options.velocity_px_s);  // per frame, as tracks keep it
-  std::vector<const TargetTrack*> movers;
-  for (const TargetTrack& t : tracks) {
-    if (!t.observations.empty() && !FoundByChangeOnly(t) &&
-        MeanSpeed(t) >= rate.PerFrame(options.min_mover_speed_px_s)) {
-      movers.push_back(&t);
-    }
-  }
-  std::vector<bool> echo(tracks.size(), false);
-  for (size_t i = 0; i < tracks.size(); ++i) {
-    const TargetTrack& t = tracks[i];
-    if (t.observations.empty() || !FoundByChangeOnly(t)) continue;
-    const double needed = options.min_fraction * static_cast<double>(t.observations.size());
-    for (const TargetTrack* m : movers) {
-      if (m->observations.back().frame < t.observations.front().frame ||
-          m->observations.front().frame > t.observations.back().frame) {
-        continue;
-      }
-      if (static_cast<double>(FramesAlongside(t, *m, options, velocity_px)) >= needed) {
-        echo[i] = true;
-        break;
-      }
-    }
-  }
-  std::vector<TargetTrack> kept;
-  kept.reserve(tracks.size());
-  for (size_t i = 0; i < tracks.size(); ++i) {
-    if (!echo[i]) kept.push_back(std::move(tracks[i]));
-  }
-  return kept;
+  return DropAlongside(
+      std::move(tracks), options, rate, options.min_fraction, options.velocity_px_s,
+      [&](const TargetTrack& t, const TargetTrack& m) -> std::optional<double> {
+        if (!FoundByChangeOnly(t)) return std::nullopt;
+        if (FoundByChangeOnly(m) && m.observations.size() <= t.observations.size()) {
+          return std::nullopt;
+        }
+        return options.distance_px;
+      });
+}
+
+std::vector<TargetTrack> DropCarPieces(std::vector<TargetTrack> tracks,
+                                       const ChangeEchoOptions& options, FrameRate rate) {
+  // Any velocity: the corners of a car and its change blob move alike only on average.
+  return DropAlongside(std::move(tracks), options, rate, options.piece_min_fraction,
+                       std::numeric_limits<double>::infinity(),
+                       [&](const TargetTrack& t, const TargetTrack& m) -> std::optional<double> {
+                         if (m.observations.size() <= t.observations.size()) return std::nullopt;
+                         return options.piece_distance_px;
+                       });
 }
 
 void BlobTracker::SaveState(ByteWriter* out) const {

@@ -85,8 +85,12 @@ struct ChangeOptions {
   // 0.12-0.13 px, so the fixed allowances stand; CRF 38 measures 2.6-3.1 and 0.5-1.0. 0: off.
   double measured_noise_multiple = 1;
   double measured_registration_multiple = 1.5;
-  int min_area_px = 1;            // blob size, processing pixels
-  int max_area_px = 80;           // larger blobs are vehicles, left to the feature tracks
+  int min_area_px = 1;  // blob size, processing pixels
+  // The largest blob: at 0.2 m a pixel a car is ~110 processing pixels, a lorry ~400. A car
+  // without texture (a black car on dark asphalt) has no corners for the feature tracks, and its
+  // blob is all there is of it; until session 28 blobs were kept up to 80 pixels at video rates,
+  // cars being left to the feature tracks (docs/front-end.md).
+  int max_area_px = 600;
   double min_contrast_grey = 12;  // the strongest change in a blob, at least
   Status Validate() const;
 };
@@ -224,7 +228,9 @@ struct BlobTrackOptions {
   // travel is multiplied by it, down to this: heavily compressed video's drifting road markings
   // pass a looser line (docs/front-end.md).
   double noisy_fit_rms_px = 1.2;
-  double max_speed_px_s = 50;  // faster things are the feature tracks' (cars)
+  // A plausible top speed on the ground: 50 m/s at 0.2 m a pixel (50 px/s, a walker's or a slow
+  // car's, until session 28: cars were left to the feature tracks).
+  double max_speed_px_s = 250;
   // A track seen once has no velocity yet: its next blob may lie up to this far a second from it
   // (a plausible top speed; 0: the gate of the others). The low-frame-rate mode sets it, where a
   // car moves tens of pixels between frames.
@@ -305,15 +311,29 @@ bool SupportedByChange(const TargetTrack& track, double min_fraction);
 struct ChangeEchoOptions {
   bool enabled = true;
   double distance_px = 40;
+  // DropCarPieces: a piece of a car lies within this distance of the car's longer track, on at
+  // least this fraction of its frames.
+  double piece_distance_px = 16;
+  double piece_min_fraction = 0.6;
   double velocity_px_s = 12.5;
   double min_mover_speed_px_s = 25;
   double min_fraction = 0.8;
   Status Validate() const;
 };
 
-// `tracks` less the change-only tracks that echo a feature-tracked mover (see ChangeEchoOptions),
+// `tracks` less the change-only tracks that echo movers (see ChangeEchoOptions): ones followed by
+// their features, or longer change-only tracks (cars without texture, followed by their change),
 // in their order. Observations must be in increasing frame order, as TargetTrack keeps them.
 std::vector<TargetTrack> DropChangeEchoes(std::vector<TargetTrack> tracks,
                                           const ChangeEchoOptions& options, FrameRate rate);
+
+// `tracks` less the pieces of cars that longer tracks follow: a track (of features or of change)
+// within `piece_distance_px` of a longer mover's, moving alike, on at least `min_fraction` of its
+// frames, whatever its velocity (the corners at one end of a dark car, beside the track of its
+// whole change blob, which the target tracker carried on to the next car along the road). Called
+// after the pieces are joined (LinkFragments): before, dropping pieces changed what was joined,
+// and cost precision on the tuning seeds of `hard-traffic` (docs/front-end.md).
+std::vector<TargetTrack> DropCarPieces(std::vector<TargetTrack> tracks,
+                                       const ChangeEchoOptions& options, FrameRate rate);
 
 }  // namespace saker::track

@@ -61,12 +61,15 @@ Status OverlayOptions::Validate() const {
   if (cell_px < 1 || cell_px > 256 || dilate_cells < 0 || dilate_cells > 16) {
     return InvalidArgumentError("overlays: cells must be 1..256 px, the dilation 0..16 cells");
   }
-  if (!(fixed_radius_px >= 0 && fixed_radius_px <= 100) ||
+  if (!(fixed_radius_px >= 0 && fixed_radius_px <= 100) || !(fixed_share > 0 && fixed_share <= 1) ||
+      !(fixed_ground_fraction >= 0 && fixed_ground_fraction < 1) ||
       !(fixed_min_ground_px >= 0 && fixed_min_ground_px <= 10000) || fixed_near_cells < 0 ||
       fixed_near_cells > 16) {
     return InvalidArgumentError(
-        "overlays: a screen-fixed target needs a radius in [0, 100] px, a ground motion in "
-        "[0, 10000] px and 0..16 cells around the mask");
+        "overlays: a screen-fixed target needs a radius in [0, 100] px, a share of its "
+        "observations in (0, 1], a fraction of the ground's motion in [0, 1), a ground motion in "
+        "[0, 10000] px and 0..16 cells around the "
+        "mask");
   }
   if (!(max_target_fraction > 0 && max_target_fraction <= 1)) {
     return InvalidArgumentError("overlays: the target fraction must be in (0, 1]");
@@ -125,7 +128,8 @@ bool OnOverlayMasks(const TargetTrack& target, const std::vector<OverlayMask>& m
 }
 
 bool ScreenFixed(
-    const TargetTrack& target, double radius_px, double min_ground_px,
+    const TargetTrack& target, double radius_px, double share, double ground_fraction,
+    double min_ground_px,
     const std::function<double(int64_t, int64_t, const Eigen::Vector2d&)>& ground_shift_px) {
   const std::vector<TargetObservation>& obs = target.observations;
   if (obs.size() < 2) return false;
@@ -136,10 +140,12 @@ bool ScreenFixed(
     return v[v.size() / 2];
   };
   const Eigen::Vector2d centre(median(xs), median(ys));
-  for (const TargetObservation& o : obs) {
-    if ((o.position - centre).norm() > radius_px) return false;
-  }
-  return ground_shift_px(obs.front().frame, obs.back().frame, centre) >= min_ground_px;
+  const double ground = ground_shift_px(obs.front().frame, obs.back().frame, centre);
+  if (ground < min_ground_px) return false;
+  const double radius = std::max(radius_px, ground_fraction * ground);
+  size_t near = 0;
+  for (const TargetObservation& o : obs) near += (o.position - centre).norm() <= radius;
+  return static_cast<double>(near) >= share * static_cast<double>(obs.size());
 }
 
 OverlayDetector::OverlayDetector(const OverlayOptions& options, FrameRate rate)

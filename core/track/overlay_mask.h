@@ -66,7 +66,13 @@ struct OverlayOptions {
   // median) while the ground under it moves by `fixed_min_ground_px` in all is screen-fixed: it is
   // judged on the mask grown by `fixed_near_cells`, so that the end of a text line the evidence
   // has not covered yet (digits that changed, the image's edge) goes with the rest of it.
+  // (or within `fixed_ground_fraction` of the ground's motion there, when that is more), in at
+  // least `fixed_share` of them: the change blob of a line of HUD text drifts and jumps by a few
+  // pixels as other digits change. A car under the gimbal's cross-hair is screen-fixed too, and
+  // stays unless it is beside the mask.
   double fixed_radius_px = 3;
+  double fixed_ground_fraction = 0.15;
+  double fixed_share = 0.8;
   double fixed_min_ground_px = 12;
   int fixed_near_cells = 3;
   Status Validate() const;
@@ -97,11 +103,15 @@ struct OverlayMask {
 bool OnOverlayMasks(const TargetTrack& target, const std::vector<OverlayMask>& masks,
                     const std::vector<int64_t>& breaks, double max_fraction, int near_cells = 0);
 
-// Whether `target` stayed within `radius_px` of its observations' median position while the ground
-// moved by at least `min_ground_px` there: `ground_shift_px(first_frame, last_frame, p)` is the
-// ground's motion at image point p summed over the frames after `first_frame` up to `last_frame`.
+// Whether `target` stayed put in the image while the ground moved by at least `min_ground_px`
+// there: at least `share` of its observations within `radius_px` of their median position, or
+// within `ground_fraction` of the ground's motion when that is more (the blob of a line of HUD
+// text drifts by a few pixels as its digits change, a car along the ground's motion).
+// `ground_shift_px(first_frame, last_frame, p)` is the ground's motion at image point p summed
+// over the frames after `first_frame` up to `last_frame`.
 bool ScreenFixed(
-    const TargetTrack& target, double radius_px, double min_ground_px,
+    const TargetTrack& target, double radius_px, double share, double ground_fraction,
+    double min_ground_px,
     const std::function<double(int64_t, int64_t, const Eigen::Vector2d&)>& ground_shift_px);
 
 class OverlayDetector {

@@ -227,13 +227,24 @@ TEST(OverlayMasksTest, AScreenFixedTargetBesideTheMaskIsOnIt) {
   track::TargetTrack beside = target({81, 72}, {0, 0});
   for (size_t i = 0; i < beside.observations.size(); i += 2)
     beside.observations[i].position.x() += 1;
-  EXPECT_TRUE(track::ScreenFixed(beside, 3, 12, moving));
-  EXPECT_FALSE(track::ScreenFixed(beside, 3, 12, hovering));
+  EXPECT_TRUE(track::ScreenFixed(beside, 3, 0.8, 0, 12, moving));
+  EXPECT_FALSE(track::ScreenFixed(beside, 3, 0.8, 0, 12, hovering));
+  // The change blob of a line of HUD text: its centroid jumps by 4 px in a sixth of the frames,
+  // as other digits change.
+  track::TargetTrack text = beside;
+  for (size_t i = 0; i < text.observations.size(); i += 6) text.observations[i].position.y() -= 4;
+  EXPECT_TRUE(track::ScreenFixed(text, 3, 0.8, 0, 12, moving));
+  EXPECT_FALSE(track::ScreenFixed(text, 3, 1.0, 0, 12, moving));
   EXPECT_FALSE(track::OnOverlayMasks(beside, masks, {}, 0.5));
   EXPECT_TRUE(track::OnOverlayMasks(beside, masks, {}, 0.5, 3));
   // A car driving past the same place is not fixed.
   const track::TargetTrack driving = target({81, 60}, {0, 1});
-  EXPECT_FALSE(track::ScreenFixed(driving, 3, 12, moving));
+  EXPECT_FALSE(track::ScreenFixed(driving, 3, 0.8, 0.15, 12, moving));
+  // The blob of HUD text drifting by 10 px along the line (0.4 px a frame against the ground's 2
+  // px) as its digits change: fixed within 15 % of the ground's motion (46 px, so 6.9 px).
+  const track::TargetTrack drifting = target({81, 72}, {-0.4, 0});
+  EXPECT_TRUE(track::ScreenFixed(drifting, 3, 0.8, 0.15, 12, moving));
+  EXPECT_FALSE(track::ScreenFixed(drifting, 3, 0.8, 0, 12, moving));
   // Four cells away is not beside it.
   EXPECT_FALSE(track::OnOverlayMasks(target({97, 72}, {0, 0}), masks, {}, 0.5, 3));
 }
@@ -251,6 +262,12 @@ TEST(OverlayDetectorTest, OptionsAreValidated) {
   EXPECT_FALSE(options.Validate().ok());
   options = {};
   options.min_ground_shift_px = 0;
+  EXPECT_FALSE(options.Validate().ok());
+  options = {};
+  options.fixed_share = 0;
+  EXPECT_FALSE(options.Validate().ok());
+  options = {};
+  options.fixed_ground_fraction = 1;
   EXPECT_FALSE(options.Validate().ok());
 }
 
