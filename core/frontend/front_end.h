@@ -88,7 +88,8 @@ struct FrontEndOptions {
   // A target track needs a change under at least this fraction of the observations where the
   // change detector could look (a corner sliding along a road marking has none); 0 turns it off.
   double min_change_support = 0.5;
-  track::ChangeEchoOptions change_echoes;  // change-only tracks beside a car are dropped
+  // Change-only tracks beside a car, and pieces of a car beside its longer track, are dropped.
+  track::ChangeEchoOptions change_echoes;
   // Screen-fixed overlays (HUD text, reticles, logos), found from the change detector's evidence
   // and kept out of the ground motion, the change tracks and the targets (docs/front-end.md,
   // "Overlays").

@@ -88,7 +88,7 @@ struct ChangeOptions {
   int min_area_px = 1;  // blob size, processing pixels
   // The largest blob: at 0.2 m a pixel a car is ~110 processing pixels, a lorry ~400. A car
   // without texture (a black car on dark asphalt) has no corners for the feature tracks, and its
-  // blob is all there is of it; until session 28 blobs were kept up to 80 pixels at video rates,
+  // blob is all there is of it; until session 29 blobs were kept up to 80 pixels at video rates,
   // cars being left to the feature tracks (docs/front-end.md).
   int max_area_px = 600;
   double min_contrast_grey = 12;  // the strongest change in a blob, at least
@@ -229,7 +229,7 @@ struct BlobTrackOptions {
   // pass a looser line (docs/front-end.md).
   double noisy_fit_rms_px = 1.2;
   // A plausible top speed on the ground: 50 m/s at 0.2 m a pixel (50 px/s, a walker's or a slow
-  // car's, until session 28: cars were left to the feature tracks).
+  // car's, until session 29: cars were left to the feature tracks).
   double max_speed_px_s = 250;
   // A track seen once has no velocity yet: its next blob may lie up to this far a second from it
   // (a plausible top speed; 0: the gate of the others). The low-frame-rate mode sets it, where a
