@@ -127,8 +127,9 @@ CLI::Option* AddLowFrameRateOption(CLI::App* command, frontend::LowFrameRateOpti
       ->add_option_function<std::string>(
           "--low-frame-rate",
           [mode](const std::string& text) { *mode = *frontend::ParseLowFrameRateMode(text); },
-          "Targets from change detection alone (each frame against its registered neighbours, "
-          "the edges of a fast pan against the two frames on the side that sees them), tracked "
+          "Targets from change detection alone (each frame against its registered frames at "
+          "least 0.6 s before and after, the edges of a fast pan against the two on the side "
+          "that sees them), tracked "
           "with a motion model and gates that follow a plausible top speed (feature tracks a "
           "second apart do not label motion): auto (below 8 frames a second), on or off "
           "(docs/front-end.md, Low frame rates)")

@@ -1002,6 +1002,7 @@ track::ChangeOptions FrontEndOptions::EffectiveChange(double fps) const {
   if (LowFrameRateFor(fps)) {
     effective.one_sided_edges = low_frame_rate.one_sided_edges;
     effective.evidence_baseline_s = 0;  // no feature targets to give evidence to
+    effective.baseline_s = std::max(effective.baseline_s, low_frame_rate.min_baseline_s);
   }
   return effective;
 }
@@ -1032,6 +1033,10 @@ Status LowFrameRateOptions::Validate() const {
     return InvalidArgumentError(
         "low frame rates: the rate below which the mode runs must be in "
         "(0, 120] frames a second");
+  }
+  if (!(min_baseline_s >= 0 && min_baseline_s <= 10)) {
+    return InvalidArgumentError(
+        "low frame rates: the change detector's shortest baseline must be in [0, 10] s");
   }
   return blobs.Validate();
 }

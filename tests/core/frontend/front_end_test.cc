@@ -8,6 +8,7 @@
 #include "core/sim/frame_renderer.h"
 #include "core/sim/simulator.h"
 #include "core/sim/truth.h"
+#include "core/track/change_detector.h"
 #include "core/util/check.h"
 #include "core/util/memory.h"
 #include "core/video/video_reader.h"
@@ -710,6 +711,26 @@ TEST(FrontEndRunTest, AnOpenedReaderRunsAsThePath) {
   EXPECT_THROW((void)RunFrontEnd(std::move(bgr).value(), {}), CheckError);
 }
 
+// The change detector's baseline: 12 frames at 25 fps; in the low-frame-rate mode at least
+// LowFrameRateOptions::min_baseline_s, 3 frames at 5 fps (not 2), 1 at 2 fps and at 1 fps.
+TEST(FrontEndOptionsTest, TheLowFrameRateModeComparesFramesAtLeastItsBaselineApart) {
+  const FrontEndOptions options;
+  const auto frames = [&](double fps) {
+    return track::ChangeDetector::BaselineFrames(options.EffectiveChange(fps),
+                                                 track::FrameRate(fps))
+        .front();
+  };
+  EXPECT_EQ(frames(25), 12);
+  EXPECT_EQ(frames(5), 3);
+  EXPECT_EQ(frames(2), 1);
+  EXPECT_EQ(frames(1), 1);
+  FrontEndOptions off = options;
+  off.low_frame_rate.min_baseline_s = 0;
+  EXPECT_EQ(
+      track::ChangeDetector::BaselineFrames(off.EffectiveChange(5), track::FrameRate(5)).front(),
+      2);
+}
+
 TEST(FrontEndRunTest, ErrorsAndCancel) {
   StatusOr<FrontEndResult> missing = RunFrontEnd("/nonexistent/sortie.ts", {});
   ASSERT_FALSE(missing.ok());
@@ -720,6 +741,9 @@ TEST(FrontEndRunTest, ErrorsAndCancel) {
   FrontEndOptions bad_change;
   bad_change.change_queue_frames = 0;
   EXPECT_FALSE(bad_change.Validate().ok());
+  FrontEndOptions bad_baseline;
+  bad_baseline.low_frame_rate.min_baseline_s = -1;
+  EXPECT_FALSE(bad_baseline.Validate().ok());
 
   const std::filesystem::path dir = saker::testing::MakeTempDir("saker-frontend-cancel");
   const sim::SimulationOptions options = SmallOptions(dir / "c.ts", 2);
