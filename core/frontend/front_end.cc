@@ -1023,7 +1023,8 @@ track::BlobTrackOptions LowFrameRateOptions::LowFrameRateBlobs() {
   blobs.gate_speed_fraction = 0.45;
   blobs.min_travel_px = 8;
   blobs.max_fit_rms_px = 3;
-  blobs.noisy_fit_rms_px = 3;  // not narrowed by noise (1 fps raises it in most frames)
+  blobs.noisy_fit_rms_px = 3;   // not narrowed by noise (1 fps raises it in most frames)
+  blobs.noisy_max_area_px = 0;  // cars are blobs of any size at these rates, noisy or not
   blobs.new_track_speed_px_s = 250;
   return blobs;
 }

@@ -508,6 +508,11 @@ Status BlobTrackOptions::Validate() const {
   if (!(gate_speed_fraction >= 0 && gate_speed_fraction <= 5)) {
     return InvalidArgumentError("blob tracks: the gate's speed fraction must be in [0, 5]");
   }
+  if (noisy_max_area_px < 0 || !(noisy_area_scale >= 1)) {
+    return InvalidArgumentError(
+        "blob tracks: the largest blob in noisy video must be >= 0 pixels and the noise scale "
+        "above which it applies >= 1");
+  }
   if (!(max_gap_s >= 0 && max_gap_s <= 3600) || !(min_duration_s >= 0 && min_duration_s <= 3600) ||
       !(min_hit_fraction > 0 && min_hit_fraction <= 1)) {
     return InvalidArgumentError(
@@ -550,6 +555,19 @@ double BlobTracker::LineFit::Rms() const {
 
 void BlobTracker::AddFrame(int64_t frame, const std::vector<ChangeBlob>& blobs,
                            const Eigen::Matrix3d& current_from_previous, double noise_scale) {
+  if (options_.noisy_max_area_px > 0 && noise_scale > options_.noisy_area_scale) {
+    std::vector<ChangeBlob> small;
+    for (const ChangeBlob& b : blobs) {
+      if (b.area_px <= options_.noisy_max_area_px) small.push_back(b);
+    }
+    Follow(frame, small, current_from_previous, noise_scale);
+  } else {
+    Follow(frame, blobs, current_from_previous, noise_scale);
+  }
+}
+
+void BlobTracker::Follow(int64_t frame, const std::vector<ChangeBlob>& blobs,
+                         const Eigen::Matrix3d& current_from_previous, double noise_scale) {
   const double min_travel = options_.min_travel_px * std::max(1.0, noise_scale);
   const double max_fit_rms = std::min(
       options_.max_fit_rms_px,

@@ -228,6 +228,13 @@ struct BlobTrackOptions {
   // travel is multiplied by it, down to this: heavily compressed video's drifting road markings
   // pass a looser line (docs/front-end.md).
   double noisy_fit_rms_px = 1.2;
+  // In noisy video (AddFrame's noise_scale above `noisy_area_scale`) blobs larger than this are
+  // not followed (0: any size): in heavily compressed video (CRF 38, a noise scale of 4-6) the
+  // misregistered edges of the ground make blobs of a car's size that drift with the ground's
+  // error. A car without texture is followed in cleaner video only. Clean video measures 1,
+  // the simulated thermal look at most 1.3 in nine frames of ten.
+  int noisy_max_area_px = 80;
+  double noisy_area_scale = 2;
   // A plausible top speed on the ground: 50 m/s at 0.2 m a pixel (50 px/s, a walker's or a slow
   // car's, until session 29: cars were left to the feature tracks).
   double max_speed_px_s = 250;
@@ -282,6 +289,9 @@ class BlobTracker {
     int hits = 0;
     bool confirmed = false;
   };
+  // AddFrame with the blobs it follows.
+  void Follow(int64_t frame, const std::vector<ChangeBlob>& blobs,
+              const Eigen::Matrix3d& current_from_previous, double noise_scale);
   void End(Track* track);
 
   BlobTrackOptions options_;

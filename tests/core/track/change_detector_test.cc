@@ -423,6 +423,12 @@ TEST(ChangeDetectorTest, OptionsAreChecked) {
   EXPECT_TRUE(tracks.Validate().ok());
   tracks.min_hit_fraction = 0;
   EXPECT_FALSE(tracks.Validate().ok());
+  tracks = {};
+  tracks.noisy_area_scale = 0.5;
+  EXPECT_FALSE(tracks.Validate().ok());
+  tracks = {};
+  tracks.noisy_max_area_px = -1;
+  EXPECT_FALSE(tracks.Validate().ok());
 }
 
 ChangeBlob BlobAt(const Eigen::Vector2d& p) {
@@ -506,7 +512,7 @@ TEST(BlobTrackerTest, ACarTurningAtAJunctionIsConfirmed) {
 // A black car on dark asphalt (tuning seed 3 of `dense-traffic`): no corner inside it for the
 // feature tracks, only its outline against the road. Its change blob is the car, 24 by 10 pixels,
 // and it goes 2.5 px a frame (12.5 m/s at 0.2 m a pixel). With blobs kept only up to 80 pixels
-// and blob tracks up to 2 px a frame (the defaults until session 28, when cars were left to the
+// and blob tracks up to 2 px a frame (the defaults until session 29, when cars were left to the
 // feature tracks) it went untracked for 200 frames in the middle of the view.
 TEST(BlobTrackerTest, ACarWithoutTextureIsFollowedByItsChange) {
   const cv::Mat ground = Ground();
@@ -597,6 +603,32 @@ TEST(BlobTrackerTest, NoisyVideoAsksForASteadierLine) {
   EXPECT_EQ(confirmed(3, 1.2), 0);    // 3 / 3 = 1 px, raised to 1.2: below 2
   EXPECT_EQ(confirmed(3, 2.5), 1);    // never below 2.5
   EXPECT_EQ(confirmed(1.2, 1.2), 1);  // 2.5 px
+}
+
+// ... and a blob of a car's size is followed in clean video, not where the noise raised the
+// detector's allowance more than twice (misregistered edges of heavily compressed video), unless
+// the option is off (the low-frame-rate mode's).
+TEST(BlobTrackerTest, NoisyVideoFollowsNoCarSizedBlob) {
+  const auto confirmed = [](int area_px, double noise_scale, int noisy_max_area_px) {
+    BlobTrackOptions options;
+    options.noisy_max_area_px = noisy_max_area_px;
+    BlobTracker tracker(options, kRate);
+    for (int n = 0; n < 60; ++n) {
+      ChangeBlob blob = BlobAt(Eigen::Vector2d(100, 100) + Eigen::Vector2d(1, 0) * n -
+                               kCameraStep * static_cast<double>(n));
+      blob.area_px = area_px;
+      tracker.AddFrame(n, {blob}, CameraMotion(), noise_scale);
+    }
+    tracker.FinishAll();
+    int count = 0;
+    for (const TargetTrack& t : tracker.TakeFinished()) count += t.confirmed;
+    return count;
+  };
+  EXPECT_EQ(confirmed(150, 1, 80), 1);
+  EXPECT_EQ(confirmed(150, 2, 80), 1);  // at most twice the fixed allowance: still clean enough
+  EXPECT_EQ(confirmed(150, 4, 80), 0);
+  EXPECT_EQ(confirmed(60, 4, 80), 1);  // a walker's blob is followed as before
+  EXPECT_EQ(confirmed(150, 4, 0), 1);  // off
 }
 
 // Blob tracks at 1 frame a second: a gate and a top speed for cars 60 px a second apart.
