@@ -338,9 +338,10 @@ std::vector<TargetTrack> DropChangeEchoes(std::vector<TargetTrack> tracks,
                                           const ChangeEchoOptions& options, FrameRate rate);
 
 // `tracks` less the pieces of cars that longer tracks follow: a track (of features or of change)
-// within `piece_distance_px` of a longer mover's, moving alike, on at least `min_fraction` of its
-// frames, whatever its velocity (the corners at one end of a dark car, beside the track of its
-// whole change blob, which the target tracker carried on to the next car along the road). Called
+// within `piece_distance_px` of a longer mover on at least `piece_min_fraction` of its frames,
+// whatever their velocities (the corners at one end of a dark car, beside the track of its whole
+// change blob, which the target tracker carried on to the next car along the road; their
+// velocities agree only on average). Called
 // after the pieces are joined (LinkFragments): before, dropping pieces changed what was joined,
 // and cost precision on the tuning seeds of `hard-traffic` (docs/front-end.md).
 std::vector<TargetTrack> DropCarPieces(std::vector<TargetTrack> tracks,

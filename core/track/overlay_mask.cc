@@ -68,8 +68,7 @@ Status OverlayOptions::Validate() const {
     return InvalidArgumentError(
         "overlays: a screen-fixed target needs a radius in [0, 100] px, a share of its "
         "observations in (0, 1], a fraction of the ground's motion in [0, 1), a ground motion in "
-        "[0, 10000] px and 0..16 cells around the "
-        "mask");
+        "[0, 10000] px and 0..16 cells around the mask");
   }
   if (!(max_target_fraction > 0 && max_target_fraction <= 1)) {
     return InvalidArgumentError("overlays: the target fraction must be in (0, 1]");

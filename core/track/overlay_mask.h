@@ -62,14 +62,14 @@ struct OverlayOptions {
   // A target whose observations lie on the mask in at least this fraction of its frames is
   // dropped (1 turns it off).
   double max_target_fraction = 0.5;
-  // A target that stays put in the image (every observation within `fixed_radius_px` of their
-  // median) while the ground under it moves by `fixed_min_ground_px` in all is screen-fixed: it is
-  // judged on the mask grown by `fixed_near_cells`, so that the end of a text line the evidence
-  // has not covered yet (digits that changed, the image's edge) goes with the rest of it.
-  // (or within `fixed_ground_fraction` of the ground's motion there, when that is more), in at
-  // least `fixed_share` of them: the change blob of a line of HUD text drifts and jumps by a few
-  // pixels as other digits change. A car under the gimbal's cross-hair is screen-fixed too, and
-  // stays unless it is beside the mask.
+  // A target that stays put in the image (at least `fixed_share` of its observations within
+  // `fixed_radius_px` of their median, or within `fixed_ground_fraction` of the ground's motion
+  // there when that is more: the change blob of a line of HUD text drifts and jumps by a few
+  // pixels as other digits change) while the ground under it moves by `fixed_min_ground_px` in all
+  // is screen-fixed: it is judged on the mask grown by `fixed_near_cells`, so that the end of a
+  // text line the evidence has not covered yet (digits that changed, the image's edge) goes with
+  // the rest of it. A car under the gimbal's cross-hair is screen-fixed too, and stays unless it
+  // is beside the mask.
   double fixed_radius_px = 3;
   double fixed_ground_fraction = 0.15;
   double fixed_share = 0.8;
@@ -106,7 +106,7 @@ bool OnOverlayMasks(const TargetTrack& target, const std::vector<OverlayMask>& m
 // Whether `target` stayed put in the image while the ground moved by at least `min_ground_px`
 // there: at least `share` of its observations within `radius_px` of their median position, or
 // within `ground_fraction` of the ground's motion when that is more (the blob of a line of HUD
-// text drifts by a few pixels as its digits change, a car along the ground's motion).
+// text drifts by a few pixels as its digits change).
 // `ground_shift_px(first_frame, last_frame, p)` is the ground's motion at image point p summed
 // over the frames after `first_frame` up to `last_frame`.
 bool ScreenFixed(
