@@ -42,9 +42,19 @@ std::optional<HorizonLine> FindHorizon(const cv::Mat& grey, const HorizonOptions
   if (grey.empty() || grey.type() != CV_8UC1 || grey.cols < 16 || grey.rows < 16) {
     return std::nullopt;
   }
-  const int width = kReducedWidth;
-  const int height = std::max(
+  // About kReducedWidth across: a large frame that divides by a whole-number factor near its
+  // reduction is reduced by that factor (240 across from 1920x1080, 256 from 1280x720), a plain
+  // box average (0.06 ms at 1080p, against 2.1 ms for OpenCV's area filter at the fractional
+  // 7.5x, which was two thirds of this search); others by the fractional area filter.
+  const int factor =
+      std::max(1, static_cast<int>(std::lround(static_cast<double>(grey.cols) / kReducedWidth)));
+  int width = kReducedWidth;
+  int height = std::max(
       16, static_cast<int>(std::lround(static_cast<double>(grey.rows) * width / grey.cols)));
+  if (factor >= 4 && grey.cols % factor == 0 && grey.rows % factor == 0) {
+    width = grey.cols / factor;
+    height = grey.rows / factor;
+  }
   cv::Mat small, intensity, gx, gy;
   cv::resize(grey, small, cv::Size(width, height), 0, 0, cv::INTER_AREA);
   small.convertTo(intensity, CV_32F);
@@ -52,33 +62,43 @@ std::optional<HorizonLine> FindHorizon(const cv::Mat& grey, const HorizonOptions
   // texture into the sky and pull the line up.
   cv::Sobel(intensity, gx, CV_32F, 1, 0);
   cv::Sobel(intensity, gy, CV_32F, 0, 1);
-  const cv::Mat texture = cv::abs(gx) + cv::abs(gy);
+  // Column-major, so that each column's pixels add to consecutive buckets below.
+  cv::Mat texture;
+  cv::transpose(cv::abs(gx) + cv::abs(gy), texture);
 
   const double centre_x = (width - 1) / 2.0;
   const double pixels = static_cast<double>(width) * height;
   double best_score = 0;
   double best_y = 0, best_slope = 0, best_sky = 0, best_ground = 0;
   const int steps = static_cast<int>(std::floor(options.max_tilt_deg / kTiltStepDeg + 1e-9));
-  std::vector<int> shift(static_cast<size_t>(width));
+  std::vector<Moments> sums;
+  std::vector<double> counts, gradients;
   for (int k = -steps; k <= steps; ++k) {
     const double slope = std::tan(k * kTiltStepDeg * M_PI / 180.0);
     // Each pixel falls in the bucket of its line offset at the centre, y - slope (x - centre_x).
     const int offset = static_cast<int>(std::ceil(std::abs(slope) * centre_x)) + 1;
     const int buckets = height + 2 * offset + 1;
-    // Row y's pixel x goes to bucket y + shift[x] - 1 (the offset keeps it in 0 .. buckets - 1):
-    // the column's part of the rounding is computed once per line, not per pixel (this search
-    // took 8 % of the front end's time on a nadir view).
-    std::vector<Moments> sums(static_cast<size_t>(buckets) + 1, Moments{});
+    // Row y's pixel x goes to bucket y + first(x) - 1 (the offset keeps it in 0 .. buckets - 1):
+    // the column's part of the rounding is computed once per line, not per pixel, and each column
+    // adds its pixels to a run of consecutive buckets (pixel by pixel, with the per-pixel sums,
+    // this search took 3 % of the front end's time on a nadir view). The gradients are whole
+    // numbers (Sobel of 8-bit grey levels), so the sums are exact in any order.
+    counts.assign(static_cast<size_t>(buckets) + 1, 0.0);
+    gradients.assign(static_cast<size_t>(buckets) + 1, 0.0);
     for (int x = 0; x < width; ++x) {
-      shift[static_cast<size_t>(x)] =
-          static_cast<int>(std::floor(0.5 - slope * (x - centre_x))) + offset + 1;
+      const int first = static_cast<int>(std::floor(0.5 - slope * (x - centre_x))) + offset + 1;
+      // The column covers buckets first - 1 .. first + height - 2, counted by their differences.
+      counts[static_cast<size_t>(first - 1)] += 1;
+      counts[static_cast<size_t>(first - 1 + height)] -= 1;
+      const float* column = texture.ptr<float>(x);
+      double* run = gradients.data() + (first - 1);
+      for (int y = 0; y < height; ++y) run[y] += column[y];
     }
-    for (int y = 0; y < height; ++y) {
-      const float* row = texture.ptr<float>(y);
-      for (int x = 0; x < width; ++x) {
-        Moments& m = sums[static_cast<size_t>(y + shift[static_cast<size_t>(x)])];
-        m[0] += 1, m[1] += row[x];
-      }
+    sums.assign(static_cast<size_t>(buckets) + 1, Moments{});
+    double count = 0;
+    for (int b = 0; b < buckets; ++b) {
+      count += counts[static_cast<size_t>(b)];
+      sums[static_cast<size_t>(b) + 1] = {count, gradients[static_cast<size_t>(b)]};
     }
     for (size_t b = 1; b < sums.size(); ++b) {
       sums[b][0] += sums[b - 1][0], sums[b][1] += sums[b - 1][1];

@@ -7,9 +7,9 @@
 //
 // The sky is found in the image: the straight line (within `max_tilt_deg` of level) that best
 // splits the frame into a smooth part above and a textured part below, scored on the local
-// gradient of an image reduced to 256 pixels across (where soft clouds are smooth and the ground's
-// detail is not) by the gradient's variance between the two parts (Otsu's criterion). The split
-// counts as a horizon only when the part above is much smoother than the part below
+// gradient of an image reduced to about 256 pixels across (where soft clouds are smooth and the
+// ground's detail is not) by the gradient's variance between the two parts (Otsu's criterion). The
+// split counts as a horizon only when the part above is much smoother than the part below
 // (`max_texture_ratio`) and covers `min_sky_fraction` to `max_sky_fraction` of the frame. Smooth
 // water below the horizon (a calm sea) can go with the sky: the line then tilts, and the water,
 // whose waves would be taken for movers, is masked too. A view whose frame is all ground has no

@@ -51,6 +51,22 @@ TEST(HorizonTest, FindsALevelAndATiltedHorizon) {
   }
 }
 
+// A 1920x1080 frame is reduced by a whole 8 (240 across, a box average) rather than to 256 across
+// by a fractional 7.5: the line is where it is at the other sizes, within the reduced image's
+// pixels (8 full-resolution pixels; the line sits 1-3 of them above the drawn one at every size,
+// as the edge's own gradient counts with the ground).
+TEST(HorizonTest, AFullHdFrameIsReducedByAWholeFactor) {
+  const HorizonOptions options;
+  for (const double slope : {0.0, 0.2}) {
+    SCOPED_TRACE(slope);
+    const cv::Mat grey = Scene(1920, 1080, 360, slope, 7);
+    const std::optional<HorizonLine> line = FindHorizon(grey, options);
+    ASSERT_TRUE(line.has_value());
+    EXPECT_NEAR(line->YAt(959.5), 360 - 16, 16);
+    EXPECT_NEAR(line->slope, slope, 0.03);
+  }
+}
+
 TEST(HorizonTest, AFrameOfGroundAloneOrOfSkyAloneHasNone) {
   const HorizonOptions options;
   // All ground: textured everywhere.
