@@ -126,6 +126,16 @@ std::vector<TargetObservation> GroupMoving(int64_t frame, const std::vector<Movi
   return observations;
 }
 
+// Image velocity at the end of a track, from its last few observations.
+Eigen::Vector2d EndVelocity(const TargetTrack& t) {
+  const size_t n = t.observations.size();
+  if (n < 2) return t.image_velocity;
+  const TargetObservation& last = t.observations[n - 1];
+  const TargetObservation& earlier = t.observations[n - std::min<size_t>(n, 6)];
+  if (last.frame == earlier.frame) return t.image_velocity;
+  return (last.position - earlier.position) / static_cast<double>(last.frame - earlier.frame);
+}
+
 }  // namespace
 
 Status TargetTrackOptions::Validate() const {
@@ -314,6 +324,11 @@ void TargetTracker::MergeAlike(int64_t frame) {
       kept.max_features = std::max({kept.max_features, active_[drop].max_features,
                                     kept.observations.back().features.size()});
       kept.confirmed = kept.confirmed || active_[drop].confirmed;
+      // Its latest positions are now the merged ones: the velocity the two had each measured
+      // against their own last position would carry the offset between them, frame after frame
+      // (a walker's two corners, merged every frame, gave it 6 px a frame it did not move, and
+      // after a gap the prediction reached another walker 13 m away).
+      kept.image_velocity = EndVelocity(kept);
       active_.erase(active_.begin() + static_cast<long>(drop));
       --b;  // the next candidate moved into slot b
       if (drop < a) --a;
@@ -383,16 +398,6 @@ void FoldInto(TargetTrack& into, TargetTrack&& from) {
   for (auto& [f, o] : by_frame) into.observations.push_back(std::move(o));
   into.max_features = std::max(into.max_features, from.max_features);
   into.confirmed = into.confirmed || from.confirmed;
-}
-
-// Image velocity at the end of a track, from its last few observations.
-Eigen::Vector2d EndVelocity(const TargetTrack& t) {
-  const size_t n = t.observations.size();
-  if (n < 2) return t.image_velocity;
-  const TargetObservation& last = t.observations[n - 1];
-  const TargetObservation& earlier = t.observations[n - std::min<size_t>(n, 6)];
-  if (last.frame == earlier.frame) return t.image_velocity;
-  return (last.position - earlier.position) / static_cast<double>(last.frame - earlier.frame);
 }
 
 double DistanceToSegment(const Eigen::Vector2d& p, const Eigen::Vector2d& a,

@@ -112,7 +112,9 @@ struct TargetTrack {
   std::vector<TargetObservation> observations;  // frames where it was seen, increasing
   bool confirmed = false;
   size_t max_features = 0;
-  Eigen::Vector2d image_velocity{0, 0};  // pixels per frame in the image (camera + own motion)
+  // Pixels per frame in the image (camera + own motion), smoothed; after a merge (MergeAlike),
+  // from the merged positions of the last frames.
+  Eigen::Vector2d image_velocity{0, 0};
   int64_t last_frame() const { return observations.empty() ? -1 : observations.back().frame; }
 };
 

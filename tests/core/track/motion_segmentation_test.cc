@@ -308,6 +308,29 @@ TEST(TargetTrackerTest, GapsAreInSecondsNotFrames) {
   EXPECT_EQ(tracker.TakeFinished().size(), 1u);
 }
 
+// A walker's two corners, too far apart to be grouped, are merged into one target every frame.
+// Its image velocity is that of the merged positions, not the pull of the corner it was matched by
+// towards the midpoint (half the corners' distance a frame): after a gap, that velocity carried the
+// prediction onto another walker 13 m away (the accuracy corpus's orbit, tuning seed 2).
+TEST(TargetTrackerTest, AMergedTargetKeepsTheVelocityOfItsMergedPositions) {
+  TargetTracker tracker({}, kRate);
+  int frame = 0;
+  for (; frame < 30; ++frame) {
+    const double x = 100 + 0.2 * frame;
+    tracker.AddFrame(frame, {Point(1, x, 300, 0.2), Point(2, x + 3, 301, 0.2),
+                             Point(3, x + 14, 300, 0.2), Point(4, x + 17, 301, 0.2)});
+  }
+  ASSERT_EQ(tracker.active().size(), 1u);
+  // Matched by the left pair and merged with the right one, it went 7 px a frame to the left.
+  EXPECT_NEAR(tracker.active()[0].image_velocity.x(), 0.2, 0.1);
+  for (; frame < 40; ++frame) tracker.AddFrame(frame, {});  // unseen for 0.4 s
+  // Another walker, where 7 px a frame would have taken the first one.
+  tracker.AddFrame(frame, {Point(20, 38, 300, 0.2), Point(21, 41, 301, 0.2)});
+  ASSERT_EQ(tracker.active().size(), 2u);
+  EXPECT_EQ(tracker.active()[0].observations.back().frame, 29);
+  EXPECT_EQ(tracker.active()[1].observations.size(), 1u);
+}
+
 // Slow things (half a pixel a frame) whose corners are too far apart to be grouped but whose boxes
 // touch, moving alike. A car that catches up with a van at a junction stays apart from it:
 // merging the two would average both histories into a track between them. An object whose
