@@ -51,7 +51,8 @@ std::optional<HorizonLine> FindHorizon(const cv::Mat& grey, const HorizonOptions
   int width = kReducedWidth;
   int height = std::max(
       16, static_cast<int>(std::lround(static_cast<double>(grey.rows) * width / grey.cols)));
-  if (factor >= 4 && grey.cols % factor == 0 && grey.rows % factor == 0) {
+  if (factor >= 4 && grey.cols % factor == 0 && grey.rows % factor == 0 &&
+      grey.rows / factor >= 16) {
     width = grey.cols / factor;
     height = grey.rows / factor;
   }
@@ -94,14 +95,13 @@ std::optional<HorizonLine> FindHorizon(const cv::Mat& grey, const HorizonOptions
       double* run = gradients.data() + (first - 1);
       for (int y = 0; y < height; ++y) run[y] += column[y];
     }
+    // sums[b]: the pixels and gradient of buckets 0 .. b - 1 (the bucket's own count is the
+    // running sum of its differences).
     sums.assign(static_cast<size_t>(buckets) + 1, Moments{});
-    double count = 0;
-    for (int b = 0; b < buckets; ++b) {
-      count += counts[static_cast<size_t>(b)];
-      sums[static_cast<size_t>(b) + 1] = {count, gradients[static_cast<size_t>(b)]};
-    }
-    for (size_t b = 1; b < sums.size(); ++b) {
-      sums[b][0] += sums[b - 1][0], sums[b][1] += sums[b - 1][1];
+    double in_bucket = 0;
+    for (size_t b = 0; b < static_cast<size_t>(buckets); ++b) {
+      in_bucket += counts[b];
+      sums[b + 1] = {sums[b][0] + in_bucket, sums[b][1] + gradients[b]};
     }
     const Moments& total = sums.back();
     // Cut before bucket b: the sky is the buckets below it (rows above the line). The score is the

@@ -51,11 +51,11 @@ TEST(HorizonTest, FindsALevelAndATiltedHorizon) {
   }
 }
 
-// A 1920x1080 frame is reduced by a whole 8 (240 across, a box average) rather than to 256 across
-// by a fractional 7.5: the line is where it is at the other sizes, within the reduced image's
-// pixels (8 full-resolution pixels; the line sits 1-3 of them above the drawn one at every size,
-// as the edge's own gradient counts with the ground).
-TEST(HorizonTest, AFullHdFrameIsReducedByAWholeFactor) {
+// A 1920x1080 frame, which is reduced by a whole 8 (240 across, a box average) rather than to 256
+// across by a fractional 7.5: the line is found where it is at the other sizes, within the reduced
+// image's pixels (8 full-resolution pixels; the line sits 1-3 of them above the drawn one at every
+// size, as the edge's own gradient counts with the ground).
+TEST(HorizonTest, FindsTheHorizonOfAFullHdFrame) {
   const HorizonOptions options;
   for (const double slope : {0.0, 0.2}) {
     SCOPED_TRACE(slope);
