@@ -50,6 +50,33 @@ float GradientSquared(const cv::Mat& image, int x, int y) {
   return largest;
 }
 
+// The mean squared gradient (central differences) of `image` where `cover` is set, on a sparse
+// grid (every `step` rows and columns); 0 where nothing is covered.
+double MeanSquaredGradient(const cv::Mat& image, const cv::Mat& cover, int step) {
+  double sum = 0;
+  int64_t count = 0;
+  for (int y = 1; y + 1 < image.rows; y += step) {
+    const uint8_t* above = image.ptr<uint8_t>(y - 1);
+    const uint8_t* row = image.ptr<uint8_t>(y);
+    const uint8_t* below = image.ptr<uint8_t>(y + 1);
+    const uint8_t* v = cover.ptr<uint8_t>(y);
+    for (int x = 1; x + 1 < image.cols; x += step) {
+      if (v[x] == 0) continue;
+      const double gx = 0.5 * (static_cast<double>(row[x + 1]) - static_cast<double>(row[x - 1]));
+      const double gy = 0.5 * (static_cast<double>(below[x]) - static_cast<double>(above[x]));
+      sum += gx * gx + gy * gy;
+      ++count;
+    }
+  }
+  return count > 0 ? sum / static_cast<double>(count) : 0;
+}
+
+// The sparse grid's step for an image: about 20 000 points, every fifth row and column at most.
+int SparseStep(const cv::Mat& image) {
+  return std::clamp(static_cast<int>(std::sqrt(static_cast<double>(image.total()) / 20000.0)), 1,
+                    5);
+}
+
 // The gain that matches `warped`'s mean grey to `centre`'s where `cover` is set (gain drift);
 // means over every fourth row and column: plenty for a gain.
 float MeanGain(const cv::Mat& centre, const cv::Mat& warped, const cv::Mat& cover) {
@@ -88,6 +115,11 @@ Status ChangeOptions::Validate() const {
     return InvalidArgumentError(
         "change detection: noise and threshold must be positive, the registration allowance and "
         "contrast >= 0");
+  }
+  if (!(sharpness_match_ratio == 0 ||
+        (sharpness_match_ratio > 1 && sharpness_match_ratio <= 100))) {
+    return InvalidArgumentError(
+        "change detection: the sharpness ratio must be 0 (off) or in (1, 100]");
   }
   if (!(one_sided_min_uncovered >= 0 && one_sided_min_uncovered <= 1)) {
     return InvalidArgumentError(
@@ -189,7 +221,8 @@ ChangeFrame ChangeDetector::Process(int64_t frame, const cv::Mat& grey,
     // copied: they are warped again into that pair's buffers before they are shared next time).
     pairs_[before][1] = pairs_[0][0];
     pairs_[after][0] = pairs_[0][1];
-    if (Warp(c - 2 * b, c, &pairs_[before][0]) && Warp(c + 2 * b, c, &pairs_[after][1])) {
+    if (Warp(c - 2 * b, c, &pairs_[before][0], &valid) &&
+        Warp(c + 2 * b, c, &pairs_[after][1], &valid)) {
       cv::bitwise_and(pairs_[before][0].cover, pairs_[before][1].cover, covers_[before]);
       cv::bitwise_and(pairs_[after][0].cover, pairs_[after][1].cover, covers_[after]);
       pairs_[before][0].allowance = pairs_[after][1].allowance = 2;
@@ -202,10 +235,11 @@ ChangeFrame ChangeDetector::Process(int64_t frame, const cv::Mat& grey,
       covers_.resize(before);
     }
   }
-  MeasureNoise(&history_[c], pairs_[0][0], covers_[0]);
-  SetAllowances();
+  const cv::Mat& centre_image = MatchSharpness(centre.grey);
+  MeasureNoise(centre_image, &history_[c], pairs_[0][0], pairs_[0][1], covers_[0]);
+  SetAllowances(history_[c]);
   cv::Mat evidence_changed;
-  cv::Mat changed = MarkChanged(centre.grey, &evidence_changed);
+  cv::Mat changed = MarkChanged(centre_image, &evidence_changed);
   result.noise_grey = noise_;
   result.registration_px = allowance_;
   result.allowances_raised = noise_ > static_cast<float>(options_.noise_grey) ||
@@ -256,9 +290,12 @@ void ChangeDetector::Remember(int64_t frame, const cv::Mat& grey,
 }
 
 // The frame history_[index] warped onto the centre frame history_[centre], its mean grey matched
-// to the centre's (gain drift), and where it covers the centre frame (inside its border). The
-// buffers are members, reused from frame to frame. False for a degenerate motion.
-bool ChangeDetector::Warp(size_t index, size_t centre, Other* other) {
+// to the centre's (gain drift), and where it covers the centre frame (inside its border). With
+// `only_outside`, only where that mask is zero (and a few pixels round it, for the gradients) is
+// warped, covered and counted for the gain: a one-sided pair is looked at only where the centred
+// one cannot look, a band at the edge. The buffers are members, reused from frame to frame. False
+// for a degenerate motion.
+bool ChangeDetector::Warp(size_t index, size_t centre, Other* other, const cv::Mat* only_outside) {
   const int b = options_.border_px;
   Eigen::Matrix3d centre_from_other = Eigen::Matrix3d::Identity();
   if (index < centre) {
@@ -272,12 +309,6 @@ bool ChangeDetector::Warp(size_t index, size_t centre, Other* other) {
     }
     centre_from_other = other_from_centre.inverse();
   }
-  cv::Mat m(3, 3, CV_64F);
-  for (int r = 0; r < 3; ++r) {
-    for (int c = 0; c < 3; ++c) m.at<double>(r, c) = centre_from_other(r, c);
-  }
-  cv::warpPerspective(history_[index].grey, other->warped, m, small_size_, cv::INTER_LINEAR,
-                      cv::BORDER_CONSTANT);
   const double w = small_size_.width - 1 - b, h = small_size_.height - 1 - b;
   std::array<cv::Point, 4> outline;
   const std::array<Eigen::Vector2d, 4> corners = {Eigen::Vector2d(b, b), Eigen::Vector2d(w, b),
@@ -295,20 +326,92 @@ bool ChangeDetector::Warp(size_t index, size_t centre, Other* other) {
     cv::rectangle(other->cover, cv::Rect(0, 0, small_size_.width, small_size_.height),
                   cv::Scalar(0), 2 * b);
   }
+  // Into `region` of the full-size buffer, the matrix shifted by its origin.
+  other->warped.create(small_size_, CV_8U);
+  const auto warp_into = [&](const cv::Rect& region) {
+    Eigen::Matrix3d region_from_other = centre_from_other;
+    region_from_other.row(0) -= static_cast<double>(region.x) * centre_from_other.row(2);
+    region_from_other.row(1) -= static_cast<double>(region.y) * centre_from_other.row(2);
+    cv::Mat m(3, 3, CV_64F);
+    for (int r = 0; r < 3; ++r) {
+      for (int c = 0; c < 3; ++c) m.at<double>(r, c) = region_from_other(r, c);
+    }
+    cv::Mat target = other->warped(region);
+    cv::warpPerspective(history_[index].grey, target, m, region.size(), cv::INTER_LINEAR,
+                        cv::BORDER_CONSTANT);
+    SAKER_CHECK(target.data == other->warped(region).data) << "the warp reallocated its target";
+  };
+  const cv::Rect frame(0, 0, small_size_.width, small_size_.height);
+  if (only_outside == nullptr) {
+    warp_into(frame);
+  } else {
+    // Covered only outside the mask, and warped there, strip by strip (an L-shaped band at two
+    // edges would have the whole frame for its bounding box), with the pixels round it that the
+    // gradient test reads.
+    cv::Mat outside;
+    cv::bitwise_not(*only_outside, outside);
+    cv::bitwise_and(outside, other->cover, other->cover);
+    constexpr int kStripRows = 32, kReach = 3;
+    for (int y = 0; y < small_size_.height; y += kStripRows) {
+      const cv::Rect strip(0, y, small_size_.width, std::min(kStripRows, small_size_.height - y));
+      cv::Rect needed = cv::boundingRect(other->cover(strip));
+      if (needed.empty()) continue;
+      needed.y += y;
+      warp_into(cv::Rect(needed.x - kReach, needed.y - kReach, needed.width + 2 * kReach,
+                         needed.height + 2 * kReach) &
+                frame);
+    }
+  }
   other->gain = MeanGain(history_[centre].grey, other->warped, other->cover);
   return true;
 }
 
-// Sparse: on a grid of about 20 000 points (every fifth row and column at 960x540, 0.3 ms).
-void ChangeDetector::MeasureNoise(Entry* centre, const Other& other, const cv::Mat& cover) {
+const cv::Mat& ChangeDetector::MatchSharpness(const cv::Mat& centre) {
+  const double ratio = options_.sharpness_match_ratio;
+  if (ratio <= 0) return centre;
+  const cv::Mat& cover = covers_[0];
+  const int step = SparseStep(centre);
+  const double own = MeanSquaredGradient(centre, cover, step);
+  // The frame of the centred pair closest to the centre in sharpness: matching one of them is
+  // enough, since a change is marked only where both differences are significant.
+  Other* nearest = nullptr;
+  double other = 0;
+  for (Other& o : pairs_[0]) {
+    const double s = MeanSquaredGradient(o.warped, cover, step);
+    const auto apart = [own](double v) {
+      return std::max(own, v) / std::max(1e-9, std::min(own, v));
+    };
+    if (nearest == nullptr || apart(s) < apart(other)) nearest = &o, other = s;
+  }
+  if (!(own > 0 && other > 0) || std::max(own, other) <= ratio * std::min(own, other)) {
+    return centre;
+  }
+  // Blur the sharper one with the first of a few widths that brings it down to the other
+  // (at most the widest: a frame blurred more than that has nothing left to compare).
+  const bool centre_sharper = own > other;
+  const cv::Mat& sharp = centre_sharper ? centre : nearest->warped;
+  const double target = std::min(own, other);
+  for (const double sigma : {0.5, 0.7, 1.0, 1.4, 2.0}) {
+    cv::GaussianBlur(sharp, blurred_, cv::Size(), sigma, sigma, cv::BORDER_REPLICATE);
+    if (MeanSquaredGradient(blurred_, cover, step) <= target) break;
+  }
+  if (centre_sharper) {
+    std::swap(matched_centre_, blurred_);
+    return matched_centre_;
+  }
+  blurred_.copyTo(nearest->warped);
+  return centre;
+}
+
+// Sparse: on a grid of about 20 000 points (every fifth row and column at 960x540, 0.3 ms a
+// frame compared). The noise and misregistration of `other` against the centre frame, each
+// negative when too few pixels were flat or steep.
+ChangeDetector::Mismatch ChangeDetector::MeasureMismatch(const cv::Mat& image, const Other& other,
+                                                         const cv::Mat& cover) {
   constexpr float kFlatGradient = 3, kSteepGradient = 15;  // grey levels a pixel
   constexpr size_t kMinSamples = 100;
-  const int step = std::clamp(
-      static_cast<int>(std::sqrt(static_cast<double>(centre->grey.total()) / 20000.0)), 1, 5);
-  centre->noise = centre->registration = -1;
-  if (options_.measured_noise_multiple <= 0 && options_.measured_registration_multiple <= 0) return;
+  const int step = SparseStep(image);
   std::vector<double> flat, steep;
-  const cv::Mat& image = centre->grey;
   for (int y = 1; y + 1 < image.rows; y += step) {
     const uint8_t* c = image.ptr<uint8_t>(y);
     const uint8_t* w = other.warped.ptr<uint8_t>(y);
@@ -326,30 +429,49 @@ void ChangeDetector::MeasureNoise(Entry* centre, const Other& other, const cv::M
   }
   // The robust spread of a zero-mean difference: 1.4826 times its median absolute value.
   constexpr double kMadToSigma = 1.4826;
-  if (flat.size() >= kMinSamples) {
-    centre->noise = static_cast<float>(kMadToSigma * Median(std::move(flat)));
-  }
+  Mismatch m;
+  if (flat.size() >= kMinSamples)
+    m.noise = static_cast<float>(kMadToSigma * Median(std::move(flat)));
   if (steep.size() >= kMinSamples) {
-    centre->registration = static_cast<float>(kMadToSigma * Median(std::move(steep)));
+    m.registration = static_cast<float>(kMadToSigma * Median(std::move(steep)));
   }
+  return m;
 }
 
-void ChangeDetector::SetAllowances() {
+// The centre frame against each frame of the centred pair; the smaller of the two counts (a
+// change is marked only where both differences exceed their allowance, so the better-matched
+// frame bounds what the worse one can mark), and nothing when either could not be measured.
+void ChangeDetector::MeasureNoise(const cv::Mat& image, Entry* centre, const Other& before,
+                                  const Other& after, const cv::Mat& cover) {
+  centre->noise = centre->registration = -1;
+  if (options_.measured_noise_multiple <= 0 && options_.measured_registration_multiple <= 0) return;
+  const Mismatch a = MeasureMismatch(image, before, cover);
+  const Mismatch b = MeasureMismatch(image, after, cover);
+  // Unknown when either is (too few flat or steep pixels on one side).
+  const auto smaller = [](float x, float y) { return x < 0 || y < 0 ? -1.0f : std::min(x, y); };
+  centre->noise = smaller(a.noise, b.noise);
+  centre->registration = smaller(a.registration, b.registration);
+}
+
+void ChangeDetector::SetAllowances(const Entry& centre) {
   noise_ = static_cast<float>(options_.noise_grey);
   allowance_ = static_cast<float>(options_.registration_px);
   // The median of the measured frames held (from the frame after the centre on nothing is
-  // measured yet); a resumed run holds the same frames, so it measures the same.
-  const auto median = [this](float Entry::*field) {
-    std::vector<double> measured;
+  // measured yet), or the centre's own where larger: a frame sharper than both its neighbours
+  // (a focus or a renderer's level of detail changing for one frame) differs from them on all
+  // its texture, and the median of its quieter neighbours would let that through as a thousand
+  // blobs. A resumed run holds the same frames, so it measures the same.
+  const auto measured = [this, &centre](float Entry::*field) {
+    std::vector<double> values;
     for (const Entry& e : history_) {
-      if (e.*field >= 0) measured.push_back(e.*field);
+      if (e.*field >= 0) values.push_back(e.*field);
     }
-    return static_cast<float>(Median(std::move(measured)));  // 0 when none
+    return std::max(static_cast<float>(Median(std::move(values))), centre.*field);  // 0: none
   };
   noise_ = std::max(noise_,
-                    static_cast<float>(options_.measured_noise_multiple) * median(&Entry::noise));
+                    static_cast<float>(options_.measured_noise_multiple) * measured(&Entry::noise));
   allowance_ = std::max(allowance_, static_cast<float>(options_.measured_registration_multiple) *
-                                        median(&Entry::registration));
+                                        measured(&Entry::registration));
 }
 
 // A pixel changed when both differences exceed their noise with the same sign. The noise of a

@@ -76,15 +76,23 @@ struct ChangeOptions {
   // Both allowances follow the video. A low bit rate (the codec's blocks and smoothing) makes
   // registered frames differ by several grey levels on flat ground and by most of an edge's
   // contrast on texture, and the allowances above, tuned on clean video, then mark the ground
-  // itself as changed. So every centre frame measures its difference with the frame a baseline
-  // before it, on a sparse grid: the sensor noise as the robust spread (1.4826 times the median
-  // absolute value) where that frame is flat (gradient below 3 grey levels a pixel), the
+  // itself as changed. So every centre frame measures its differences with the frames a baseline
+  // before and after it, on a sparse grid: the sensor noise as the robust spread (1.4826 times the
+  // median absolute value) where that frame is flat (gradient below 3 grey levels a pixel), the
   // misregistration as the spread of the difference over the gradient where it is steep (above
-  // 15). The medians of those over the frames held, times these multiples, replace `noise_grey`
-  // and `registration_px` where larger. Clean simulated video measures 1.2-1.5 grey levels and
+  // 15); the smaller of the two sides counts. The medians of those over the frames held (or the
+  // centre's own, when larger), times these multiples, replace `noise_grey` and `registration_px`
+  // where larger. Clean simulated video measures 1.2-1.5 grey levels and
   // 0.12-0.13 px, so the fixed allowances stand; CRF 38 measures 2.6-3.1 and 0.5-1.0. 0: off.
   double measured_noise_multiple = 1;
   double measured_registration_multiple = 1.5;
+  // Sharpness matched before comparing, as difference imaging matches point spread functions: a
+  // frame sharper than both its neighbours (focus, a renderer's level of detail) differs from
+  // them with one sign on every peak of its texture, which no allowance separates from a walker.
+  // When the centre frame's mean squared gradient and that of the centred pair's frame closest
+  // to it differ by more than this ratio, the sharper of the two is blurred (Gaussian) until they
+  // match. Registered frames differ by up to about 1.3 from interpolation alone. 0: off.
+  double sharpness_match_ratio = 1.5;
   int min_area_px = 1;  // blob size, processing pixels
   // The largest blob: at 0.2 m a pixel a car is ~110 processing pixels, a lorry ~400. A car
   // without texture (a black car on dark asphalt) has no corners for the feature tracks, and its
@@ -160,8 +168,8 @@ class ChangeDetector {
     cv::Mat grey;                                                // processing size
     Eigen::Matrix3d motion = Eigen::Matrix3d::Identity();        // from the previous frame
     Eigen::Matrix3d small_motion = Eigen::Matrix3d::Identity();  // the same, processing pixels
-    // What the frame's difference with the one a baseline before it measured when it was the
-    // centre (ChangeOptions::measured_noise_multiple); negative: not measured.
+    // What the frame's differences with the centred pair measured when it was the centre, the
+    // smaller of the two (ChangeOptions::measured_noise_multiple); negative: not measured.
     float noise = -1, registration = -1;
   };
   struct Other {  // a frame before or after the centre, warped onto it
@@ -177,11 +185,20 @@ class ChangeDetector {
   // Appends the frame at processing size, dropping the oldest beyond `capacity` frames.
   void Remember(int64_t frame, const cv::Mat& grey,
                 const std::optional<Eigen::Matrix3d>& current_from_previous, size_t capacity);
-  bool Warp(size_t index, size_t centre, Other* other);
-  // The centre frame's noise and misregistration (Entry::noise, registration), measured against
-  // `other`, then the allowances from the frames held.
-  void MeasureNoise(Entry* centre, const Other& other, const cv::Mat& cover);
-  void SetAllowances();
+  bool Warp(size_t index, size_t centre, Other* other, const cv::Mat* only_outside = nullptr);
+  // Blurs the centre frame (into `matched_centre_`, returned) or the centred pair's frame closest
+  // to it in sharpness (in place) when they differ (ChangeOptions::sharpness_match_ratio).
+  const cv::Mat& MatchSharpness(const cv::Mat& centre);
+  struct Mismatch {
+    float noise = -1, registration = -1;  // negative: not measured
+  };
+  static Mismatch MeasureMismatch(const cv::Mat& image, const Other& other, const cv::Mat& cover);
+  // The centre frame's noise and misregistration (Entry::noise, registration): `image` (the
+  // centre, sharpness matched) against both frames of the centred pair, the smaller of the two.
+  void MeasureNoise(const cv::Mat& image, Entry* centre, const Other& before, const Other& after,
+                    const cv::Mat& cover);
+  // The allowances: the median of the frames held or the centre's own, the larger.
+  void SetAllowances(const Entry& centre);
   // Also marks `evidence_changed` from the evidence pair, when there is one.
   cv::Mat MarkChanged(const cv::Mat& image, cv::Mat* evidence_changed);
   std::vector<ChangeBlob> FindBlobs(const cv::Mat& changed);
@@ -203,6 +220,7 @@ class ChangeDetector {
   std::vector<cv::Point> seeds_, fill_;  // the changed pixels; those waiting to be filled
   cv::Mat strength_;                     // CV_32F signed change of the changed pixels
   float noise_ = 0, allowance_ = 0;      // the allowances in force (SetAllowances)
+  cv::Mat matched_centre_, blurred_;     // MatchSharpness's buffers
 };
 
 // Durations in seconds, speeds in pixels a second (FrameRate), floors in frames in brackets; the

@@ -160,6 +160,71 @@ TEST(ChangeDetectorTest, CleanVideoKeepsTheFixedAllowances) {
   }
 }
 
+// One frame whose ground motion is off by a pixel and a half (the flow misled by a frame that
+// differs from its neighbours): both of the frames it is compared with are misregistered the same
+// way, so every edge of the ground changes with one sign. Its own measurement raises its
+// allowances, where the median of its quieter neighbours would not; the frames compared with it
+// are matched well by their other neighbour and keep the fixed allowances.
+TEST(ChangeDetectorTest, AFrameMisregisteredAgainstBothNeighboursRaisesItsOwnAllowances) {
+  const cv::Mat ground = Ground();
+  std::mt19937 random(4);
+  ChangeDetector detector(SmallFrameOptions(), kRate);
+  constexpr int kOff = 30;
+  int answered = 0;
+  for (int n = 0; n < 70; ++n) {
+    cv::Mat frame = Frame(ground, n, {}, 1.0, &random);
+    if (n == kOff) {
+      const cv::Mat shift = (cv::Mat_<double>(2, 3) << 1, 0, 1.5, 0, 1, -1.0);
+      cv::warpAffine(frame, frame, shift, frame.size(), cv::INTER_LINEAR, cv::BORDER_REFLECT);
+    }
+    const ChangeFrame result = detector.Process(
+        n, frame, n == 0 ? std::nullopt : std::optional<Eigen::Matrix3d>(CameraMotion()));
+    if (!result.answered()) continue;
+    ++answered;
+    EXPECT_TRUE(result.blobs.empty())
+        << "frame " << result.frame << ": " << result.blobs.size()
+        << " blobs, registration allowance " << result.registration_px << " px";
+    EXPECT_EQ(result.allowances_raised, result.frame == kOff) << "frame " << result.frame;
+  }
+  EXPECT_EQ(answered, 70 - 2 * 12);
+}
+
+// Every frame a little soft (defocus) but one, whose texture is sharper than both neighbours'
+// everywhere: matched in sharpness before the comparison, it shows the walker and nothing else;
+// compared as it is, its texture changes all over.
+TEST(ChangeDetectorTest, AFrameSharperThanItsNeighboursIsMatchedToThem) {
+  const cv::Mat ground = Ground();
+  constexpr int kSharp = 30;
+  const Mover walker{Eigen::Vector2d(200, 150), Eigen::Vector2d(1.5, 2.0)};
+  const auto run = [&](const ChangeOptions& options, int* changed, bool* walker_found) {
+    std::mt19937 random(5);
+    ChangeDetector detector(options, kRate);
+    for (int n = 0; n < 50; ++n) {
+      Mover moved = walker;
+      moved.centre += Eigen::Vector2d(0.3, 0.2) * n;
+      cv::Mat frame = Frame(ground, n, {moved}, 1.0, &random);
+      if (n != kSharp) cv::GaussianBlur(frame, frame, cv::Size(0, 0), 1.5);
+      const ChangeFrame result = detector.Process(
+          n, frame, n == 0 ? std::nullopt : std::optional<Eigen::Matrix3d>(CameraMotion()));
+      if (result.frame != kSharp) continue;
+      *changed = cv::countNonZero(result.changed);
+      Mover then = walker;
+      then.centre += Eigen::Vector2d(0.3, 0.2) * kSharp - kCameraStep * kSharp;
+      *walker_found = result.ChangedNear(then.centre, 2.0);
+    }
+  };
+  int matched = -1, unmatched = -1;
+  bool found = false, found_unmatched = false;
+  run(SmallFrameOptions(), &matched, &found);
+  ChangeOptions off = SmallFrameOptions();
+  off.sharpness_match_ratio = 0;
+  run(off, &unmatched, &found_unmatched);
+  EXPECT_TRUE(found);
+  EXPECT_GE(matched, 1);
+  EXPECT_LE(matched, 40) << "changed pixels with the sharpness matched";
+  EXPECT_GT(unmatched, 10 * matched) << "changed pixels compared as it is";
+}
+
 TEST(ChangeDetectorTest, AWalkerIsFoundWhereItIsAndNowhereElse) {
   const cv::Mat ground = Ground();
   std::mt19937 random(2);
@@ -418,6 +483,11 @@ TEST(ChangeDetectorTest, OptionsAreChecked) {
   EXPECT_FALSE(options.Validate().ok());
   options = {};
   options.one_sided_min_uncovered = 1.5;
+  EXPECT_FALSE(options.Validate().ok());
+  options = {};
+  options.sharpness_match_ratio = 0;
+  EXPECT_TRUE(options.Validate().ok());
+  options.sharpness_match_ratio = 0.9;
   EXPECT_FALSE(options.Validate().ok());
   BlobTrackOptions tracks;
   EXPECT_TRUE(tracks.Validate().ok());
