@@ -326,8 +326,12 @@ bool ChangeDetector::Warp(size_t index, size_t centre, Other* other, const cv::M
     cv::rectangle(other->cover, cv::Rect(0, 0, small_size_.width, small_size_.height),
                   cv::Scalar(0), 2 * b);
   }
-  // Into `region` of the full-size buffer, the matrix shifted by its origin.
+  // Into `region` of the full-size buffer, the matrix shifted by its origin. A new buffer starts
+  // black: a one-sided pair's comparison pass reads the rows of its band beyond the strips warped
+  // (and ignores them), which must hold some grey level, if only an earlier frame's.
+  const uint8_t* const previous_buffer = other->warped.data;
   other->warped.create(small_size_, CV_8U);
+  if (other->warped.data != previous_buffer) other->warped.setTo(0);
   const auto warp_into = [&](const cv::Rect& region) {
     Eigen::Matrix3d region_from_other = centre_from_other;
     region_from_other.row(0) -= static_cast<double>(region.x) * centre_from_other.row(2);
