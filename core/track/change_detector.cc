@@ -434,8 +434,9 @@ ChangeDetector::Mismatch ChangeDetector::MeasureMismatch(const cv::Mat& image, c
   // The robust spread of a zero-mean difference: 1.4826 times its median absolute value.
   constexpr double kMadToSigma = 1.4826;
   Mismatch m;
-  if (flat.size() >= kMinSamples)
+  if (flat.size() >= kMinSamples) {
     m.noise = static_cast<float>(kMadToSigma * Median(std::move(flat)));
+  }
   if (steep.size() >= kMinSamples) {
     m.registration = static_cast<float>(kMadToSigma * Median(std::move(steep)));
   }
@@ -461,10 +462,10 @@ void ChangeDetector::SetAllowances(const Entry& centre) {
   noise_ = static_cast<float>(options_.noise_grey);
   allowance_ = static_cast<float>(options_.registration_px);
   // The median of the measured frames held (from the frame after the centre on nothing is
-  // measured yet), or the centre's own where larger: a frame sharper than both its neighbours
-  // (a focus or a renderer's level of detail changing for one frame) differs from them on all
-  // its texture, and the median of its quieter neighbours would let that through as a thousand
-  // blobs. A resumed run holds the same frames, so it measures the same.
+  // measured yet), or the centre's own where larger: a frame misregistered against both its
+  // neighbours differs from them with one sign on every edge, and the median of its quieter
+  // neighbours would let that through as a thousand blobs. A resumed run holds the same frames,
+  // so it measures the same.
   const auto measured = [this, &centre](float Entry::*field) {
     std::vector<double> values;
     for (const Entry& e : history_) {

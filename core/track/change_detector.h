@@ -82,8 +82,8 @@ struct ChangeOptions {
   // misregistration as the spread of the difference over the gradient where it is steep (above
   // 15); the smaller of the two sides counts. The medians of those over the frames held (or the
   // centre's own, when larger), times these multiples, replace `noise_grey` and `registration_px`
-  // where larger. Clean simulated video measures 1.2-1.5 grey levels and
-  // 0.12-0.13 px, so the fixed allowances stand; CRF 38 measures 2.6-3.1 and 0.5-1.0. 0: off.
+  // where larger. Clean simulated video measures 1.2-1.5 grey levels and 0.12-0.13 px, so the
+  // fixed allowances stand; CRF 38 measures 2.6-3.1 and 0.5-1.0. 0: off.
   double measured_noise_multiple = 1;
   double measured_registration_multiple = 1.5;
   // Sharpness matched before comparing, as difference imaging matches point spread functions: a
