@@ -2,6 +2,7 @@
 
 #include "core/frontend/change_thread.h"
 #include "core/frontend/resume.h"
+#include "core/frontend/scale_follower.h"
 #include "core/track/picture.h"
 #include "core/util/bounded_queue.h"
 #include "core/util/byte_io.h"
@@ -16,6 +17,7 @@
 #include <cmath>
 #include <deque>
 #include <limits>
+#include <map>
 #include <memory>
 #include <optional>
 #include <sstream>
@@ -58,32 +60,43 @@ int ChangeReplayFrames(const track::ChangeOptions& change, track::FrameRate rate
          1;
 }
 
+// A decoded frame and the ground's scale in it from the metadata, when known.
+struct DecodedFrame {
+  video::Frame frame;
+  std::optional<track::GroundScale> scale;
+};
+
 // Decoding on a thread of its own: ingest::ScanVideo reads every frame and KLV packet of the
 // opened `reader` in one pass (the frames as the reader decodes them: FrontEndOptions::
-// EffectiveReader) and queues the frames for the calling thread; the metadata is tied to the
-// frames when the scan ends. Frames before `pixels_from` are only decoded, for the scan, and come
-// without pixels. The destructor stops and joins the thread, whatever happened.
+// EffectiveReader) and queues the frames for the calling thread with the ground's scale in them
+// (ScaleFollower); the rest of the metadata is tied to the frames when the scan ends. Frames
+// before `pixels_from` are only decoded, for the scan, and come without pixels. The destructor
+// stops and joins the thread, whatever happened.
 class DecodeThread {
  public:
   DecodeThread(std::unique_ptr<video::VideoReader> reader, size_t queue_frames, int64_t pixels_from,
                const ingest::AlignmentOptions& alignment)
       : queue_(queue_frames) {
-    const std::string path = reader->info().path;
+    const video::VideoInfo& info = reader->info();
+    const std::string path = info.path;
+    auto scales = std::make_shared<ScaleFollower>(info.fps);
     ingest::ScanOptions scan_options;
     scan_options.alignment = alignment;
-    thread_ =
-        std::thread([this, reader = std::move(reader), pixels_from, scan_options, path]() mutable {
+    scan_options.on_packet = [scales](const ingest::MetadataPacket& p) { scales->AddPacket(p); };
+    thread_ = std::thread(
+        [this, reader = std::move(reader), pixels_from, scan_options, path, scales]() mutable {
           // An exception must not leave this thread (std::terminate): out of memory while decoding
           // is an error of the run like any other.
           try {
             Stopwatch watch;
             scan_ = ingest::ScanVideo(
                 std::move(reader), scan_options, &job_, [&](const video::Frame& frame) {
-                  video::Frame copy = frame;
+                  DecodedFrame copy{
+                      frame, scales->ForFrame(frame.byte_pos, frame.grey.cols, frame.grey.rows)};
                   // The reader reuses its buffers; a frame that is only decoded needs no pixels.
-                  copy.grey = frame.index >= pixels_from ? frame.grey.clone() : cv::Mat();
+                  copy.frame.grey = frame.index >= pixels_from ? frame.grey.clone() : cv::Mat();
                   // Fresh for every frame (never reused), so shared rather than copied.
-                  if (frame.index < pixels_from) copy.chroma = cv::Mat();
+                  if (frame.index < pixels_from) copy.frame.chroma = cv::Mat();
                   decode_ms_ += watch.ElapsedMs();
                   if (!queue_.Push(std::move(copy))) job_.RequestCancel();
                   watch.Restart();
@@ -103,7 +116,7 @@ class DecodeThread {
   DecodeThread& operator=(const DecodeThread&) = delete;
 
   // The next frame; nullopt at the end of the video or when decoding failed.
-  std::optional<video::Frame> Pop() { return queue_.Pop(); }
+  std::optional<DecodedFrame> Pop() { return queue_.Pop(); }
   // Once Pop() gave nullopt: the scan, or the error that stopped it.
   StatusOr<ingest::VideoScan> Finish() {
     SAKER_RETURN_IF_ERROR(queue_.status());
@@ -114,7 +127,7 @@ class DecodeThread {
   double decode_ms() const { return decode_ms_; }
 
  private:
-  BoundedQueue<video::Frame> queue_;
+  BoundedQueue<DecodedFrame> queue_;
   JobContext job_;  // cancelled when the consumer stops early
   StatusOr<ingest::VideoScan> scan_ = CancelledError("front end: the scan did not run");
   double decode_ms_ = 0;
@@ -209,6 +222,9 @@ class FrontEnd {
                const std::optional<Eigen::Vector3d>& epipole, FrameResult* frame_result);
   void ApplyChangeThrough(int64_t frame);
   void ApplyChangeAnswer(const ChangeThread::Answer& answer);
+  // Keeps frame `index`'s ground scale (when the metadata gives one) until its change answer
+  // comes, for the blob tracks' speed limits; forgets those of frames answered long ago.
+  void NoteGroundScale(int64_t index, std::optional<track::GroundScale> scale);
   void KeepTarget(track::TargetTrack target, int64_t cut, std::vector<track::TargetTrack>* to);
   // Masks the sky above `horizon` in frame `index`: for its targets, the count, and its frame
   // result (`current`, the frame being processed; else the one in the result, when it is there).
@@ -286,6 +302,8 @@ class FrontEnd {
   double change_side_ms_ = 0;  // the calling thread's time for change detection (waits included)
   int64_t change_through_;     // the latest frame whose change answer was applied
   int64_t change_applied_submitted_ = -1;  // the latest frame submitted whose answer was applied
+  // The ground's scale of the frames whose change answers may still come (NoteGroundScale).
+  std::map<int64_t, track::GroundScale> ground_scales_;
   // Resuming exactly: the checkpoint's state from the feature tracker on, which needs the image of
   // the checkpoint's key frame (Replay).
   std::optional<ByteReader> tracker_state_;
@@ -337,12 +355,14 @@ StatusOr<FrontEndResult> FrontEnd::Run() {
                     static_cast<size_t>(options_.change_queue_frames),
                     static_cast<size_t>(kChangeLagFrames));
   }
-  while (std::optional<video::Frame> frame = decode.Pop()) {
+  while (std::optional<DecodedFrame> decoded = decode.Pop()) {
     if (job_ != nullptr && job_->IsCancelled()) return CancelledError("front end: cancelled");
+    video::Frame* frame = &decoded->frame;
     if (frame->index < start_.warm_from) {
       ReportProgress(static_cast<double>(frame->index + 1));
       continue;  // done before: only decoded, for the scan
     }
+    NoteGroundScale(frame->index, std::move(decoded->scale));
     const bool replay = start_.exact && frame->index <= start_.through_frame;
     // A thermal camera's polarity switch: the frames after it go on inverted back, in the first
     // frame's polarity (PolarityWatch; when replaying, as the checkpoint recorded).
@@ -639,6 +659,14 @@ void FrontEnd::Segment(const video::Frame& frame,
   result_.timing.segment_ms += watch.ElapsedMs() - (change_side_ms_ - change_side_before);
 }
 
+void FrontEnd::NoteGroundScale(int64_t index, std::optional<track::GroundScale> scale) {
+  if (!change_) return;
+  // An answer is applied at most this many frames after its frame (ApplyChangeThrough).
+  const int64_t keep = ChangeReplayFrames(options_.EffectiveChange(rate_.fps()), rate_) + 1;
+  ground_scales_.erase(ground_scales_.begin(), ground_scales_.lower_bound(index - keep));
+  if (scale) ground_scales_.insert_or_assign(index, std::move(*scale));
+}
+
 // The change answers for every frame up to `frame`, waiting for them if need be. Applied at a
 // fixed lag, so that the result never depends on how the threads ran: once frame n is through
 // segmentation, the answers up to n - kChangeLagFrames; at a chain break every answer up to the
@@ -679,8 +707,10 @@ void FrontEnd::ApplyChangeAnswer(const ChangeThread::Answer& answer) {
       }
     }
     const double fixed_registration = options_.change.registration_px;
+    const auto scale = ground_scales_.find(c.frame);
     change_tracks_.AddFrame(c.frame, blobs, c.frame_motion,
-                            fixed_registration > 0 ? c.registration_px / fixed_registration : 1.0);
+                            fixed_registration > 0 ? c.registration_px / fixed_registration : 1.0,
+                            scale != ground_scales_.end() ? &scale->second : nullptr);
     // Within the target's box, and a few pixels round a single point.
     target_tracker_.RecordChange(c.frame, [&](const track::TargetObservation& o) {
       if (!c.Compared(o.position)) return track::ChangeEvidence::kNotLooked;

@@ -173,7 +173,11 @@ StatusOr<VideoScan> ScanReader(video::VideoReader& reader, const std::string& pa
     for (const auto& d : data) {
       auto it = summaries.find(d.stream_index);
       if (it == summaries.end()) continue;  // a data stream that is not KLV
+      const size_t first = scan.packets.size();
       DecodeDataPacket(d, options.alignment.accept_bad_checksums, &it->second, &scan, &suppressed);
+      if (options.on_packet) {
+        for (size_t i = first; i < scan.packets.size(); ++i) options.on_packet(scan.packets[i]);
+      }
     }
     if (!*more) break;
     if (options.max_frames > 0 && static_cast<int64_t>(scan.frames.size()) >= options.max_frames) {

@@ -20,6 +20,8 @@
 
 namespace saker::ingest {
 
+struct MetadataPacket;
+
 struct ScanOptions {
   // Decoding options; by default no pixel conversion is done, since a scan
   // only needs timing. Set want_bgr / want_grey to receive images in
@@ -34,6 +36,11 @@ struct ScanOptions {
   // Stop after this many frames (0: no limit), e.g. to look at the start of a long flight or to
   // bound the work on untrusted input; a warning then says the scan stopped early.
   int64_t max_frames = 0;
+  // Called for every KLV packet as it is decoded, in the order of the file (before the frames
+  // demuxed after it reach `on_frame`), for a reader that needs the metadata as the video goes
+  // rather than when the scan ends (the front end's ground scale). Its time may still be
+  // unknown (MetadataPacket::time_s NaN: inferred when the scan ends).
+  std::function<void(const MetadataPacket&)> on_packet;
 
   Status Validate() const;
 };

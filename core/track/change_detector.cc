@@ -392,11 +392,27 @@ const cv::Mat& ChangeDetector::MatchSharpness(const cv::Mat& centre) {
   }
   // Blur the sharper one with the first of a few widths that brings it down to the other
   // (at most the widest: a frame blurred more than that has nothing left to compare).
+  // A warped neighbour is blurred inside its cover only (normalised: the blur of the image times
+  // its cover over the blur of the cover), so the black outside does not bleed a few pixels in and
+  // make changes along its edge.
   const bool centre_sharper = own > other;
-  const cv::Mat& sharp = centre_sharper ? centre : nearest->warped;
   const double target = std::min(own, other);
+  if (!centre_sharper) {
+    nearest->warped.convertTo(masked_, CV_32F);
+    nearest->cover.convertTo(weight_, CV_32F, 1.0 / 255.0);
+    cv::multiply(masked_, weight_, masked_);
+  }
   for (const double sigma : {0.5, 0.7, 1.0, 1.4, 2.0}) {
-    cv::GaussianBlur(sharp, blurred_, cv::Size(), sigma, sigma, cv::BORDER_REPLICATE);
+    if (centre_sharper) {
+      cv::GaussianBlur(centre, blurred_, cv::Size(), sigma, sigma, cv::BORDER_REPLICATE);
+    } else {
+      cv::GaussianBlur(masked_, blurred_masked_, cv::Size(), sigma, sigma, cv::BORDER_REPLICATE);
+      cv::GaussianBlur(weight_, blurred_weight_, cv::Size(), sigma, sigma, cv::BORDER_REPLICATE);
+      cv::max(blurred_weight_, 1e-3, blurred_weight_);
+      cv::divide(blurred_masked_, blurred_weight_, blurred_masked_);
+      blurred_masked_.convertTo(blurred_, CV_8U);  // rounds and saturates
+      blurred_.setTo(0, nearest->cover == 0);
+    }
     if (MeanSquaredGradient(blurred_, cover, step) <= target) break;
   }
   if (centre_sharper) {
@@ -627,10 +643,10 @@ bool ChangeFrame::ChangedNear(const Eigen::Vector2d& p, double radius_px) const 
 Status BlobTrackOptions::Validate() const {
   if (!(gate_px > 0 && min_travel_px >= 0 && max_fit_rms_px > 0 && noisy_fit_rms_px > 0 &&
         max_speed_px_s > 0 && box_margin_px >= 0 && gate_growth_px_s >= 0 &&
-        new_track_speed_px_s >= 0)) {
+        new_track_speed_px_s >= 0 && max_speed_m_s >= 0 && max_speed_m_s <= 1000)) {
     return InvalidArgumentError(
         "blob tracks: gate, fit RMS and speed must be positive, travel, margin, the gate's "
-        "growth and the new tracks' speed >= 0");
+        "growth and the new tracks' speed >= 0, the top speed on the ground in [0, 1000] m/s");
   }
   if (!(gate_speed_fraction >= 0 && gate_speed_fraction <= 5)) {
     return InvalidArgumentError("blob tracks: the gate's speed fraction must be in [0, 5]");
@@ -654,7 +670,8 @@ BlobTracker::BlobTracker(const BlobTrackOptions& options, FrameRate rate)
       max_gap_frames_(rate.Frames(options.max_gap_s, 2)),
       min_frames_(rate.Frames(options.min_duration_s, 3)),
       max_speed_px_(rate.PerFrame(options.max_speed_px_s)),
-      new_track_speed_px_(rate.PerFrame(options.new_track_speed_px_s)) {
+      new_track_speed_px_(rate.PerFrame(options.new_track_speed_px_s)),
+      max_speed_m_(rate.PerFrame(options.max_speed_m_s)) {
   SAKER_CHECK(options_.Validate().ok()) << options_.Validate().message();
 }
 
@@ -681,20 +698,27 @@ double BlobTracker::LineFit::Rms() const {
 }
 
 void BlobTracker::AddFrame(int64_t frame, const std::vector<ChangeBlob>& blobs,
-                           const Eigen::Matrix3d& current_from_previous, double noise_scale) {
+                           const Eigen::Matrix3d& current_from_previous, double noise_scale,
+                           const GroundScale* scale) {
   if (options_.noisy_max_area_px > 0 && noise_scale > options_.noisy_area_scale) {
     std::vector<ChangeBlob> small;
     for (const ChangeBlob& b : blobs) {
       if (b.area_px <= options_.noisy_max_area_px) small.push_back(b);
     }
-    Follow(frame, small, current_from_previous, noise_scale);
+    Follow(frame, small, current_from_previous, noise_scale, scale);
   } else {
-    Follow(frame, blobs, current_from_previous, noise_scale);
+    Follow(frame, blobs, current_from_previous, noise_scale, scale);
   }
 }
 
 void BlobTracker::Follow(int64_t frame, const std::vector<ChangeBlob>& blobs,
-                         const Eigen::Matrix3d& current_from_previous, double noise_scale) {
+                         const Eigen::Matrix3d& current_from_previous, double noise_scale,
+                         const GroundScale* scale) {
+  // The top speed in pixels a frame at an image point: the ground's where its scale is known.
+  const bool on_ground = scale != nullptr && max_speed_m_ > 0;
+  const auto top_speed = [&](const Eigen::Vector2d& at, double pixels) {
+    return on_ground ? max_speed_m_ / scale->MetresPerPixel(at) : pixels;
+  };
   const double min_travel = options_.min_travel_px * std::max(1.0, noise_scale);
   const double max_fit_rms = std::min(
       options_.max_fit_rms_px,
@@ -716,8 +740,10 @@ void BlobTracker::Follow(int64_t frame, const std::vector<ChangeBlob>& blobs,
     // A fast mover's prediction misses by a part of its own displacement when it turns.
     double gate = options_.gate_px + gate_growth_px_ * gap +
                   options_.gate_speed_fraction * active_[i].velocity.norm() * (gap + 1);
-    if (active_[i].hits < 2)
-      gate = std::max(gate, options_.gate_px + new_track_speed_px_ * (gap + 1));
+    if (active_[i].hits < 2 && new_track_speed_px_ > 0) {
+      gate = std::max(gate,
+                      options_.gate_px + top_speed(predicted[i], new_track_speed_px_) * (gap + 1));
+    }
     for (size_t j = 0; j < blobs.size(); ++j) {
       const double d = (blobs[j].position - predicted[i]).norm();
       if (d <= gate) pairs.emplace_back(d, i, j);
@@ -744,7 +770,7 @@ void BlobTracker::Follow(int64_t frame, const std::vector<ChangeBlob>& blobs,
       const double travel = t->velocity.norm() * static_cast<double>(frame - t->first_frame);
       t->confirmed = static_cast<double>(t->hits) / span >= options_.min_hit_fraction &&
                      travel >= min_travel && t->fit.Rms() <= max_fit_rms &&
-                     t->velocity.norm() <= max_speed_px_;
+                     t->velocity.norm() <= top_speed(blob.position, max_speed_px_);
       t->target.confirmed = t->confirmed;
     }
   };

@@ -25,6 +25,7 @@
 // blob track is confirmed only after it has moved steadily, in a straight enough line, for long
 // enough.
 
+#include "core/track/image_geometry.h"
 #include "core/track/target_tracks.h"
 #include "core/util/byte_io.h"
 #include "core/util/status.h"
@@ -220,7 +221,10 @@ class ChangeDetector {
   std::vector<cv::Point> seeds_, fill_;  // the changed pixels; those waiting to be filled
   cv::Mat strength_;                     // CV_32F signed change of the changed pixels
   float noise_ = 0, allowance_ = 0;      // the allowances in force (SetAllowances)
-  cv::Mat matched_centre_, blurred_;     // MatchSharpness's buffers
+  // MatchSharpness's buffers: the answer; a neighbour's grey times its cover and the cover
+  // (CV_32F), and their blurs.
+  cv::Mat matched_centre_, blurred_;
+  cv::Mat masked_, weight_, blurred_masked_, blurred_weight_;
 };
 
 // Durations in seconds, speeds in pixels a second (FrameRate), floors in frames in brackets; the
@@ -260,6 +264,12 @@ struct BlobTrackOptions {
   // (a plausible top speed; 0: the gate of the others). The low-frame-rate mode sets it, where a
   // car moves tens of pixels between frames.
   double new_track_speed_px_s = 0;
+  // A plausible top speed on the ground, metres a second (180 km/h): where the metadata gives the
+  // ground's scale (AddFrame's `scale`), the two speeds above in pixels a second are this at the
+  // local scale of the track instead (the new tracks' gate only when new_track_speed_px_s is
+  // set). 0: the pixel speeds always. At 1.2 m a pixel it is 42 px/s, where 250 px/s spanned a
+  // 1 fps frame 360 pixels wide (issue 24, item 1; docs/front-end.md, "Ground scale").
+  double max_speed_m_s = 50;
   double box_margin_px = 2;
   Status Validate() const;
 };
@@ -275,8 +285,11 @@ class BlobTracker {
   // line allowance (to no less than noisy_fit_rms_px): the change detector's misregistration
   // allowance over its fixed value, so that in heavily compressed video, where the ground's own
   // differences wander, a blob track must travel further than they, and more steadily.
+  // `scale`, when the metadata gives one for the frame: the ground's scale in it (full
+  // resolution pixels), for the speed limits (BlobTrackOptions::max_speed_m_s).
   void AddFrame(int64_t frame, const std::vector<ChangeBlob>& blobs,
-                const Eigen::Matrix3d& current_from_previous, double noise_scale = 1);
+                const Eigen::Matrix3d& current_from_previous, double noise_scale = 1,
+                const GroundScale* scale = nullptr);
   // Confirmed tracks that ended since the last call.
   std::vector<TargetTrack> TakeFinished();
   // Ends every track (end of the video or a chain break).
@@ -309,7 +322,8 @@ class BlobTracker {
   };
   // AddFrame with the blobs it follows.
   void Follow(int64_t frame, const std::vector<ChangeBlob>& blobs,
-              const Eigen::Matrix3d& current_from_previous, double noise_scale);
+              const Eigen::Matrix3d& current_from_previous, double noise_scale,
+              const GroundScale* scale);
   void End(Track* track);
 
   BlobTrackOptions options_;
@@ -319,6 +333,7 @@ class BlobTracker {
   int min_frames_ = 0;
   double max_speed_px_ = 0;        // per frame
   double new_track_speed_px_ = 0;  // per frame
+  double max_speed_m_ = 0;         // per frame
   std::vector<Track> active_;
   std::vector<TargetTrack> finished_;
   int64_t next_id_ = 1;

@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace saker::track {
 
@@ -47,6 +48,56 @@ StatusOr<HomographyWithCovariance> HomographyFromCorners(
   const Eigen::Matrix<double, 8, 8> inverse = lu_j.inverse();
   h.covariance = sigma * sigma * inverse * inverse.transpose();
   return h;
+}
+
+std::optional<GroundScale> GroundScale::FromCorners(
+    const std::array<Eigen::Vector2d, 4>& lat_lon_deg, int width, int height) {
+  if (width < 2 || height < 2) return std::nullopt;
+  Eigen::Vector2d mean(0, 0);
+  for (const Eigen::Vector2d& c : lat_lon_deg) {
+    if (!c.allFinite() || std::abs(c.x()) > 89 || std::abs(c.y()) > 360) return std::nullopt;
+    mean += c / 4;
+  }
+  // East and north metres about the mean corner: the WGS84 ellipsoid's radii of curvature there
+  // (plenty for a footprint of a few kilometres; longitudes taken the short way round).
+  constexpr double kA = 6378137.0, kE2 = 6.69437999014e-3, kDegree = M_PI / 180;
+  const double s = std::sin(mean.x() * kDegree);
+  const double w = std::sqrt(1 - kE2 * s * s);
+  const double north_m = kA * (1 - kE2) / (w * w * w) * kDegree;
+  const double east_m = kA / w * std::cos(mean.x() * kDegree) * kDegree;
+  std::array<Eigen::Vector2d, 4> ground;
+  for (size_t i = 0; i < 4; ++i) {
+    double east = lat_lon_deg[i].y() - lat_lon_deg[0].y();
+    east -= 360 * std::round(east / 360);
+    const double north = lat_lon_deg[i].x() - mean.x();
+    ground[i] = Eigen::Vector2d(east * east_m, north * north_m);
+  }
+  // Around the mean in longitude too (the first corner's longitude was the reference).
+  const Eigen::Vector2d centre = (ground[0] + ground[1] + ground[2] + ground[3]) / 4;
+  for (Eigen::Vector2d& g : ground) g.x() -= centre.x();
+  const StatusOr<HomographyWithCovariance> h =
+      HomographyFromCorners(ImageCorners(width, height), ground, 1.0);
+  if (!h.ok() || !h->target_from_source.allFinite()) return std::nullopt;
+  const GroundScale scale(h->target_from_source);
+  // The whole image on the ground side of the horizon (w > 0: the first corner's w is 1, since
+  // the homography's last element is). Then the rectangle maps onto a convex quadrilateral, so
+  // crossed corners are refused too.
+  for (const Eigen::Vector2d& corner : ImageCorners(width, height)) {
+    if (!(scale.ground_from_image_.row(2).dot(corner.homogeneous()) > 0)) return std::nullopt;
+  }
+  const double centre_scale = scale.MetresPerPixel(Eigen::Vector2d(width - 1, height - 1) / 2);
+  if (!(centre_scale >= 1e-3 && centre_scale <= 1e3)) return std::nullopt;
+  return scale;
+}
+
+GroundScale::GroundScale(const Eigen::Matrix3d& ground_from_image)
+    : ground_from_image_(ground_from_image), determinant_(ground_from_image.determinant()) {}
+
+double GroundScale::MetresPerPixel(const Eigen::Vector2d& image_point) const {
+  // The Jacobian determinant of a homography at a point is det(H) / w^3.
+  const double w = ground_from_image_.row(2).dot(image_point.homogeneous());
+  if (!(w > 0)) return std::numeric_limits<double>::infinity();
+  return std::sqrt(std::abs(determinant_) / (w * w * w));
 }
 
 Ellipse ConfidenceEllipse(const Eigen::Vector2d& centre, const Eigen::Matrix2d& covariance,

@@ -10,6 +10,7 @@
 #include <Eigen/Core>
 
 #include <array>
+#include <optional>
 #include <vector>
 
 namespace saker::track {
@@ -24,6 +25,30 @@ std::array<Eigen::Vector2d, 4> ImageCorners(int width, int height);
 StatusOr<HomographyWithCovariance> HomographyFromCorners(
     const std::array<Eigen::Vector2d, 4>& image, const std::array<Eigen::Vector2d, 4>& map,
     double sigma);
+
+// The ground's scale in an image, from where the metadata puts the image's four corners on the
+// ground (a flat ground): the metres one pixel spans at any image point. The front end's gates
+// follow a plausible top speed on the ground through it (issue 24, items 1 and 4).
+class GroundScale {
+ public:
+  // `lat_lon_deg`: the corners' latitude and longitude in degrees, in MISB order (ImageCorners),
+  // of an image `width` x `height`. nullopt when they are not finite, do not make a quadrilateral
+  // the whole image maps onto (three in a line, crossed, or the horizon inside the image), or
+  // give a scale outside 1 mm to 1 km a pixel at the image centre.
+  static std::optional<GroundScale> FromCorners(const std::array<Eigen::Vector2d, 4>& lat_lon_deg,
+                                                int width, int height);
+  // The square root of the ground area one pixel at `image_point` covers, metres (the local
+  // scale: an oblique view's far edge spans more than its near one); infinity at and beyond the
+  // horizon of the corners' plane.
+  double MetresPerPixel(const Eigen::Vector2d& image_point) const;
+  // Ground metres (east, north about the corners' mean) from image pixels.
+  const Eigen::Matrix3d& ground_from_image() const { return ground_from_image_; }
+
+ private:
+  explicit GroundScale(const Eigen::Matrix3d& ground_from_image);
+  Eigen::Matrix3d ground_from_image_;
+  double determinant_ = 0;  // of ground_from_image_
+};
 
 // Uncertainty ellipse of a 2-D Gaussian at a confidence level (2-dof chi-square:
 // k^2 = -2 ln(1 - confidence)).

@@ -9,6 +9,8 @@
 
 #include <filesystem>
 #include <fstream>
+#include <string>
+#include <vector>
 
 namespace saker::ingest {
 namespace {
@@ -137,6 +139,31 @@ TEST(VideoScanTest, MissingAndNonVideoFilesGiveClearErrors) {
   EXPECT_NE(not_video.status().message().find("notes.ts"), std::string::npos)
       << not_video.status().message();
   std::filesystem::remove_all(dir);
+}
+
+// Each packet reaches on_packet as it is demuxed: packet k (carried before frame k) before frame
+// k reaches on_frame (five more have come in this clip: the decoder gives pictures out a few
+// packets late, so a reader ties them by position in the file), with the decode the scan keeps.
+TEST(VideoScanTest, PacketsAreHandedOutAsTheyAreDecoded) {
+  SAKER_REQUIRE_TEST_DATA(path, "kwiver/h264_klv.ts");
+  ScanOptions options;
+  size_t packets = 0;
+  options.on_packet = [&](const MetadataPacket& packet) {
+    ASSERT_TRUE(packet.decoded.metadata.has_value());
+    EXPECT_TRUE(packet.trusted);
+    EXPECT_TRUE(packet.decoded.metadata->HasCorners());
+    ++packets;
+  };
+  std::vector<size_t> packets_before;
+  auto scan = ScanVideo(path.string(), options, nullptr,
+                        [&](const video::Frame&) { packets_before.push_back(packets); });
+  ASSERT_TRUE(scan.ok()) << scan.status().ToString();
+  EXPECT_EQ(packets, 30u);
+  ASSERT_EQ(packets_before.size(), 30u);
+  for (size_t k = 0; k < 30; ++k) {
+    EXPECT_GE(packets_before[k], k + 1) << "frame " << k;
+    EXPECT_LE(packets_before[k], k + 8) << "frame " << k;
+  }
 }
 
 TEST(VideoScanTest, CancelStopsTheScan) {

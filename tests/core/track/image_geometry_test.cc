@@ -68,5 +68,80 @@ TEST(ConfidenceEllipseTest, AxesAndAngle) {
   EXPECT_NEAR(polygon[0].norm(), 3 * k, 1e-9);
 }
 
+// Latitude and longitude of ground points (east, north metres) about (45 N, 7 E): one degree of
+// latitude there is 111 131.75 m and one of longitude 78 846.84 m (WGS84 tables).
+std::array<Eigen::Vector2d, 4> LatLonAt45North(const std::array<Eigen::Vector2d, 4>& ground) {
+  std::array<Eigen::Vector2d, 4> out;
+  for (size_t i = 0; i < 4; ++i) {
+    out[i] = Eigen::Vector2d(45 + ground[i].y() / 111131.75, 7 + ground[i].x() / 78846.84);
+  }
+  return out;
+}
+
+TEST(GroundScaleTest, ANadirFootprintHasOneScaleEverywhere) {
+  // 640 x 480 at 0.5 m a pixel, north up: 319.5 m by 239.5 m between the outermost centres.
+  const std::array<Eigen::Vector2d, 4> ground = {
+      Eigen::Vector2d(-159.75, 119.75), Eigen::Vector2d(159.75, 119.75),
+      Eigen::Vector2d(159.75, -119.75), Eigen::Vector2d(-159.75, -119.75)};
+  const std::optional<GroundScale> scale =
+      GroundScale::FromCorners(LatLonAt45North(ground), 640, 480);
+  ASSERT_TRUE(scale.has_value());
+  for (const Eigen::Vector2d& p : {Eigen::Vector2d(0, 0), Eigen::Vector2d(319.5, 239.5),
+                                   Eigen::Vector2d(639, 479), Eigen::Vector2d(100, 400)}) {
+    EXPECT_NEAR(scale->MetresPerPixel(p), 0.5, 0.5e-3) << p.transpose();
+  }
+}
+
+TEST(GroundScaleTest, AnObliqueFootprintIsCoarserAtItsFarEdge) {
+  // A trapezoid: the top of the image (far) 3 times as wide as its bottom (near), and the far
+  // rows spread over more ground than the near ones.
+  const std::array<Eigen::Vector2d, 4> ground = {Eigen::Vector2d(-300, 600),
+                                                 Eigen::Vector2d(300, 600), Eigen::Vector2d(100, 0),
+                                                 Eigen::Vector2d(-100, 0)};
+  const std::optional<GroundScale> scale =
+      GroundScale::FromCorners(LatLonAt45North(ground), 400, 300);
+  ASSERT_TRUE(scale.has_value());
+  const double near = scale->MetresPerPixel({199.5, 299});
+  const double far = scale->MetresPerPixel({199.5, 0});
+  // Along the near edge a pixel spans 200 / 399 m across.
+  EXPECT_GT(near, 0.5);
+  EXPECT_GT(far, 3 * near);
+  // The area of the footprint is the sum of its pixels' areas.
+  double area = 0;
+  for (int y = 0; y < 300; ++y) {
+    for (int x = 0; x < 400; ++x) area += std::pow(scale->MetresPerPixel({x, y}), 2);
+  }
+  const double footprint = (600 + 200) / 2.0 * 600;  // the trapezoid between the centres
+  EXPECT_NEAR(area / footprint, 400.0 * 300 / (399.0 * 299), 0.01);
+}
+
+TEST(GroundScaleTest, CornersThatMakeNoGroundAreRefused) {
+  const std::array<Eigen::Vector2d, 4> square = {
+      Eigen::Vector2d(-100, 100), Eigen::Vector2d(100, 100), Eigen::Vector2d(100, -100),
+      Eigen::Vector2d(-100, -100)};
+  std::array<Eigen::Vector2d, 4> crossed = square;
+  std::swap(crossed[2], crossed[3]);
+  EXPECT_FALSE(GroundScale::FromCorners(LatLonAt45North(crossed), 200, 200).has_value());
+  std::array<Eigen::Vector2d, 4> in_a_line = square;
+  in_a_line[1] = Eigen::Vector2d(0, 0);
+  in_a_line[2] = Eigen::Vector2d(100, -100);
+  in_a_line[0] = Eigen::Vector2d(-100, 100);
+  EXPECT_FALSE(GroundScale::FromCorners(LatLonAt45North(in_a_line), 200, 200).has_value());
+  std::array<Eigen::Vector2d, 4> not_finite = LatLonAt45North(square);
+  not_finite[2].x() = std::nan("");
+  EXPECT_FALSE(GroundScale::FromCorners(not_finite, 200, 200).has_value());
+  // Every corner at one point: no scale.
+  const std::array<Eigen::Vector2d, 4> point = {Eigen::Vector2d(45, 7), Eigen::Vector2d(45, 7),
+                                                Eigen::Vector2d(45, 7), Eigen::Vector2d(45, 7)};
+  EXPECT_FALSE(GroundScale::FromCorners(point, 200, 200).has_value());
+  EXPECT_FALSE(GroundScale::FromCorners(LatLonAt45North(square), 1, 200).has_value());
+  // Across the antimeridian the longitudes are taken the short way round.
+  std::array<Eigen::Vector2d, 4> dateline = LatLonAt45North(square);
+  for (Eigen::Vector2d& c : dateline) c.y() += 173 - (c.y() > 7 ? 360 : 0);
+  const std::optional<GroundScale> across = GroundScale::FromCorners(dateline, 201, 201);
+  ASSERT_TRUE(across.has_value());
+  EXPECT_NEAR(across->MetresPerPixel({100, 100}), 1.0, 1e-3);
+}
+
 }  // namespace
 }  // namespace saker::track

@@ -1,0 +1,46 @@
+#include "core/frontend/scale_follower.h"
+
+#include <algorithm>
+#include <cmath>
+#include <utility>
+
+namespace saker::frontend {
+
+ScaleFollower::ScaleFollower(double fps, double stale_s)
+    : stale_frames_(std::max<int64_t>(
+          1, std::llround(std::clamp(stale_s, 0.0, 3600.0) * std::clamp(fps, 1.0, 1000.0)))) {}
+
+void ScaleFollower::AddPacket(const ingest::MetadataPacket& packet) {
+  if (!packet.trusted || !packet.decoded.metadata || !packet.decoded.metadata->corners) return;
+  Pending p;
+  p.byte_pos = packet.byte_pos;
+  for (size_t i = 0; i < 4; ++i) {
+    const klv::LatLon& c = (*packet.decoded.metadata->corners)[i];
+    p.corners[i] = Eigen::Vector2d(c.latitude_deg, c.longitude_deg);
+  }
+  pending_.push_back(p);
+}
+
+std::optional<track::GroundScale> ScaleFollower::ForFrame(int64_t byte_pos, int width, int height) {
+  const cv::Size size(width, height);
+  while (!pending_.empty() &&
+         (byte_pos < 0 || pending_.front().byte_pos < 0 || pending_.front().byte_pos < byte_pos)) {
+    std::optional<track::GroundScale> scale =
+        track::GroundScale::FromCorners(pending_.front().corners, width, height);
+    if (scale) {
+      current_ = std::move(scale);
+      corners_ = pending_.front().corners;
+      size_ = size;
+      frames_since_ = 0;
+    }
+    pending_.pop_front();
+  }
+  if (current_ && size != size_) {  // the picture size changed: the same corners, new pixels
+    current_ = track::GroundScale::FromCorners(corners_, width, height);
+    size_ = size;
+  }
+  if (current_ && ++frames_since_ > stale_frames_) current_.reset();
+  return current_;
+}
+
+}  // namespace saker::frontend
