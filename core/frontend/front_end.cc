@@ -222,6 +222,10 @@ class FrontEnd {
                const std::optional<Eigen::Vector3d>& epipole, FrameResult* frame_result);
   void ApplyChangeThrough(int64_t frame);
   void ApplyChangeAnswer(const ChangeThread::Answer& answer);
+  // Starts the change thread, its processing copy as wide as the ground's scale of the video's
+  // first frame asks (ChangeOptions::ProcessingWidth): decided on the first frame of the file,
+  // whether or not it is processed, so that a resumed run decides as the first run did.
+  void StartChangeDetection(const track::GroundScale* scale);
   // Keeps frame `index`'s ground scale (when the metadata gives one) until its change answer
   // comes, for the blob tracks' speed limits; forgets those of frames answered long ago.
   void NoteGroundScale(int64_t index, std::optional<track::GroundScale> scale);
@@ -350,14 +354,13 @@ StatusOr<FrontEndResult> FrontEnd::Run() {
                       start_.warm_from, options_.metadata);
   const Stopwatch wall;
   since_checkpoint_.Restart();
-  if (options_.change.enabled) {
-    change_.emplace(options_.EffectiveChange(rate_.fps()), rate_,
-                    static_cast<size_t>(options_.change_queue_frames),
-                    static_cast<size_t>(kChangeLagFrames));
-  }
+  bool first = true;
   while (std::optional<DecodedFrame> decoded = decode.Pop()) {
     if (job_ != nullptr && job_->IsCancelled()) return CancelledError("front end: cancelled");
     video::Frame* frame = &decoded->frame;
+    if (std::exchange(first, false)) {
+      StartChangeDetection(decoded->scale ? &*decoded->scale : nullptr);
+    }
     if (frame->index < start_.warm_from) {
       ReportProgress(static_cast<double>(frame->index + 1));
       continue;  // done before: only decoded, for the scan
@@ -657,6 +660,15 @@ void FrontEnd::Segment(const video::Frame& frame,
     KeepTarget(std::move(t), start_.through_frame, &result_.targets);
   }
   result_.timing.segment_ms += watch.ElapsedMs() - (change_side_ms_ - change_side_before);
+}
+
+void FrontEnd::StartChangeDetection(const track::GroundScale* scale) {
+  if (!options_.change.enabled) return;
+  track::ChangeOptions change = options_.EffectiveChange(rate_.fps());
+  change.processing_width =
+      change.ProcessingWidth(cv::Size(result_.video.width, result_.video.height), scale);
+  change_.emplace(change, rate_, static_cast<size_t>(options_.change_queue_frames),
+                  static_cast<size_t>(kChangeLagFrames));
 }
 
 void FrontEnd::NoteGroundScale(int64_t index, std::optional<track::GroundScale> scale) {

@@ -103,8 +103,10 @@ Status ChangeOptions::Validate() const {
         "change detection: the baseline must be in (0, 60] s and the evidence baseline in [0, 60] "
         "s");
   }
-  if (processing_width < 0) {
-    return InvalidArgumentError("change detection: the processing width must be >= 0");
+  if (processing_width < 0 || !(max_processing_gsd_m >= 0 && max_processing_gsd_m <= 1000)) {
+    return InvalidArgumentError(
+        "change detection: the processing width must be >= 0 and the largest processing pixel "
+        "on the ground in [0, 1000] m");
   }
   if (!(measured_noise_multiple >= 0 && measured_noise_multiple <= 100) ||
       !(measured_registration_multiple >= 0 && measured_registration_multiple <= 100)) {
@@ -130,6 +132,18 @@ Status ChangeOptions::Validate() const {
     return InvalidArgumentError("change detection: need border >= 0 and 1 <= min area <= max area");
   }
   return Status::Ok();
+}
+
+int ChangeOptions::ProcessingWidth(const cv::Size& size, const GroundScale* scale) const {
+  if (size.width <= 0) return processing_width;  // unknown: the video's frames will tell
+  if (processing_width <= 0 || processing_width >= size.width) return size.width;
+  if (scale == nullptr || max_processing_gsd_m <= 0) return processing_width;
+  const double full_gsd =
+      scale->MetresPerPixel(Eigen::Vector2d(size.width - 1, size.height - 1) / 2);
+  // (A thousandth of a pixel below a whole width is that width: the corners' rounding.)
+  const double needed = std::ceil(size.width * full_gsd / max_processing_gsd_m - 1e-3);
+  if (!(needed > processing_width)) return processing_width;
+  return needed >= size.width ? size.width : static_cast<int>(needed);
 }
 
 ChangeDetector::ChangeDetector(const ChangeOptions& options, FrameRate rate) : options_(options) {

@@ -66,7 +66,11 @@ struct ChangeOptions {
   // the corners an orbit's rotation leaves).
   bool one_sided_edges = false;
   double one_sided_min_uncovered = 0.1;
-  int processing_width = 960;    // on a copy this wide (never enlarged); 0 = full resolution
+  int processing_width = 960;  // on a copy this wide (never enlarged); 0 = full resolution
+  // ... or wider, up to the full width, where the metadata gives the ground's scale and a
+  // processing pixel at the image centre would span more ground than this: a walker (half a
+  // metre) stays a pixel or two (ProcessingWidth). 0: processing_width alone.
+  double max_processing_gsd_m = 0.3;
   double noise_grey = 2.5;       // grey-level noise of one pixel's difference (sensor, compression)
   double threshold = 4;          // a difference above this many times its noise is significant
   double registration_px = 0.3;  // misregistration allowed: the local gradient times this is
@@ -102,6 +106,10 @@ struct ChangeOptions {
   int max_area_px = 600;
   double min_contrast_grey = 12;  // the strongest change in a blob, at least
   Status Validate() const;
+  // The processing copy's width for frames of `size` whose ground's scale is `scale` (nullptr:
+  // unknown): processing_width, widened to keep a processing pixel at the image centre within
+  // max_processing_gsd_m, never beyond the frame's width.
+  int ProcessingWidth(const cv::Size& size, const GroundScale* scale) const;
 };
 
 // A group of changed pixels in the latest frame.

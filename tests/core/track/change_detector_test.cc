@@ -786,6 +786,32 @@ GroundScale NadirScale(double metres_per_pixel, int width, int height) {
   return *GroundScale::FromCorners(corners, width, height);
 }
 
+// The processing copy is widened where the ground is coarse, so that a walker stays a pixel or
+// two: up to 0.3 m a processing pixel at the image centre, never beyond the full width.
+TEST(ChangeOptionsTest, TheProcessingWidthFollowsTheGroundsScale) {
+  const ChangeOptions options;
+  const cv::Size hd(1280, 720), full_hd(1920, 1080);
+  const GroundScale fine = NadirScale(0.2, 1280, 720), coarse = NadirScale(0.4, 1280, 720);
+  EXPECT_EQ(options.ProcessingWidth(hd, nullptr), 960);
+  EXPECT_EQ(options.ProcessingWidth(hd, &fine), 960) << "0.27 m a processing pixel";
+  EXPECT_EQ(options.ProcessingWidth(hd, &coarse), 1280) << "would be 0.53 m: full width";
+  const GroundScale fine_full_hd = NadirScale(0.2, 1920, 1080);
+  EXPECT_EQ(options.ProcessingWidth(full_hd, &fine_full_hd), 1280) << "0.2 x 1920 / 0.3";
+  const GroundScale finer = NadirScale(0.1, 1920, 1080);
+  EXPECT_EQ(options.ProcessingWidth(full_hd, &finer), 960);
+  ChangeOptions off = options;
+  off.max_processing_gsd_m = 0;
+  EXPECT_EQ(off.ProcessingWidth(hd, &coarse), 960);
+  ChangeOptions full = options;
+  full.processing_width = 0;
+  EXPECT_EQ(full.ProcessingWidth(hd, &fine), 1280);
+  EXPECT_EQ(options.ProcessingWidth(cv::Size(640, 480), &coarse), 640) << "never enlarged";
+  EXPECT_EQ(options.ProcessingWidth(cv::Size(0, 0), &coarse), 960) << "size unknown";
+  ChangeOptions bad = options;
+  bad.max_processing_gsd_m = -1;
+  EXPECT_FALSE(bad.Validate().ok());
+}
+
 // Where the metadata gives the ground's scale, the speed limits are the top speed on the ground
 // (50 m/s) at that scale, not 250 px/s: at 0.7 m a pixel a line of blobs 150 px a second apart
 // (105 m/s) is no car and makes no track, where the pixel limits made one; at 0.1 m a pixel a car
