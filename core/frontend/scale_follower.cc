@@ -19,21 +19,29 @@ void ScaleFollower::AddPacket(const ingest::MetadataPacket& packet) {
     p.corners[i] = Eigen::Vector2d(c.latitude_deg, c.longitude_deg);
   }
   pending_.push_back(p);
+  // A stream of metadata with no picture after it (a damaged file) must not hold it all: beyond
+  // this many, the oldest is taken as if a frame had come.
+  constexpr size_t kMaxPending = 1024;
+  if (pending_.size() > kMaxPending) TakeOldest(size_);
+}
+
+void ScaleFollower::TakeOldest(const cv::Size& size) {
+  std::optional<track::GroundScale> scale =
+      track::GroundScale::FromCorners(pending_.front().corners, size.width, size.height);
+  if (scale) {
+    current_ = std::move(scale);
+    corners_ = pending_.front().corners;
+    size_ = size;
+    frames_since_ = 0;
+  }
+  pending_.pop_front();
 }
 
 std::optional<track::GroundScale> ScaleFollower::ForFrame(int64_t byte_pos, int width, int height) {
   const cv::Size size(width, height);
   while (!pending_.empty() &&
          (byte_pos < 0 || pending_.front().byte_pos < 0 || pending_.front().byte_pos < byte_pos)) {
-    std::optional<track::GroundScale> scale =
-        track::GroundScale::FromCorners(pending_.front().corners, width, height);
-    if (scale) {
-      current_ = std::move(scale);
-      corners_ = pending_.front().corners;
-      size_ = size;
-      frames_since_ = 0;
-    }
-    pending_.pop_front();
+    TakeOldest(size);
   }
   if (current_ && size != size_) {  // the picture size changed: the same corners, new pixels
     current_ = track::GroundScale::FromCorners(corners_, width, height);

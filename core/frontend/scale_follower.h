@@ -10,6 +10,7 @@
 #include <opencv2/core.hpp>
 
 #include <array>
+#include <cstddef>
 #include <cstdint>
 #include <deque>
 #include <optional>
@@ -31,12 +32,18 @@ class ScaleFollower {
   // The scale of the next frame, `width` x `height`, carried at `byte_pos` (-1: unknown; then
   // every packet so far counts). Frames in the order they are decoded.
   std::optional<track::GroundScale> ForFrame(int64_t byte_pos, int width, int height);
+  // Packets waiting for the frame after them (at most 1024).
+  size_t waiting() const { return pending_.size(); }
 
  private:
   struct Pending {
     int64_t byte_pos = -1;
     std::array<Eigen::Vector2d, 4> corners;  // latitude, longitude
   };
+  // The oldest packet waiting becomes the scale (for pictures of `size`) when its corners make
+  // ground.
+  void TakeOldest(const cv::Size& size);
+
   int64_t stale_frames_;
   std::deque<Pending> pending_;
   std::optional<track::GroundScale> current_;  // from corners_ at size_

@@ -70,6 +70,17 @@ TEST(ScaleFollowerTest, UntrustedCornerlessAndDegeneratePacketsArePassedOver) {
   EXPECT_NEAR(ScaleOf(follower.ForFrame(700, kWidth, kHeight)), 0.5, 1e-3);
 }
 
+// A damaged file's metadata with no picture after it is not all held: the follower keeps 1024
+// packets waiting, and the latest of them still gives the next frame its scale.
+TEST(ScaleFollowerTest, PacketsWithNoPictureAfterThemAreNotAllHeld) {
+  ScaleFollower follower(25);
+  EXPECT_FALSE(follower.ForFrame(10, kWidth, kHeight).has_value());
+  for (int i = 0; i < 100000; ++i) follower.AddPacket(Packet(100 + i, i % 2 == 0 ? 0.5 : 1.0));
+  EXPECT_EQ(follower.waiting(), 1024u);
+  EXPECT_NEAR(ScaleOf(follower.ForFrame(1000000, kWidth, kHeight)), 1.0, 1e-3);
+  EXPECT_EQ(follower.waiting(), 0u);
+}
+
 TEST(ScaleFollowerTest, CornersThatStopComingAreForgotten) {
   ScaleFollower follower(10, /*stale_s=*/2);
   follower.AddPacket(Packet(100, 0.5));
