@@ -256,6 +256,9 @@ class FrontEnd {
   const FrontEndOptions options_;     // the run's own copy, callbacks included
   const bool low_frame_rate_;         // the low-frame-rate mode runs (LowFrameRateOptions)
   const int change_baseline_frames_;  // the change detector's (short) baseline at this rate
+  // A change answer is applied at most this many frames after its frame (ApplyChangeThrough):
+  // the ground scales kept for it (NoteGroundScale).
+  const int64_t scale_keep_frames_;
   JobContext* const job_;
   const FrontEndCheckpoint* const resume_;
   const ResumePoint start_;
@@ -321,6 +324,7 @@ FrontEnd::FrontEnd(std::unique_ptr<video::VideoReader> reader, const FrontEndOpt
       options_(options),
       low_frame_rate_(options.LowFrameRateFor(rate_.fps())),
       change_baseline_frames_(track::ChangeDetector::BaselineFrames(options.change, rate_).front()),
+      scale_keep_frames_(ChangeReplayFrames(options.EffectiveChange(rate_.fps()), rate_) + 1),
       job_(job),
       resume_(resume),
       start_(ResumePointOf(resume, rate_.Frames(options.resume_warmup_s, kMinWarmupFrames),
@@ -673,9 +677,8 @@ void FrontEnd::StartChangeDetection(const track::GroundScale* scale) {
 
 void FrontEnd::NoteGroundScale(int64_t index, std::optional<track::GroundScale> scale) {
   if (!change_) return;
-  // An answer is applied at most this many frames after its frame (ApplyChangeThrough).
-  const int64_t keep = ChangeReplayFrames(options_.EffectiveChange(rate_.fps()), rate_) + 1;
-  ground_scales_.erase(ground_scales_.begin(), ground_scales_.lower_bound(index - keep));
+  ground_scales_.erase(ground_scales_.begin(),
+                       ground_scales_.lower_bound(index - scale_keep_frames_));
   if (scale) ground_scales_.insert_or_assign(index, std::move(*scale));
 }
 

@@ -1,5 +1,7 @@
 #include "core/frontend/scale_follower.h"
 
+#include "core/geo/local_tangent_plane.h"
+
 #include <algorithm>
 #include <cmath>
 #include <utility>
@@ -12,11 +14,16 @@ ScaleFollower::ScaleFollower(double fps, double stale_s)
 
 void ScaleFollower::AddPacket(const ingest::MetadataPacket& packet) {
   if (!packet.trusted || !packet.decoded.metadata || !packet.decoded.metadata->corners) return;
+  // On the tangent plane at the first corner (the mosaic's map frame is one too): through
+  // Earth-centred coordinates, so a footprint across the antimeridian is whole.
+  const std::array<klv::LatLon, 4>& corners = *packet.decoded.metadata->corners;
+  const StatusOr<geo::LocalTangentPlane> plane =
+      geo::LocalTangentPlane::Create({corners[0].latitude_deg, corners[0].longitude_deg, 0});
+  if (!plane.ok()) return;
   Pending p;
   p.byte_pos = packet.byte_pos;
   for (size_t i = 0; i < 4; ++i) {
-    const klv::LatLon& c = (*packet.decoded.metadata->corners)[i];
-    p.corners[i] = Eigen::Vector2d(c.latitude_deg, c.longitude_deg);
+    p.ground[i] = plane->MapFromLatLon(corners[i].latitude_deg, corners[i].longitude_deg);
   }
   pending_.push_back(p);
   // A stream of metadata with no picture after it (a damaged file) must not hold it all: beyond
@@ -27,10 +34,10 @@ void ScaleFollower::AddPacket(const ingest::MetadataPacket& packet) {
 
 void ScaleFollower::TakeOldest(const cv::Size& size) {
   std::optional<track::GroundScale> scale =
-      track::GroundScale::FromCorners(pending_.front().corners, size.width, size.height);
+      track::GroundScale::FromCorners(pending_.front().ground, size.width, size.height);
   if (scale) {
     current_ = std::move(scale);
-    corners_ = pending_.front().corners;
+    ground_ = pending_.front().ground;
     size_ = size;
     frames_since_ = 0;
   }
@@ -44,7 +51,7 @@ std::optional<track::GroundScale> ScaleFollower::ForFrame(int64_t byte_pos, int 
     TakeOldest(size);
   }
   if (current_ && size != size_) {  // the picture size changed: the same corners, new pixels
-    current_ = track::GroundScale::FromCorners(corners_, width, height);
+    current_ = track::GroundScale::FromCorners(ground_, width, height);
     size_ = size;
   }
   if (current_ && ++frames_since_ > stale_frames_) current_.reset();

@@ -38,7 +38,7 @@ class ScaleFollower {
  private:
   struct Pending {
     int64_t byte_pos = -1;
-    std::array<Eigen::Vector2d, 4> corners;  // latitude, longitude
+    std::array<Eigen::Vector2d, 4> ground;  // the corners, metres (GroundScale::FromCorners)
   };
   // The oldest packet waiting becomes the scale (for pictures of `size`) when its corners make
   // ground.
@@ -46,8 +46,8 @@ class ScaleFollower {
 
   int64_t stale_frames_;
   std::deque<Pending> pending_;
-  std::optional<track::GroundScale> current_;  // from corners_ at size_
-  std::array<Eigen::Vector2d, 4> corners_;
+  std::optional<track::GroundScale> current_;  // from ground_ at size_
+  std::array<Eigen::Vector2d, 4> ground_;
   cv::Size size_;
   int64_t frames_since_ = 0;
 };

@@ -415,6 +415,7 @@ const cv::Mat& ChangeDetector::MatchSharpness(const cv::Mat& centre) {
     nearest->warped.convertTo(masked_, CV_32F);
     nearest->cover.convertTo(weight_, CV_32F, 1.0 / 255.0);
     cv::multiply(masked_, weight_, masked_);
+    cv::compare(nearest->cover, 0, outside_, cv::CMP_EQ);
   }
   for (const double sigma : {0.5, 0.7, 1.0, 1.4, 2.0}) {
     if (centre_sharper) {
@@ -425,7 +426,7 @@ const cv::Mat& ChangeDetector::MatchSharpness(const cv::Mat& centre) {
       cv::max(blurred_weight_, 1e-3, blurred_weight_);
       cv::divide(blurred_masked_, blurred_weight_, blurred_masked_);
       blurred_masked_.convertTo(blurred_, CV_8U);  // rounds and saturates
-      blurred_.setTo(0, nearest->cover == 0);
+      blurred_.setTo(0, outside_);
     }
     if (MeanSquaredGradient(blurred_, cover, step) <= target) break;
   }

@@ -230,9 +230,9 @@ class ChangeDetector {
   cv::Mat strength_;                     // CV_32F signed change of the changed pixels
   float noise_ = 0, allowance_ = 0;      // the allowances in force (SetAllowances)
   // MatchSharpness's buffers: the answer; a neighbour's grey times its cover and the cover
-  // (CV_32F), and their blurs.
+  // (CV_32F), their blurs, and where it does not cover.
   cv::Mat matched_centre_, blurred_;
-  cv::Mat masked_, weight_, blurred_masked_, blurred_weight_;
+  cv::Mat masked_, weight_, blurred_masked_, blurred_weight_, outside_;
 };
 
 // Durations in seconds, speeds in pixels a second (FrameRate), floors in frames in brackets; the

@@ -50,31 +50,12 @@ StatusOr<HomographyWithCovariance> HomographyFromCorners(
   return h;
 }
 
-std::optional<GroundScale> GroundScale::FromCorners(
-    const std::array<Eigen::Vector2d, 4>& lat_lon_deg, int width, int height) {
+std::optional<GroundScale> GroundScale::FromCorners(const std::array<Eigen::Vector2d, 4>& ground,
+                                                    int width, int height) {
   if (width < 2 || height < 2) return std::nullopt;
-  Eigen::Vector2d mean(0, 0);
-  for (const Eigen::Vector2d& c : lat_lon_deg) {
-    if (!c.allFinite() || std::abs(c.x()) > 89 || std::abs(c.y()) > 360) return std::nullopt;
-    mean += c / 4;
+  for (const Eigen::Vector2d& g : ground) {
+    if (!g.allFinite()) return std::nullopt;
   }
-  // East and north metres about the mean corner: the WGS84 ellipsoid's radii of curvature there
-  // (plenty for a footprint of a few kilometres; longitudes taken the short way round).
-  constexpr double kA = 6378137.0, kE2 = 6.69437999014e-3, kDegree = M_PI / 180;
-  const double s = std::sin(mean.x() * kDegree);
-  const double w = std::sqrt(1 - kE2 * s * s);
-  const double north_m = kA * (1 - kE2) / (w * w * w) * kDegree;
-  const double east_m = kA / w * std::cos(mean.x() * kDegree) * kDegree;
-  std::array<Eigen::Vector2d, 4> ground;
-  for (size_t i = 0; i < 4; ++i) {
-    double east = lat_lon_deg[i].y() - lat_lon_deg[0].y();
-    east -= 360 * std::round(east / 360);
-    const double north = lat_lon_deg[i].x() - mean.x();
-    ground[i] = Eigen::Vector2d(east * east_m, north * north_m);
-  }
-  // Around the mean in longitude too (the first corner's longitude was the reference).
-  const Eigen::Vector2d centre = (ground[0] + ground[1] + ground[2] + ground[3]) / 4;
-  for (Eigen::Vector2d& g : ground) g.x() -= centre.x();
   const StatusOr<HomographyWithCovariance> h =
       HomographyFromCorners(ImageCorners(width, height), ground, 1.0);
   if (!h.ok() || !h->target_from_source.allFinite()) return std::nullopt;

@@ -31,17 +31,18 @@ StatusOr<HomographyWithCovariance> HomographyFromCorners(
 // follow a plausible top speed on the ground through it (issue 24, items 1 and 4).
 class GroundScale {
  public:
-  // `lat_lon_deg`: the corners' latitude and longitude in degrees, in MISB order (ImageCorners),
-  // of an image `width` x `height`. nullopt when they are not finite, do not make a quadrilateral
-  // the whole image maps onto (three in a line, crossed, or the horizon inside the image), or
-  // give a scale outside 1 mm to 1 km a pixel at the image centre.
-  static std::optional<GroundScale> FromCorners(const std::array<Eigen::Vector2d, 4>& lat_lon_deg,
+  // `ground`: the corners on the ground in metres (east, north: a map frame such as
+  // geo::LocalTangentPlane's), in MISB order (ImageCorners), of an image `width` x `height`.
+  // nullopt when they are not finite, do not make a quadrilateral the whole image maps onto
+  // (three in a line, crossed, or the horizon inside the image), or give a scale outside 1 mm to
+  // 1 km a pixel at the image centre.
+  static std::optional<GroundScale> FromCorners(const std::array<Eigen::Vector2d, 4>& ground,
                                                 int width, int height);
   // The square root of the ground area one pixel at `image_point` covers, metres (the local
   // scale: an oblique view's far edge spans more than its near one); infinity at and beyond the
   // horizon of the corners' plane.
   double MetresPerPixel(const Eigen::Vector2d& image_point) const;
-  // Ground metres (east, north about the corners' mean) from image pixels.
+  // Ground metres (the corners' frame) from image pixels.
   const Eigen::Matrix3d& ground_from_image() const { return ground_from_image_; }
 
  private:

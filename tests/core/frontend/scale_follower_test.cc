@@ -51,6 +51,19 @@ TEST(ScaleFollowerTest, AFrameTakesThePacketCarriedBeforeIt) {
   EXPECT_NEAR(ScaleOf(follower.ForFrame(-1, 321, 241)), 0.5, 2e-3);
 }
 
+// A footprint across the antimeridian is whole: its corners are put on the tangent plane through
+// Earth-centred coordinates.
+TEST(ScaleFollowerTest, AFootprintAcrossTheAntimeridianHasItsScale) {
+  ScaleFollower follower(25);
+  ingest::MetadataPacket packet = Packet(100, 0.5);
+  for (klv::LatLon& c : *packet.decoded.metadata->corners) {
+    c.longitude_deg += 173;  // 7 + 173: the view's centre on the antimeridian
+    if (c.longitude_deg > 180) c.longitude_deg -= 360;
+  }
+  follower.AddPacket(packet);
+  EXPECT_NEAR(ScaleOf(follower.ForFrame(200, kWidth, kHeight)), 0.5, 1e-3);
+}
+
 TEST(ScaleFollowerTest, UntrustedCornerlessAndDegeneratePacketsArePassedOver) {
   ScaleFollower follower(25);
   follower.AddPacket(Packet(100, 0.5));

@@ -773,17 +773,12 @@ TEST(BlobTrackerTest, AtOneFrameASecondACarIsFollowedWithATopSpeedGate) {
   EXPECT_TRUE(follow(0).empty());  // each sighting starts a track of its own
 }
 
-// The ground's scale of a north-up nadir view of `width` x `height` pixels at `metres_per_pixel`,
-// at 45 degrees north (111 131.75 m a degree of latitude, 78 846.84 m of longitude).
+// The ground's scale of a north-up nadir view of `width` x `height` pixels at `metres_per_pixel`.
 GroundScale NadirScale(double metres_per_pixel, int width, int height) {
   const double e = (width - 1) * metres_per_pixel / 2, n = (height - 1) * metres_per_pixel / 2;
-  std::array<Eigen::Vector2d, 4> corners;
-  const std::array<Eigen::Vector2d, 4> ground = {Eigen::Vector2d(-e, n), Eigen::Vector2d(e, n),
-                                                 Eigen::Vector2d(e, -n), Eigen::Vector2d(-e, -n)};
-  for (size_t i = 0; i < 4; ++i) {
-    corners[i] = Eigen::Vector2d(45 + ground[i].y() / 111131.75, 7 + ground[i].x() / 78846.84);
-  }
-  return *GroundScale::FromCorners(corners, width, height);
+  return *GroundScale::FromCorners({Eigen::Vector2d(-e, n), Eigen::Vector2d(e, n),
+                                    Eigen::Vector2d(e, -n), Eigen::Vector2d(-e, -n)},
+                                   width, height);
 }
 
 // The processing copy is widened where the ground is coarse, so that a walker stays a pixel or
