@@ -60,6 +60,7 @@ namespace saker::ui {
 namespace {
 
 namespace fs = std::filesystem;
+using testing::ProcessingWaitMs;
 using testing::SmallMission;
 using testing::TestMission;
 using testing::WaitUntil;
@@ -882,7 +883,7 @@ TEST(MainWindowTest, ProcessingKeepsTheWindowLiveAndCancelLeavesAUsablePartialMi
   EXPECT_TRUE(facts->text().contains("Resume Processing")) << facts->text().toStdString();
   EXPECT_TRUE(facts->text().contains("Checkpoint")) << facts->text().toStdString();
   resume->trigger();
-  ASSERT_TRUE(finished.wait(120000));
+  ASSERT_TRUE(finished.wait(ProcessingWaitMs()));
   const Status resumed = finished.takeFirst().at(1).value<Status>();
   EXPECT_TRUE(resumed.ok()) << resumed.ToString();
   ASSERT_TRUE(WaitUntil([&] {
@@ -911,7 +912,7 @@ TEST(MainWindowTest, ProcessingToTheEndShowsTheMissionAsItsStagesComplete) {
   QSignalSpy finished(&window, &MainWindow::jobFinished);
   QSignalSpy opened(&window, &MainWindow::missionOpened);
   window.processVideo(QString::fromStdString(m->video.string()), target, false);
-  ASSERT_TRUE(finished.wait(120000));
+  ASSERT_TRUE(finished.wait(ProcessingWaitMs()));
   EXPECT_TRUE(finished.takeFirst().at(1).value<Status>().ok());
   ASSERT_TRUE(WaitUntil([&] {
     return window.mission() != nullptr && window.mission()->progress.tiles &&

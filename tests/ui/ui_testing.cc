@@ -3,6 +3,7 @@
 #include "core/mission/mission_store.h"
 #include "core/pipeline/process.h"
 #include "core/sim/simulator.h"
+#include "tests/testing/sanitizers.h"
 #include "tests/testing/small_loop.h"
 #include "tests/testing/test_data.h"
 
@@ -120,6 +121,13 @@ const TestMission* SmallMission() {
   static std::unique_ptr<TestMission> mission = MakeSmallMission();
   if (mission == nullptr) ADD_FAILURE() << "the small test mission could not be made";
   return mission.get();
+}
+
+int ProcessingWaitMs() {
+  constexpr int kWaitMs = 120000;
+  return saker::testing::kUnderThreadSanitizer || saker::testing::kUnderAddressSanitizer
+             ? 3 * kWaitMs
+             : kWaitMs;
 }
 
 bool WaitUntil(const std::function<bool()>& done, int timeout_ms) {

@@ -27,6 +27,11 @@ struct TestMission {
 // fails.
 const TestMission* SmallMission();
 
+// How long a test waits for the window to process the small mission from start to end: two
+// minutes, three times that under a sanitizer (ThreadSanitizer runs the engine's own code several
+// times slower, and the suite runs two such tests side by side on two cores).
+int ProcessingWaitMs();
+
 // Runs the event loop until `done()` or `timeout_ms` passes; returns done().
 bool WaitUntil(const std::function<bool()>& done, int timeout_ms = 30000);
 
