@@ -53,11 +53,16 @@ constexpr uint32_t kStateLayoutWithoutPolarity = 2;
 constexpr uint32_t kStateLayoutWithoutOverlays = 1;
 
 // The frames an exact resume gives the change detector again before the checkpoint's key frame:
-// its answers not yet applied there (kChangeLagFrames of them) and the image history each needs.
+// its answers not yet applied there (kChangeLagFrames of them), the image history each needs, and
+// the detector's lag more, so that every frame in the first such answer's history has been a
+// centre frame itself and has its noise measured (ChangeDetector::SetAllowances takes the median
+// over the frames held). Without that lag the first answers after a resume took their median
+// over fewer frames than the uninterrupted run did; it showed once the measured misregistration
+// rose above the fixed allowance of clean video (0.2 px, session 33).
 int ChangeReplayFrames(const track::ChangeOptions& change, track::FrameRate rate) {
   if (!change.enabled) return 0;
   return static_cast<int>(kChangeLagFrames) + track::ChangeDetector::HistoryFrames(change, rate) -
-         1;
+         1 + track::ChangeDetector::LagFrames(change, rate);
 }
 
 // A decoded frame and the ground's scale in it from the metadata, when known.
@@ -704,7 +709,12 @@ void FrontEnd::ApplyChangeAnswer(const ChangeThread::Answer& answer) {
   if (answer.restart) change_tracks_.FinishAll();
   const track::ChangeFrame& c = answer.change;
   if (c.answered()) {
-    if (c.allowances_raised) {
+    // Noisy as the findings say it (slow and small targets may be missed): the grey-level noise
+    // above the fixed figure, or the misregistration above clean video's (the fixed allowance is
+    // below it, and clean video's measured figure often just above that).
+    // (As floats: the detector's allowances are.)
+    if (c.noise_grey > static_cast<float>(options_.change.noise_grey) ||
+        c.registration_px > static_cast<float>(change_tracks_.options().clean_registration_px)) {
       VideoNoise& noise = result_.noise;
       ++noise.change_frames;
       noise.change_noise_grey = std::max(noise.change_noise_grey, c.noise_grey);
@@ -721,10 +731,9 @@ void FrontEnd::ApplyChangeAnswer(const ChangeThread::Answer& answer) {
         blobs.push_back(b);
       }
     }
-    const double fixed_registration = options_.change.registration_px;
     const auto scale = ground_scales_.find(c.frame);
     change_tracks_.AddFrame(c.frame, blobs, c.frame_motion,
-                            fixed_registration > 0 ? c.registration_px / fixed_registration : 1.0,
+                            c.registration_px / change_tracks_.options().clean_registration_px,
                             scale != ground_scales_.end() ? &scale->second : nullptr);
     // Within the target's box, and a few pixels round a single point.
     target_tracker_.RecordChange(c.frame, [&](const track::TargetObservation& o) {
@@ -1048,6 +1057,7 @@ track::ChangeOptions FrontEndOptions::EffectiveChange(double fps) const {
     effective.one_sided_edges = low_frame_rate.one_sided_edges;
     effective.evidence_baseline_s = 0;  // no feature targets to give evidence to
     effective.baseline_s = std::max(effective.baseline_s, low_frame_rate.min_baseline_s);
+    effective.registration_px = low_frame_rate.registration_px;
   }
   return effective;
 }
@@ -1083,6 +1093,10 @@ Status LowFrameRateOptions::Validate() const {
   if (!(min_baseline_s >= 0 && min_baseline_s <= 10)) {
     return InvalidArgumentError(
         "low frame rates: the change detector's shortest baseline must be in [0, 10] s");
+  }
+  if (!(registration_px >= 0 && registration_px <= 10)) {
+    return InvalidArgumentError(
+        "low frame rates: the change detector's registration allowance must be in [0, 10] px");
   }
   return blobs.Validate();
 }

@@ -73,6 +73,11 @@ struct LowFrameRateOptions {
   // 0.847 with 2 frames, 0.970 / 0.918 with 3, 0.917 / 0.929 with 4 (2 fps: 1 frame either way;
   // 2 frames took it from 0.930 / 0.908 to 0.874 / 0.898).
   double min_baseline_s = 0.6;
+  // The change detector's registration allowance in the mode (ChangeOptions::registration_px):
+  // frames half a second or more apart differ by more parallax and interpolation than frames
+  // at video rates; 0.2 px there raised the false tracks (tuning seeds: 1 fps orbit precision
+  // 0.843 -> 0.772, 5 fps 0.970 -> 0.936) for little recall.
+  double registration_px = 0.3;
   track::BlobTrackOptions blobs = LowFrameRateBlobs();
   Status Validate() const;
   // The blob tracker's options in the mode: a car moves tens of pixels between frames and its

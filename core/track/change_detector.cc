@@ -658,10 +658,12 @@ bool ChangeFrame::ChangedNear(const Eigen::Vector2d& p, double radius_px) const 
 Status BlobTrackOptions::Validate() const {
   if (!(gate_px > 0 && min_travel_px >= 0 && max_fit_rms_px > 0 && noisy_fit_rms_px > 0 &&
         max_speed_px_s > 0 && box_margin_px >= 0 && gate_growth_px_s >= 0 &&
-        new_track_speed_px_s >= 0 && max_speed_m_s >= 0 && max_speed_m_s <= 1000)) {
+        new_track_speed_px_s >= 0 && max_speed_m_s >= 0 && max_speed_m_s <= 1000 &&
+        clean_registration_px > 0)) {
     return InvalidArgumentError(
         "blob tracks: gate, fit RMS and speed must be positive, travel, margin, the gate's "
-        "growth and the new tracks' speed >= 0, the top speed on the ground in [0, 1000] m/s");
+        "growth and the new tracks' speed >= 0, the top speed on the ground in [0, 1000] m/s, the "
+        "clean video's registration allowance positive");
   }
   if (!(gate_speed_fraction >= 0 && gate_speed_fraction <= 5)) {
     return InvalidArgumentError("blob tracks: the gate's speed fraction must be in [0, 5]");

@@ -71,10 +71,14 @@ struct ChangeOptions {
   // processing pixel at the image centre would span more ground than this: a walker (half a
   // metre) stays a pixel or two (ProcessingWidth). 0: processing_width alone.
   double max_processing_gsd_m = 0.3;
-  double noise_grey = 2.5;       // grey-level noise of one pixel's difference (sensor, compression)
-  double threshold = 4;          // a difference above this many times its noise is significant
-  double registration_px = 0.3;  // misregistration allowed: the local gradient times this is
-                                 // added to the noise
+  double noise_grey = 2.5;  // grey-level noise of one pixel's difference (sensor, compression)
+  double threshold = 4;     // a difference above this many times its noise is significant
+  // Misregistration allowed: the local gradient times this is added to the noise. Clean video
+  // measures 0.12-0.13 px (times `measured_registration_multiple`, just under this). 0.3 until
+  // session 33: a walker a pixel or two across on coarse ground (0.3-0.4 m a pixel) changes the
+  // frame by less than the edges round it; 0.2 found more of them (tuning seeds, docs/accuracy.md).
+  // The low-frame-rate mode keeps 0.3 (LowFrameRateOptions::registration_px).
+  double registration_px = 0.2;
   // Changes this close to the edge of a warped frame are ignored (processing pixels): linear
   // interpolation there mixes in the black outside it. More hides walkers at the image's edge.
   int border_px = 2;
@@ -265,6 +269,10 @@ struct BlobTrackOptions {
   // the simulated thermal look at most 1.3 in nine frames of ten.
   int noisy_max_area_px = 80;
   double noisy_area_scale = 2;
+  // The noise scale is the change detector's registration allowance for the frame over this, the
+  // allowance of clean video these figures were tuned with (so a lower fixed allowance in
+  // ChangeOptions does not make clean video look noisy).
+  double clean_registration_px = 0.3;
   // A plausible top speed on the ground: 50 m/s at 0.2 m a pixel (50 px/s, a walker's or a slow
   // car's, until session 29: cars were left to the feature tracks).
   double max_speed_px_s = 250;
@@ -291,15 +299,16 @@ class BlobTracker {
   // The blobs of frame `frame` and the ground motion since the previous frame (full resolution).
   // `noise_scale` (at least 1) multiplies the travel a track needs to be confirmed and divides the
   // line allowance (to no less than noisy_fit_rms_px): the change detector's misregistration
-  // allowance over its fixed value, so that in heavily compressed video, where the ground's own
-  // differences wander, a blob track must travel further than they, and more steadily.
-  // `scale`, when the metadata gives one for the frame: the ground's scale in it (full
+  // allowance over BlobTrackOptions::clean_registration_px, so that in heavily compressed video,
+  // where the ground's own differences wander, a blob track must travel further than they, and more
+  // steadily. `scale`, when the metadata gives one for the frame: the ground's scale in it (full
   // resolution pixels), for the speed limits (BlobTrackOptions::max_speed_m_s).
   void AddFrame(int64_t frame, const std::vector<ChangeBlob>& blobs,
                 const Eigen::Matrix3d& current_from_previous, double noise_scale = 1,
                 const GroundScale* scale = nullptr);
   // Confirmed tracks that ended since the last call.
   std::vector<TargetTrack> TakeFinished();
+  const BlobTrackOptions& options() const { return options_; }
   // Ends every track (end of the video or a chain break).
   void FinishAll();
 

@@ -731,6 +731,23 @@ TEST(FrontEndOptionsTest, TheLowFrameRateModeComparesFramesAtLeastItsBaselineApa
       2);
 }
 
+// The registration allowance: the change options' at video rates (0.2 px), the mode's own (0.3)
+// below them, where frames half a second apart differ by more parallax; both checked.
+TEST(FrontEndOptionsTest, TheLowFrameRateModeKeepsItsOwnRegistrationAllowance) {
+  FrontEndOptions options;
+  EXPECT_DOUBLE_EQ(options.EffectiveChange(25).registration_px, 0.2);
+  EXPECT_DOUBLE_EQ(options.EffectiveChange(2).registration_px, 0.3);
+  options.low_frame_rate.registration_px = 0.5;
+  EXPECT_DOUBLE_EQ(options.EffectiveChange(1).registration_px, 0.5);
+  EXPECT_DOUBLE_EQ(options.EffectiveChange(25).registration_px, 0.2);
+  EXPECT_TRUE(options.Validate().ok());
+  options.low_frame_rate.registration_px = -0.1;
+  EXPECT_FALSE(options.Validate().ok());
+  FrontEndOptions no_clean;
+  no_clean.change_tracks.clean_registration_px = 0;
+  EXPECT_FALSE(no_clean.Validate().ok());
+}
+
 TEST(FrontEndRunTest, ErrorsAndCancel) {
   StatusOr<FrontEndResult> missing = RunFrontEnd("/nonexistent/sortie.ts", {});
   ASSERT_FALSE(missing.ok());
