@@ -709,12 +709,7 @@ void FrontEnd::ApplyChangeAnswer(const ChangeThread::Answer& answer) {
   if (answer.restart) change_tracks_.FinishAll();
   const track::ChangeFrame& c = answer.change;
   if (c.answered()) {
-    // Noisy as the findings say it (slow and small targets may be missed): the grey-level noise
-    // above the fixed figure, or the misregistration above clean video's (the fixed allowance is
-    // below it, and clean video's measured figure often just above that).
-    // (As floats: the detector's allowances are.)
-    if (c.noise_grey > static_cast<float>(options_.change.noise_grey) ||
-        c.registration_px > static_cast<float>(change_tracks_.options().clean_registration_px)) {
+    if (c.allowances_raised) {
       VideoNoise& noise = result_.noise;
       ++noise.change_frames;
       noise.change_noise_grey = std::max(noise.change_noise_grey, c.noise_grey);
@@ -733,7 +728,7 @@ void FrontEnd::ApplyChangeAnswer(const ChangeThread::Answer& answer) {
     }
     const auto scale = ground_scales_.find(c.frame);
     change_tracks_.AddFrame(c.frame, blobs, c.frame_motion,
-                            c.registration_px / change_tracks_.options().clean_registration_px,
+                            c.registration_px / options_.change.clean_registration_px,
                             scale != ground_scales_.end() ? &scale->second : nullptr);
     // Within the target's box, and a few pixels round a single point.
     target_tracker_.RecordChange(c.frame, [&](const track::TargetObservation& o) {

@@ -113,10 +113,11 @@ Status ChangeOptions::Validate() const {
     return InvalidArgumentError(
         "change detection: the measured noise multiples must be in [0, 100]");
   }
-  if (!(noise_grey > 0 && threshold > 0 && registration_px >= 0 && min_contrast_grey >= 0)) {
+  if (!(noise_grey > 0 && threshold > 0 && registration_px >= 0 && clean_registration_px > 0 &&
+        min_contrast_grey >= 0)) {
     return InvalidArgumentError(
-        "change detection: noise and threshold must be positive, the registration allowance and "
-        "contrast >= 0");
+        "change detection: noise, threshold and clean video's registration allowance must be "
+        "positive, the registration allowance and contrast >= 0");
   }
   if (!(sharpness_match_ratio == 0 ||
         (sharpness_match_ratio > 1 && sharpness_match_ratio <= 100))) {
@@ -257,7 +258,7 @@ ChangeFrame ChangeDetector::Process(int64_t frame, const cv::Mat& grey,
   result.noise_grey = noise_;
   result.registration_px = allowance_;
   result.allowances_raised = noise_ > static_cast<float>(options_.noise_grey) ||
-                             allowance_ > static_cast<float>(options_.registration_px);
+                             allowance_ > static_cast<float>(options_.clean_registration_px);
   result.blobs = FindBlobs(changed);
   result.frame = centre.frame;
   result.frame_motion = centre.motion;
@@ -658,12 +659,10 @@ bool ChangeFrame::ChangedNear(const Eigen::Vector2d& p, double radius_px) const 
 Status BlobTrackOptions::Validate() const {
   if (!(gate_px > 0 && min_travel_px >= 0 && max_fit_rms_px > 0 && noisy_fit_rms_px > 0 &&
         max_speed_px_s > 0 && box_margin_px >= 0 && gate_growth_px_s >= 0 &&
-        new_track_speed_px_s >= 0 && max_speed_m_s >= 0 && max_speed_m_s <= 1000 &&
-        clean_registration_px > 0)) {
+        new_track_speed_px_s >= 0 && max_speed_m_s >= 0 && max_speed_m_s <= 1000)) {
     return InvalidArgumentError(
         "blob tracks: gate, fit RMS and speed must be positive, travel, margin, the gate's "
-        "growth and the new tracks' speed >= 0, the top speed on the ground in [0, 1000] m/s, the "
-        "clean video's registration allowance positive");
+        "growth and the new tracks' speed >= 0, the top speed on the ground in [0, 1000] m/s");
   }
   if (!(gate_speed_fraction >= 0 && gate_speed_fraction <= 5)) {
     return InvalidArgumentError("blob tracks: the gate's speed fraction must be in [0, 5]");

@@ -79,6 +79,10 @@ struct ChangeOptions {
   // frame by less than the edges round it; 0.2 found more of them (tuning seeds, docs/accuracy.md).
   // The low-frame-rate mode keeps 0.3 (LowFrameRateOptions::registration_px).
   double registration_px = 0.2;
+  // The misregistration allowance of clean video (the fixed one until session 33): an answer's
+  // allowances count as raised by the video's noise (ChangeFrame::allowances_raised) above it or
+  // above `noise_grey`, and the blob tracks' noise scale is the answer's allowance over it.
+  double clean_registration_px = 0.3;
   // Changes this close to the edge of a warped frame are ignored (processing pixels): linear
   // interpolation there mixes in the black outside it. More hides walkers at the image's edge.
   int border_px = 2;
@@ -142,7 +146,9 @@ struct ChangeFrame {
   // The allowances the answer was made with (ChangeOptions: the fixed ones, or larger where the
   // video's measured noise asks for it).
   double noise_grey = 0, registration_px = 0;
-  bool allowances_raised = false;  // either is above the fixed one
+  // The video's noise raised them: the grey-level noise above ChangeOptions::noise_grey or the
+  // misregistration above ChangeOptions::clean_registration_px.
+  bool allowances_raised = false;
   bool answered() const { return frame >= 0; }
   // Whether a changed pixel (of either mask) lies within `radius_px` (full resolution) of `p`.
   bool ChangedNear(const Eigen::Vector2d& p, double radius_px) const;
@@ -269,10 +275,6 @@ struct BlobTrackOptions {
   // the simulated thermal look at most 1.3 in nine frames of ten.
   int noisy_max_area_px = 80;
   double noisy_area_scale = 2;
-  // The noise scale is the change detector's registration allowance for the frame over this, the
-  // allowance of clean video these figures were tuned with (so a lower fixed allowance in
-  // ChangeOptions does not make clean video look noisy).
-  double clean_registration_px = 0.3;
   // A plausible top speed on the ground: 50 m/s at 0.2 m a pixel (50 px/s, a walker's or a slow
   // car's, until session 29: cars were left to the feature tracks).
   double max_speed_px_s = 250;
@@ -299,7 +301,7 @@ class BlobTracker {
   // The blobs of frame `frame` and the ground motion since the previous frame (full resolution).
   // `noise_scale` (at least 1) multiplies the travel a track needs to be confirmed and divides the
   // line allowance (to no less than noisy_fit_rms_px): the change detector's misregistration
-  // allowance over BlobTrackOptions::clean_registration_px, so that in heavily compressed video,
+  // allowance over ChangeOptions::clean_registration_px, so that in heavily compressed video,
   // where the ground's own differences wander, a blob track must travel further than they, and more
   // steadily. `scale`, when the metadata gives one for the frame: the ground's scale in it (full
   // resolution pixels), for the speed limits (BlobTrackOptions::max_speed_m_s).
@@ -308,7 +310,6 @@ class BlobTracker {
                 const GroundScale* scale = nullptr);
   // Confirmed tracks that ended since the last call.
   std::vector<TargetTrack> TakeFinished();
-  const BlobTrackOptions& options() const { return options_; }
   // Ends every track (end of the video or a chain break).
   void FinishAll();
 

@@ -744,7 +744,7 @@ TEST(FrontEndOptionsTest, TheLowFrameRateModeKeepsItsOwnRegistrationAllowance) {
   options.low_frame_rate.registration_px = -0.1;
   EXPECT_FALSE(options.Validate().ok());
   FrontEndOptions no_clean;
-  no_clean.change_tracks.clean_registration_px = 0;
+  no_clean.change.clean_registration_px = 0;
   EXPECT_FALSE(no_clean.Validate().ok());
 }
 
