@@ -218,7 +218,9 @@ class FrontEnd {
   // limit.
   Status CheckMemoryBudget(int width, int height);
   Status CheckMemory(const video::Frame& frame);
-  Status ProcessFrame(const video::Frame& frame);
+  // `on_ground`: the frame's metadata puts all of it on the ground (it has a ground scale), so
+  // it shows no horizon (HorizonTracker::Add).
+  Status ProcessFrame(const video::Frame& frame, bool on_ground);
   std::optional<track::HomographyEstimate> EstimateGroundMotion(
       std::optional<Eigen::Vector3d>* epipole);
   void SubmitForChange(const video::Frame& frame,
@@ -374,6 +376,7 @@ StatusOr<FrontEndResult> FrontEnd::Run() {
       ReportProgress(static_cast<double>(frame->index + 1));
       continue;  // done before: only decoded, for the scan
     }
+    const bool on_ground = decoded->scale.has_value();
     NoteGroundScale(frame->index, std::move(decoded->scale));
     const bool replay = start_.exact && frame->index <= start_.through_frame;
     // A thermal camera's polarity switch: the frames after it go on inverted back, in the first
@@ -389,7 +392,7 @@ StatusOr<FrontEndResult> FrontEnd::Run() {
       continue;
     }
     SAKER_RETURN_IF_ERROR(CheckMemory(*frame));
-    SAKER_RETURN_IF_ERROR(ProcessFrame(*frame));
+    SAKER_RETURN_IF_ERROR(ProcessFrame(*frame, on_ground));
   }
   SAKER_ASSIGN_OR_RETURN(ingest::VideoScan scan, decode.Finish());
   StatusOr<FrontEndResult> result = Finish(std::move(scan), decode.decode_ms());
@@ -534,7 +537,7 @@ Status FrontEnd::CheckMemory(const video::Frame& frame) {
 
 // Track, ground motion, change detection submitted, segmentation and targets; then, from the
 // checkpoint's key frame on (the frames before it only warm up), key frames and checkpoints.
-Status FrontEnd::ProcessFrame(const video::Frame& frame) {
+Status FrontEnd::ProcessFrame(const video::Frame& frame, bool on_ground) {
   FrameResult fr;
   fr.index = frame.index;
   fr.time_s = frame.time_s;
@@ -542,7 +545,7 @@ Status FrontEnd::ProcessFrame(const video::Frame& frame) {
   fr.key_frame = frame.key_frame;
   FrontEndTiming& timing = result_.timing;
   const Stopwatch watch;
-  if (const std::optional<track::HorizonLine> line = horizon_.Add(frame.grey)) {
+  if (const std::optional<track::HorizonLine> line = horizon_.Add(frame.grey, on_ground)) {
     // The frames just before, whose own horizon was found before the window confirmed it, are
     // masked too (the first frames of a video that starts with the horizon in view).
     for (const auto& [index, earlier] : unconfirmed_sky_) MaskSky(index, earlier, nullptr);

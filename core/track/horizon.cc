@@ -139,9 +139,9 @@ std::optional<HorizonLine> FindHorizon(const cv::Mat& grey, const HorizonOptions
 HorizonTracker::HorizonTracker(const HorizonOptions& options, const FrameRate& rate)
     : options_(options), window_frames_(rate.Frames(options.window_s, options.min_window_frames)) {}
 
-std::optional<HorizonLine> HorizonTracker::Add(const cv::Mat& grey) {
+std::optional<HorizonLine> HorizonTracker::Add(const cv::Mat& grey, bool on_ground) {
   if (!options_.enabled) return std::nullopt;
-  const std::optional<HorizonLine> found = FindHorizon(grey, options_);
+  const std::optional<HorizonLine> found = on_ground ? std::nullopt : FindHorizon(grey, options_);
   found_line_ = found;
   margin_px_ = options_.margin_fraction * grey.rows;
   found_.push_back(found.has_value());

@@ -14,7 +14,8 @@
 // water below the horizon (a calm sea) can go with the sky: the line then tilts, and the water,
 // whose waves would be taken for movers, is masked too. A view whose frame is all ground has no
 // such line; a nadir view over smooth fields may, which is why the front end asks for the horizon
-// in most of the recent frames before it masks anything (HorizonTracker).
+// in most of the recent frames before it masks anything (HorizonTracker), and where the frame's
+// metadata puts the whole image on the ground, trusts that over the image.
 //
 // The mask is the part above the line, and `margin_fraction` of the frame's height below it: the
 // distant ground (docs/front-end.md, "Oblique views").
@@ -61,7 +62,10 @@ class HorizonTracker {
   HorizonTracker(const HorizonOptions& options, const FrameRate& rate);
 
   // Finds the horizon of the next frame and returns the mask's line for it (nullopt: no mask).
-  std::optional<HorizonLine> Add(const cv::Mat& grey);
+  // `on_ground`: the frame's metadata puts its four corners on the ground with the ground's
+  // horizon outside the image (GroundScale::FromCorners), so a line found in it is not the
+  // horizon (a straight road with smooth fields beyond it, seen from above) and counts as none.
+  std::optional<HorizonLine> Add(const cv::Mat& grey, bool on_ground = false);
   // The line of the latest frame added (nullopt: no mask), and whether `p` is masked by it.
   const std::optional<HorizonLine>& line() const { return line_; }
   // The horizon found in the latest frame itself, confirmed or not.
