@@ -152,7 +152,9 @@ struct FrontEndOptions {
   // (that evidence comes late, docs/front-end.md "Threads"); for a video of `fps` frames a second
   // in the low-frame-rate mode, no gap is filled.
   video::ReaderOptions EffectiveReader() const;
-  track::TrackerOptions EffectiveTracker() const;
+  // The feature tracker for a video of `rate`: no finished tracks, and only the history the
+  // still features' window reads (OverlayOptions::still_window_s).
+  track::TrackerOptions EffectiveTracker(track::FrameRate rate) const;
   track::TargetTrackOptions EffectiveTargets(double fps) const;
   // Whether the low-frame-rate mode runs for a video of `fps` frames a second (a rate the video
   // does not give counts as 25); it needs change detection.

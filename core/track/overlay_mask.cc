@@ -55,6 +55,13 @@ Status OverlayOptions::Validate() const {
   if (!(fixed_fraction > 0 && fixed_fraction < 1)) {
     return InvalidArgumentError("overlays: the fixed fraction must be in (0, 1)");
   }
+  if (!(still_window_s > 0 && still_window_s <= 60) || still_min_window_frames < 1 ||
+      still_min_window_frames > 1000 || !(still_min_flow_px > 0 && still_min_flow_px <= 1000) ||
+      !(still_max_px > 0 && still_max_px <= 1000)) {
+    return InvalidArgumentError(
+        "overlays: the still features' window must be in (0, 60] s and 1..1000 frames, the "
+        "flows in (0, 1000] px");
+  }
   if (!(off_fraction >= 0 && off_fraction <= on_fraction && on_fraction > 0 && on_fraction <= 1)) {
     return InvalidArgumentError("overlays: need 0 <= off fraction <= on fraction, 0 < on <= 1");
   }
@@ -285,6 +292,45 @@ bool OverlayDetector::RestoreState(ByteReader* in) {
   }
   return fraction_.size() == count_.size() && fraction_.size() == on_.size() &&
          (mask_.cells.empty() || mask_.cells.size() == on_.size());
+}
+
+std::vector<FeatureTrackId> StillFeatures(const FeatureTracker& tracker,
+                                          const std::vector<Correspondence>& matches,
+                                          int window_frames, int min_window_frames,
+                                          double min_flow_px, double fraction, double max_px) {
+  constexpr size_t kMinFeatures = 8;
+  std::vector<FeatureTrackId> still;
+  // Each match is judged over the longest window it spans (window_frames, its half, and so on
+  // down to min_window_frames) whose median motion is known: a young track (a corner found on a
+  // digit that just changed) over a shorter one.
+  std::vector<bool> judged(matches.size(), false);
+  std::vector<double> moved(matches.size()), flows;
+  std::vector<size_t> spanning;
+  for (int window = window_frames; window >= std::max(1, min_window_frames);
+       window = window > min_window_frames ? std::max(min_window_frames, window / 2) : 0) {
+    const int64_t then = tracker.last_frame() - window;
+    spanning.clear();
+    flows.clear();
+    for (size_t i = 0; i < matches.size(); ++i) {
+      const FeatureTrack* history = tracker.History(matches[i].id);
+      const Eigen::Vector2d* before = history != nullptr ? history->PositionAt(then) : nullptr;
+      if (before == nullptr) continue;
+      moved[i] = (matches[i].target - *before).norm();
+      flows.push_back(moved[i]);
+      if (!judged[i]) spanning.push_back(i);
+    }
+    if (flows.size() < kMinFeatures) continue;
+    const auto middle = flows.begin() + static_cast<std::ptrdiff_t>(flows.size() / 2);
+    std::nth_element(flows.begin(), middle, flows.end());
+    if (!(*middle >= min_flow_px)) continue;
+    for (const size_t i : spanning) {
+      judged[i] = true;
+      if (moved[i] < std::min(fraction * *middle, max_px)) still.push_back(matches[i].id);
+    }
+    if (window == min_window_frames) break;
+  }
+  std::sort(still.begin(), still.end());
+  return still;
 }
 
 }  // namespace saker::track

@@ -28,6 +28,7 @@
 // it in most of their frames (docs/front-end.md, "Overlays").
 
 #include "core/track/change_detector.h"
+#include "core/track/feature_tracker.h"
 #include "core/track/horizon.h"
 #include "core/track/target_tracks.h"
 #include "core/track/types.h"
@@ -57,8 +58,22 @@ struct OverlayOptions {
   double off_fraction = 0.2;       // an overlay cell below this fraction is not any more
   double min_feature_flow_px = 1;  // ground motion at a feature, one frame, for its evidence
   double fixed_fraction = 0.2;     // a feature moving less than this fraction of it stays put
-  int cell_px = 8;                 // mask cell side, full-resolution pixels
-  int dilate_cells = 2;            // the mask is grown by this many cells
+  // Before the mask knows an overlay (its evidence takes seconds, and none comes while the ground
+  // moves less than min_feature_flow_px a frame), the features that kept still in the image over
+  // the last `still_window_s` while the median feature moved at least `still_min_flow_px` (less
+  // than fixed_fraction of that median, and less than `still_max_px`) are left out of the ground
+  // motion (StillFeatures), judged over windows of down to `still_min_window_frames` for young
+  // tracks. The ground's features about the centre of an orbit's turn or a zoom move little too,
+  // and go with them: over one frame of an orbit turning 0.24 degrees a frame, those within 95 px
+  // of the centre move less than 0.4 px (within 10 px over the whole window), a few in a hundred
+  // of the frame's. Chosen on the tuning seeds against 0.15 px, which keeps more of those but
+  // also more of an overlay's corners that jitter with the codec (docs/accuracy.md, session 34).
+  double still_window_s = 0.5;
+  int still_min_window_frames = 1;
+  double still_min_flow_px = 1;
+  double still_max_px = 0.5;
+  int cell_px = 8;       // mask cell side, full-resolution pixels
+  int dilate_cells = 2;  // the mask is grown by this many cells
   // A target whose observations lie on the mask in at least this fraction of its frames is
   // dropped (1 turns it off).
   double max_target_fraction = 0.5;
@@ -113,6 +128,20 @@ bool ScreenFixed(
     const TargetTrack& target, double radius_px, double share, double ground_fraction,
     double min_ground_px,
     const std::function<double(int64_t, int64_t, const Eigen::Vector2d&)>& ground_shift_px);
+
+// The features of `matches` (the latest frame's) that kept still in the image while the others
+// moved: each is judged over the longest of the last `window_frames` frames, their half, and so
+// on down to `min_window_frames`, that it was tracked through and over which the median motion of
+// the matches tracked that long (at least 8 of them) is at least `min_flow_px`; it kept still
+// when it moved less than `fraction` of that median and less than `max_px`. Young tracks (a
+// segment's first frames, a corner found on a digit that just changed) are judged over the shorter
+// windows. Screen-fixed overlays (HUD text, a reticle) keep still from their first frames; the
+// centre of the camera's turn or zoom does too, but few of the ground's features lie there. Ordered
+// by id.
+std::vector<FeatureTrackId> StillFeatures(const FeatureTracker& tracker,
+                                          const std::vector<Correspondence>& matches,
+                                          int window_frames, int min_window_frames,
+                                          double min_flow_px, double fraction, double max_px);
 
 class OverlayDetector {
  public:
