@@ -327,7 +327,6 @@ std::vector<FeatureTrackId> StillFeatures(const FeatureTracker& tracker,
       judged[i] = true;
       if (moved[i] < std::min(fraction * *middle, max_px)) still.push_back(matches[i].id);
     }
-    if (window == min_window_frames) break;
   }
   std::sort(still.begin(), still.end());
   return still;
